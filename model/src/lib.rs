@@ -1,0 +1,21 @@
+//! vmt-model: the physics of a three-axis machining centre as pure functions and small state
+//! machines. No files, no clocks, no global state.
+//!
+//! - [`axis`]: the axes and their direction states.
+//! - [`geometric`]: the 21 direction-dependent geometric errors of ISO 230-1.
+//! - [`machine`]: a whole machine: axes, error chain, thermal model.
+//! - [`kinematics`]: the 24 topologies and the exact homogeneous-transform chain that gives the
+//!   volumetric error.
+//! - [`thermal`]: the lumped thermal network (temperatures in time).
+//! - [`thermal_deformation`]: from temperatures to thermal link and joint deformations.
+//!
+//! Units are SI throughout (m, rad, s, K, W); conversions happen at the edges.
+
+pub mod axis;
+pub mod geometric;
+pub mod kinematics;
+pub mod machine;
+pub mod thermal;
+pub mod thermal_deformation;
+
+pub use axis::{Axis, Direction, DirectionTracker};

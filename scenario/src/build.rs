@@ -1,0 +1,558 @@
+//! From the parsed TOML to the model's types, checking every value.
+//!
+//! Checks return [`Invalid`] with the key path; the caller turns the path into file, line and
+//! column. Accepted ranges are physical (masses and capacities positive, tables increasing) or
+//! the validity range of the small-error model (translations up to 1 mm, angles up to 10 mrad).
+
+use crate::error::{Invalid, KeyPath, ScenarioError};
+use crate::schema::*;
+use crate::table;
+use nalgebra::Vector3;
+use std::collections::BTreeMap;
+use std::path::Path;
+use vmt_model::geometric::{
+    AxisErrors, Component, Directional, ErrorFunction, GeometricErrors, Interpolation,
+    LegendreSeries, SquarenessError, SquarenessValue,
+};
+use vmt_model::kinematics::{Kinematics, Topology, VolumetricModel};
+use vmt_model::machine::{AxisSpec, Machine, ThermalMachine};
+use vmt_model::thermal::{
+    Ambient, Conductance, HeatSource, Operating, Segment, ThermalNetwork, ThermalNode,
+    ThermalSchedule,
+};
+use vmt_model::thermal_deformation::{
+    AxisExpansion, JointThermalModel, LinkThermalModel, NodeSensitivity, ThermalDeformationModel,
+};
+use vmt_model::Axis;
+
+/// Largest geometric translation error accepted, µm (the small-error model's range).
+pub const MAX_TRANSLATION_UM: f64 = 1000.0;
+/// Largest geometric angular error accepted, µrad.
+pub const MAX_ANGLE_URAD: f64 = 10_000.0;
+
+/// A thermal run: the operating schedule and the integration step.
+#[derive(Clone, Debug)]
+pub struct ThermalRunSpec {
+    /// What the machine does over time.
+    pub schedule: ThermalSchedule,
+    /// Fixed step of the exact-discretisation integrator, s.
+    pub step_s: f64,
+}
+
+/// A loaded scenario.
+#[derive(Clone, Debug)]
+pub struct Scenario {
+    /// The machine.
+    pub machine: Machine,
+    /// The thermal run, if the scenario has one.
+    pub thermal_run: Option<ThermalRunSpec>,
+}
+
+/// A failure while building: in this document (located by key) or in another file.
+pub enum BuildError {
+    /// A value of the scenario document.
+    Invalid(Invalid),
+    /// A referenced file (already located).
+    External(ScenarioError),
+}
+
+impl From<Invalid> for BuildError {
+    fn from(e: Invalid) -> Self {
+        BuildError::Invalid(e)
+    }
+}
+
+type Result<T> = std::result::Result<T, BuildError>;
+
+/// Builds the scenario; `base_dir` resolves table files (`None`: files are not allowed).
+pub fn scenario(raw: ScenarioFile, base_dir: Option<&Path>) -> Result<Scenario> {
+    let machine = machine(&raw.machine, base_dir)?;
+    let thermal_run = match &raw.thermal_run {
+        None => None,
+        Some(run) => {
+            if machine.thermal.is_none() {
+                let msg = "a thermal run needs a thermal model: add [machine.thermal]";
+                return Err(Invalid::new(KeyPath::of(&["thermal_run"]), msg).into());
+            }
+            Some(thermal_run(run)?)
+        }
+    };
+    Ok(Scenario {
+        machine,
+        thermal_run,
+    })
+}
+
+fn machine(m: &MachineToml, base_dir: Option<&Path>) -> Result<Machine> {
+    let root = KeyPath::of(&["machine"]);
+    let topology: Topology = m
+        .topology
+        .parse()
+        .map_err(|e: vmt_model::kinematics::TopologyError| {
+            Invalid::new(root.key("topology"), e.to_string())
+        })?;
+    let axes = [
+        axis_spec(&m.axes.x, &root.key("axes").key("x"))?,
+        axis_spec(&m.axes.y, &root.key("axes").key("y"))?,
+        axis_spec(&m.axes.z, &root.key("axes").key("z"))?,
+    ];
+    let mut kinematics = Kinematics::new(topology);
+    kinematics.tool_offset = tool_offset(&m.tool, &root.key("tool"))?;
+    let link_names = topology.link_names();
+    for (name, pivot) in &m.link_pivots_mm {
+        let path = root.key("link_pivots_mm").key(name);
+        let k = link_index(&link_names, name, &path)?;
+        kinematics.link_pivots[k] = vector_mm(pivot, &path)?;
+    }
+    let errors = match &m.errors {
+        Some(e) => geometric(e, &axes, &root.key("errors"), base_dir)?,
+        None => GeometricErrors::zero(),
+    };
+    let thermal = match &m.thermal {
+        Some(t) => Some(thermal(t, &link_names, &root.key("thermal"))?),
+        None => None,
+    };
+    Ok(Machine {
+        name: m.name.clone(),
+        axes,
+        volumetric: VolumetricModel::new(kinematics, errors),
+        thermal,
+    })
+}
+
+fn finite(v: f64, path: &KeyPath, accepted: &str) -> std::result::Result<f64, Invalid> {
+    if v.is_finite() {
+        Ok(v)
+    } else {
+        Err(Invalid::new(path.clone(), format!("{v} is not accepted; {accepted}")))
+    }
+}
+
+fn in_range(v: f64, lo: f64, hi: f64, path: &KeyPath, what: &str) -> std::result::Result<f64, Invalid> {
+    let accepted = format!("{what} from {lo} to {hi} is accepted");
+    let v = finite(v, path, &accepted)?;
+    if (lo..=hi).contains(&v) {
+        Ok(v)
+    } else {
+        Err(Invalid::new(path.clone(), format!("{v} is out of range; {accepted}")))
+    }
+}
+
+fn positive(v: f64, hi: f64, path: &KeyPath, what: &str) -> std::result::Result<f64, Invalid> {
+    let v = in_range(v, 0.0, hi, path, what)?;
+    if v > 0.0 {
+        Ok(v)
+    } else {
+        Err(Invalid::new(path.clone(), format!("{v} is not accepted; {what} must be > 0")))
+    }
+}
+
+fn vector_mm(v: &[f64; 3], path: &KeyPath) -> std::result::Result<Vector3<f64>, Invalid> {
+    let mut out = Vector3::zeros();
+    for i in 0..3 {
+        out[i] = in_range(v[i], -10_000.0, 10_000.0, &path.index(i), "a coordinate in mm")? * 1e-3;
+    }
+    Ok(out)
+}
+
+fn axis_spec(a: &AxisToml, path: &KeyPath) -> std::result::Result<AxisSpec, Invalid> {
+    let p = path.key("stroke_mm");
+    let lo = in_range(a.stroke_mm[0], -10_000.0, 10_000.0, &p.index(0), "a stroke end in mm")?;
+    let hi = in_range(a.stroke_mm[1], -10_000.0, 10_000.0, &p.index(1), "a stroke end in mm")?;
+    if lo >= hi {
+        let msg = format!("[{lo}, {hi}] is not accepted; the stroke is [min, max] with min < max");
+        return Err(Invalid::new(p, msg));
+    }
+    let mass = positive(a.moving_mass_kg, 100_000.0, &path.key("moving_mass_kg"), "a mass in kg")?;
+    Ok(AxisSpec {
+        min_m: lo * 1e-3,
+        max_m: hi * 1e-3,
+        moving_mass_kg: mass,
+    })
+}
+
+fn tool_offset(t: &ToolToml, path: &KeyPath) -> std::result::Result<Vector3<f64>, Invalid> {
+    let length = in_range(t.length_mm, 0.0, 1000.0, &path.key("length_mm"), "a tool length in mm")?;
+    let p = path.key("tcp_offset_mm");
+    let x = in_range(t.tcp_offset_mm[0], -1000.0, 1000.0, &p.index(0), "an offset in mm")?;
+    let y = in_range(t.tcp_offset_mm[1], -1000.0, 1000.0, &p.index(1), "an offset in mm")?;
+    Ok(Vector3::new(x, y, -length) * 1e-3)
+}
+
+fn link_index(names: &[String; 5], name: &str, path: &KeyPath) -> std::result::Result<usize, Invalid> {
+    names.iter().position(|n| n == name).ok_or_else(|| {
+        Invalid::new(
+            path.clone(),
+            format!("no link `{name}` in this topology; its links are {}", names.join(", ")),
+        )
+    })
+}
+
+fn geometric(
+    e: &ErrorsToml,
+    axes: &[AxisSpec; 3],
+    path: &KeyPath,
+    base_dir: Option<&Path>,
+) -> Result<GeometricErrors> {
+    let mut out = GeometricErrors::zero();
+    for (axis, raw) in Axis::ALL.into_iter().zip([&e.x, &e.y, &e.z]) {
+        if let Some(raw) = raw {
+            let spec = &axes[axis.index()];
+            let p = path.key(&axis.to_string().to_lowercase());
+            out.axes[axis.index()] = axis_errors(raw, axis, spec, &p, base_dir)?;
+        }
+    }
+    for (key, value) in &e.squareness {
+        let p = path.key("squareness").key(key);
+        let which = SquarenessError::ALL
+            .into_iter()
+            .find(|s| format!("{}_urad", s.iso_name()) == *key)
+            .ok_or_else(|| {
+                Invalid::new(p.clone(), "unknown squareness; accepted keys: EC0Y_urad, EB0Z_urad, EA0Z_urad (µrad)")
+            })?;
+        out.set_squareness(which, squareness(value, &p)?);
+    }
+    Ok(out)
+}
+
+fn axis_errors(
+    raw: &AxisErrorsToml,
+    axis: Axis,
+    spec: &AxisSpec,
+    path: &KeyPath,
+    base_dir: Option<&Path>,
+) -> Result<AxisErrors> {
+    let forward = direction_errors(&raw.forward, None, axis, spec, &path.key("forward"), base_dir)?;
+    let backward = match &raw.backward {
+        Some(b) => direction_errors(b, Some(&forward), axis, spec, &path.key("backward"), base_dir)?,
+        None => forward.clone(),
+    };
+    let mut out = AxisErrors::zero();
+    for (k, c) in Component::ALL.into_iter().enumerate() {
+        let functions = Directional {
+            forward: forward[k].clone(),
+            backward: backward[k].clone(),
+        };
+        out.set(c, functions);
+    }
+    Ok(out)
+}
+
+/// Key of a component in a scenario: ISO name and unit, e.g. `EXX_um`, `EBX_urad`.
+fn component_key(c: Component, axis: Axis) -> String {
+    let unit = if c.is_angular() { "urad" } else { "um" };
+    format!("{}_{unit}", c.iso_name(axis))
+}
+
+/// The six functions of one direction. Components a backward set leaves out are the forward
+/// ones (no backlash in them).
+fn direction_errors(
+    raw: &DirectionErrorsToml,
+    defaults: Option<&[ErrorFunction; 6]>,
+    axis: Axis,
+    spec: &AxisSpec,
+    path: &KeyPath,
+    base_dir: Option<&Path>,
+) -> Result<[ErrorFunction; 6]> {
+    let interpolation = match raw.interpolation.as_deref() {
+        None | Some("linear") => Interpolation::Linear,
+        Some("pchip") => Interpolation::Pchip,
+        Some(other) => {
+            let msg = format!("`{other}` is not accepted; interpolation is \"linear\" or \"pchip\"");
+            return Err(Invalid::new(path.key("interpolation"), msg).into());
+        }
+    };
+    if let Some(file) = &raw.table {
+        if let Some(key) = raw.legendre.keys().next() {
+            let msg = "give either a table or Legendre coefficients for one direction, not both";
+            return Err(Invalid::new(path.key(key), msg).into());
+        }
+        let Some(dir) = base_dir else {
+            let msg = "the built-in scenario cannot refer to files; copy it to a file first";
+            return Err(Invalid::new(path.key("table"), msg).into());
+        };
+        let stroke = (spec.min_m, spec.max_m);
+        return table::read(&dir.join(file), axis, interpolation, stroke).map_err(BuildError::External);
+    }
+    if raw.interpolation.is_some() {
+        let msg = "interpolation applies to tables only; add `table = \"file.csv\"` or remove it";
+        return Err(Invalid::new(path.key("interpolation"), msg).into());
+    }
+    let mut out: [ErrorFunction; 6] = defaults.cloned().unwrap_or_default();
+    let accepted: Vec<String> = Component::ALL.iter().map(|c| component_key(*c, axis)).collect();
+    for (key, value) in &raw.legendre {
+        let p = path.key(key);
+        let k = accepted.iter().position(|a| a == key).ok_or_else(|| {
+            let msg = format!(
+                "unknown key; accepted: table, interpolation, or Legendre coefficients {} (µm, µrad)",
+                accepted.join(", ")
+            );
+            Invalid::new(p.clone(), msg)
+        })?;
+        out[k] = legendre(value, Component::ALL[k], spec, &p)?;
+    }
+    Ok(out)
+}
+
+fn legendre(
+    value: &toml::Value,
+    c: Component,
+    spec: &AxisSpec,
+    path: &KeyPath,
+) -> std::result::Result<ErrorFunction, Invalid> {
+    let (limit, unit) = if c.is_angular() {
+        (MAX_ANGLE_URAD, "µrad")
+    } else {
+        (MAX_TRANSLATION_UM, "µm")
+    };
+    let coeffs = numbers(value, path, "a list of Legendre coefficients [c0, c1, c2, ...]")?;
+    let total: f64 = coeffs.iter().map(|c| c.abs()).sum();
+    if total > limit {
+        let msg = format!(
+            "the coefficients reach {total} {unit}; up to {limit} {unit} in sum of magnitudes is accepted (the small-error model's range)"
+        );
+        return Err(Invalid::new(path.clone(), msg));
+    }
+    let si = coeffs.iter().map(|c| c * 1e-6).collect();
+    let series = LegendreSeries::new(si, spec.min_m, spec.max_m)
+        .map_err(|e| Invalid::new(path.clone(), e.to_string()))?;
+    Ok(ErrorFunction::Legendre(series))
+}
+
+fn numbers(value: &toml::Value, path: &KeyPath, what: &str) -> std::result::Result<Vec<f64>, Invalid> {
+    let arr = value
+        .as_array()
+        .ok_or_else(|| Invalid::new(path.clone(), format!("expected {what}")))?;
+    arr.iter()
+        .enumerate()
+        .map(|(i, v)| {
+            let x = v.as_float().or_else(|| v.as_integer().map(|n| n as f64));
+            x.filter(|x| x.is_finite()).ok_or_else(|| {
+                Invalid::new(path.index(i), format!("`{v}` is not accepted; expected finite numbers: {what}"))
+            })
+        })
+        .collect()
+}
+
+/// A squareness value: a number, `{forward, backward}` (direction of the rotated axis) or
+/// `{ff, fb, bf, bb}` (reference axis direction, then rotated axis direction).
+fn squareness(value: &toml::Value, path: &KeyPath) -> std::result::Result<SquarenessValue, Invalid> {
+    const FORMS: &str = "a number (µrad), { forward = .., backward = .. } by the direction of the rotated axis, or { ff = .., fb = .., bf = .., bb = .. } by the directions of the reference and rotated axes";
+    let get = |v: &toml::Value, p: &KeyPath| -> std::result::Result<f64, Invalid> {
+        let x = v.as_float().or_else(|| v.as_integer().map(|n| n as f64));
+        let x = x.ok_or_else(|| Invalid::new(p.clone(), format!("expected {FORMS}")))?;
+        Ok(in_range(x, -MAX_ANGLE_URAD, MAX_ANGLE_URAD, p, "a squareness in µrad")? * 1e-6)
+    };
+    if let Some(table) = value.as_table() {
+        let mut keys: Vec<&str> = table.keys().map(String::as_str).collect();
+        keys.sort_unstable();
+        let field = |k: &str| get(&table[k], &path.key(k));
+        let values = match keys.as_slice() {
+            ["backward", "forward"] => {
+                let (f, b) = (field("forward")?, field("backward")?);
+                [[f, b], [f, b]]
+            }
+            ["bb", "bf", "fb", "ff"] => [
+                [field("ff")?, field("fb")?],
+                [field("bf")?, field("bb")?],
+            ],
+            _ => return Err(Invalid::new(path.clone(), format!("expected {FORMS}"))),
+        };
+        return Ok(SquarenessValue { values });
+    }
+    Ok(SquarenessValue::constant(get(value, path)?))
+}
+
+fn node_index(names: &BTreeMap<&str, usize>, name: &str, path: &KeyPath) -> std::result::Result<usize, Invalid> {
+    names.get(name).copied().ok_or_else(|| {
+        let known: Vec<&str> = names.keys().copied().collect();
+        Invalid::new(path.clone(), format!("no thermal node `{name}`; the nodes are {}", known.join(", ")))
+    })
+}
+
+fn axis_named(name: &str, path: &KeyPath) -> std::result::Result<Axis, Invalid> {
+    let mut chars = name.chars();
+    match (chars.next().and_then(Axis::from_letter), chars.next()) {
+        (Some(a), None) => Ok(a),
+        _ => Err(Invalid::new(path.clone(), format!("`{name}` is not an axis; accepted: x, y, z"))),
+    }
+}
+
+fn thermal(t: &ThermalToml, link_names: &[String; 5], path: &KeyPath) -> Result<ThermalMachine> {
+    let mut names = BTreeMap::new();
+    let mut nodes = Vec::new();
+    for (i, n) in t.nodes.iter().enumerate() {
+        let p = path.key("nodes").index(i);
+        if names.insert(n.name.as_str(), i).is_some() {
+            return Err(Invalid::new(p.key("name"), format!("node name `{}` is used twice; names must be unique", n.name)).into());
+        }
+        nodes.push(ThermalNode {
+            name: n.name.clone(),
+            capacity_j_per_k: positive(n.capacity_j_per_k, 1e9, &p.key("capacity_j_per_k"), "a heat capacity in J/K")?,
+            to_ambient_w_per_k: in_range(n.to_ambient_w_per_k, 0.0, 1e6, &p.key("to_ambient_w_per_k"), "a conductance in W/K")?,
+            initial_c: match n.initial_c {
+                Some(c) => Some(in_range(c, -50.0, 150.0, &p.key("initial_c"), "a temperature in °C")?),
+                None => None,
+            },
+        });
+    }
+    if nodes.is_empty() {
+        return Err(Invalid::new(path.key("nodes"), "at least one thermal node is needed").into());
+    }
+    let mut conductances = Vec::new();
+    for (i, c) in t.conductances.iter().enumerate() {
+        let p = path.key("conductances").index(i);
+        let a = node_index(&names, &c.between[0], &p.key("between").index(0))?;
+        let b = node_index(&names, &c.between[1], &p.key("between").index(1))?;
+        if a == b {
+            return Err(Invalid::new(p.key("between"), "a conductance joins two different nodes").into());
+        }
+        let w = in_range(c.w_per_k, 0.0, 1e6, &p.key("w_per_k"), "a conductance in W/K")?;
+        conductances.push(Conductance { a, b, w_per_k: w });
+    }
+    let sources = t
+        .sources
+        .iter()
+        .enumerate()
+        .map(|(i, s)| source(s, &names, &path.key("sources").index(i)))
+        .collect::<std::result::Result<Vec<_>, _>>()?;
+    let ambient = ambient(&t.ambient, &path.key("ambient"))?;
+    let network = ThermalNetwork::new(nodes, conductances, sources, ambient)
+        .map_err(|e| Invalid::new(path.clone(), e.to_string()))?;
+    let deformation = deformation(t, &names, link_names, path)?;
+    Ok(ThermalMachine { network, deformation })
+}
+
+fn source(s: &SourceToml, names: &BTreeMap<&str, usize>, p: &KeyPath) -> std::result::Result<HeatSource, Invalid> {
+    Ok(match s {
+        SourceToml::Spindle { node, w_per_rpm, w_per_rpm2 } => HeatSource::Spindle {
+            node: node_index(names, node, &p.key("node"))?,
+            w_per_rpm: in_range(*w_per_rpm, 0.0, 100.0, &p.key("w_per_rpm"), "W/rpm")?,
+            w_per_rpm2: in_range(*w_per_rpm2, 0.0, 1.0, &p.key("w_per_rpm2"), "W/rpm²")?,
+        },
+        SourceToml::Axis { node, axis, w_per_mm_s } => HeatSource::Axis {
+            node: node_index(names, node, &p.key("node"))?,
+            axis: axis_named(axis, &p.key("axis"))?.index(),
+            // W per (mm/s) to W per (m/s).
+            w_per_m_per_s: in_range(*w_per_mm_s, 0.0, 1000.0, &p.key("w_per_mm_s"), "W per mm/s")? * 1e3,
+        },
+    })
+}
+
+fn ambient(a: &AmbientToml, p: &KeyPath) -> std::result::Result<Ambient, Invalid> {
+    const H: f64 = 3600.0;
+    Ok(match a {
+        AmbientToml::Constant { temperature_c } => Ambient::Constant {
+            celsius: in_range(*temperature_c, -50.0, 80.0, &p.key("temperature_c"), "°C")?,
+        },
+        AmbientToml::Sinusoid { mean_c, amplitude_k, period_h, phase_h } => Ambient::Sinusoid {
+            mean_c: in_range(*mean_c, -50.0, 80.0, &p.key("mean_c"), "°C")?,
+            amplitude_k: in_range(*amplitude_k, 0.0, 50.0, &p.key("amplitude_k"), "K")?,
+            period_s: positive(*period_h, 1e4, &p.key("period_h"), "a period in h")? * H,
+            phase_s: finite(*phase_h, &p.key("phase_h"), "a phase in h")? * H,
+        },
+        AmbientToml::Table { points_h_c } => {
+            let pp = p.key("points_h_c");
+            if points_h_c.is_empty() {
+                return Err(Invalid::new(pp, "at least one [time_h, temperature_c] point is needed"));
+            }
+            let mut times_s = Vec::new();
+            let mut celsius = Vec::new();
+            for (i, [t, c]) in points_h_c.iter().enumerate() {
+                let t = finite(*t, &pp.index(i).index(0), "a time in h")?;
+                if let Some(last) = times_s.last()
+                    && t * H <= *last
+                {
+                    return Err(Invalid::new(pp.index(i).index(0), format!("{t} h is not accepted; times must increase strictly")));
+                }
+                times_s.push(t * H);
+                celsius.push(in_range(*c, -50.0, 80.0, &pp.index(i).index(1), "°C")?);
+            }
+            Ambient::Table { times_s, celsius }
+        }
+    })
+}
+
+fn sensitivities(
+    map: &BTreeMap<String, [f64; 3]>,
+    names: &BTreeMap<&str, usize>,
+    limit: f64,
+    path: &KeyPath,
+) -> std::result::Result<Vec<NodeSensitivity>, Invalid> {
+    map.iter()
+        .map(|(node, v)| {
+            let p = path.key(node);
+            let node = node_index(names, node, &p)?;
+            let mut per_kelvin = Vector3::zeros();
+            for i in 0..3 {
+                per_kelvin[i] = in_range(v[i], -limit, limit, &p.index(i), "a sensitivity per K")? * 1e-6;
+            }
+            Ok(NodeSensitivity { node, per_kelvin })
+        })
+        .collect()
+}
+
+fn deformation(
+    t: &ThermalToml,
+    names: &BTreeMap<&str, usize>,
+    link_names: &[String; 5],
+    path: &KeyPath,
+) -> std::result::Result<ThermalDeformationModel, Invalid> {
+    let mut model = ThermalDeformationModel::default();
+    for (axis_name, e) in &t.expansion {
+        let p = path.key("expansion").key(axis_name);
+        let axis = axis_named(axis_name, &p)?;
+        model.joints[axis.index()].expansion = Some(AxisExpansion {
+            node: node_index(names, &e.node, &p.key("node"))?,
+            alpha_per_k: in_range(e.alpha_per_k, -1e-5, 1e-4, &p.key("alpha_per_k"), "an expansion coefficient in 1/K")?,
+            reference_m: finite(e.reference_mm, &p.key("reference_mm"), "a position in mm")? * 1e-3,
+        });
+    }
+    for (name, s) in &t.links {
+        let p = path.key("links").key(name);
+        let k = link_index(link_names, name, &p)?;
+        model.links[k] = LinkThermalModel {
+            translation: sensitivities(&s.translation_um_per_k, names, 1000.0, &p.key("translation_um_per_k"))?,
+            rotation: sensitivities(&s.rotation_urad_per_k, names, 1000.0, &p.key("rotation_urad_per_k"))?,
+        };
+    }
+    for (axis_name, s) in &t.joints {
+        let p = path.key("joints").key(axis_name);
+        let axis = axis_named(axis_name, &p)?;
+        if !s.translation_um_per_k.is_empty() {
+            let msg = "joints take rotation_urad_per_k only; the axis' growth is [machine.thermal.expansion]";
+            return Err(Invalid::new(p.key("translation_um_per_k"), msg));
+        }
+        let joint: &mut JointThermalModel = &mut model.joints[axis.index()];
+        joint.rotation = sensitivities(&s.rotation_urad_per_k, names, 1000.0, &p.key("rotation_urad_per_k"))?;
+    }
+    Ok(model)
+}
+
+fn thermal_run(run: &ThermalRunToml) -> std::result::Result<ThermalRunSpec, Invalid> {
+    let path = KeyPath::of(&["thermal_run"]);
+    let step_s = positive(run.step_s, 3600.0, &path.key("step_s"), "a step in s")?;
+    let mut segments = Vec::new();
+    for (i, s) in run.segments.iter().enumerate() {
+        let p = path.key("segments").index(i);
+        let until_h = positive(s.until_h, 1e5, &p.key("until_h"), "an end time in h")?;
+        if let Some(last) = segments.last().map(|l: &Segment| l.until_s)
+            && until_h * 3600.0 <= last
+        {
+            let msg = format!("{until_h} h is not accepted; segment end times must increase");
+            return Err(Invalid::new(p.key("until_h"), msg));
+        }
+        let rpm = in_range(s.spindle_rpm, 0.0, 100_000.0, &p.key("spindle_rpm"), "a spindle speed in rpm")?;
+        let mut v = [0.0; 3];
+        for k in 0..3 {
+            let pk = p.key("axis_speed_mm_min").index(k);
+            v[k] = in_range(s.axis_speed_mm_min[k], 0.0, 1e6, &pk, "a mean axis speed in mm/min")? / 60_000.0;
+        }
+        segments.push(Segment {
+            until_s: until_h * 3600.0,
+            op: Operating { spindle_rpm: rpm, axis_speed_m_s: v },
+        });
+    }
+    let schedule = ThermalSchedule::new(segments).map_err(|e| Invalid::new(path.clone(), e.to_string()))?;
+    Ok(ThermalRunSpec { schedule, step_s })
+}

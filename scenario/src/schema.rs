@@ -1,0 +1,191 @@
+//! The TOML schema of scenario files, as serde structures.
+//!
+//! Engineering units at the edge, always in the key name: `_mm`, `_um`, `_urad`, `_kg`, `_c`
+//! (°C), `_k` (kelvin difference), `_h`, `_s`, `_w_per_k`, `_j_per_k`. Unknown keys are refused,
+//! so a key in a wrong unit (`stroke_in`) is an error that lists the accepted keys.
+
+use serde::Deserialize;
+use std::collections::BTreeMap;
+
+/// A whole scenario file.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ScenarioFile {
+    pub machine: MachineToml,
+    pub thermal_run: Option<ThermalRunToml>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MachineToml {
+    pub name: String,
+    pub topology: String,
+    pub tool: ToolToml,
+    pub axes: AxesToml,
+    #[serde(default)]
+    pub errors: Option<ErrorsToml>,
+    #[serde(default)]
+    pub thermal: Option<ThermalToml>,
+    /// Pivots of the structural links' thermal rotations, by link name (e.g. `G-Z`).
+    #[serde(default)]
+    pub link_pivots_mm: BTreeMap<String, [f64; 3]>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ToolToml {
+    pub length_mm: f64,
+    #[serde(default)]
+    pub tcp_offset_mm: [f64; 2],
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AxesToml {
+    pub x: AxisToml,
+    pub y: AxisToml,
+    pub z: AxisToml,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AxisToml {
+    pub stroke_mm: [f64; 2],
+    pub moving_mass_kg: f64,
+}
+
+#[derive(Debug, Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+pub struct ErrorsToml {
+    pub x: Option<AxisErrorsToml>,
+    pub y: Option<AxisErrorsToml>,
+    pub z: Option<AxisErrorsToml>,
+    /// `EC0Y_urad`, `EB0Z_urad`, `EA0Z_urad`: a number, `{forward, backward}` or
+    /// `{ff, fb, bf, bb}`; checked by hand for a precise message.
+    #[serde(default)]
+    pub squareness: BTreeMap<String, toml::Value>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AxisErrorsToml {
+    pub forward: DirectionErrorsToml,
+    pub backward: Option<DirectionErrorsToml>,
+}
+
+/// The error functions of one axis for one direction: Legendre coefficients per component
+/// (keys `EXX_um`, `EBX_urad`, ...; checked by hand, which also catches unknown keys, as
+/// serde's `deny_unknown_fields` does not work with `flatten`) or a compensation table file.
+#[derive(Debug, Deserialize)]
+pub struct DirectionErrorsToml {
+    pub table: Option<String>,
+    pub interpolation: Option<String>,
+    #[serde(flatten)]
+    pub legendre: BTreeMap<String, toml::Value>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ThermalToml {
+    pub nodes: Vec<NodeToml>,
+    #[serde(default)]
+    pub conductances: Vec<ConductanceToml>,
+    #[serde(default)]
+    pub sources: Vec<SourceToml>,
+    pub ambient: AmbientToml,
+    #[serde(default)]
+    pub expansion: BTreeMap<String, ExpansionToml>,
+    #[serde(default)]
+    pub links: BTreeMap<String, SensitivityToml>,
+    #[serde(default)]
+    pub joints: BTreeMap<String, SensitivityToml>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct NodeToml {
+    pub name: String,
+    pub capacity_j_per_k: f64,
+    #[serde(default)]
+    pub to_ambient_w_per_k: f64,
+    pub initial_c: Option<f64>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ConductanceToml {
+    pub between: [String; 2],
+    pub w_per_k: f64,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields, tag = "kind", rename_all = "lowercase")]
+pub enum SourceToml {
+    Spindle {
+        node: String,
+        #[serde(default)]
+        w_per_rpm: f64,
+        #[serde(default)]
+        w_per_rpm2: f64,
+    },
+    Axis {
+        node: String,
+        axis: String,
+        w_per_mm_s: f64,
+    },
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields, tag = "kind", rename_all = "lowercase")]
+pub enum AmbientToml {
+    Constant {
+        temperature_c: f64,
+    },
+    Sinusoid {
+        mean_c: f64,
+        amplitude_k: f64,
+        period_h: f64,
+        #[serde(default)]
+        phase_h: f64,
+    },
+    Table {
+        /// `[[time_h, temperature_c], ...]`
+        points_h_c: Vec<[f64; 2]>,
+    },
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ExpansionToml {
+    pub node: String,
+    pub alpha_per_k: f64,
+    #[serde(default)]
+    pub reference_mm: f64,
+}
+
+/// Sensitivities by node name: `{ node = [x, y, z] }`.
+#[derive(Debug, Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+pub struct SensitivityToml {
+    #[serde(default)]
+    pub translation_um_per_k: BTreeMap<String, [f64; 3]>,
+    #[serde(default)]
+    pub rotation_urad_per_k: BTreeMap<String, [f64; 3]>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ThermalRunToml {
+    pub step_s: f64,
+    pub segments: Vec<SegmentToml>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SegmentToml {
+    pub until_h: f64,
+    #[serde(default)]
+    pub spindle_rpm: f64,
+    #[serde(default)]
+    pub axis_speed_mm_min: [f64; 3],
+}

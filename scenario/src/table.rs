@@ -1,0 +1,102 @@
+//! Compensation tables: CSV files in the layout of controller compensation tables.
+//!
+//! One row per position, columns named after the axis and its six errors, e.g. for X:
+//! `X, EXX, EYX, EZX, EAX, EBX, ECX` with the position in mm, translations in µm and rotations in
+//! µrad. Columns may come in any order; every one is required.
+
+use crate::error::ScenarioError;
+use std::path::Path;
+use vmt_model::Axis;
+use vmt_model::geometric::{Component, ErrorFunction, ErrorTable, Interpolation};
+
+/// The six error functions (SI units) of `axis` read from the table at `path`, which must cover
+/// the stroke `[lo, hi]` (m).
+pub fn read(
+    path: &Path,
+    axis: Axis,
+    interpolation: Interpolation,
+    stroke: (f64, f64),
+) -> Result<[ErrorFunction; 6], ScenarioError> {
+    let file = path.display().to_string();
+    let fail = |position: Option<(usize, usize)>, message: String| ScenarioError {
+        file: file.clone(),
+        position,
+        key: None,
+        message,
+    };
+    let names: Vec<String> = std::iter::once(axis.letter().to_string())
+        .chain(Component::ALL.iter().map(|c| c.iso_name(axis)))
+        .collect();
+    let layout = format!(
+        "a compensation table for {axis} has the columns {} (mm, then µm for EX{axis}/EY{axis}/EZ{axis} and µrad for EA{axis}/EB{axis}/EC{axis})",
+        names.join(", ")
+    );
+    let mut reader = csv::ReaderBuilder::new()
+        .trim(csv::Trim::All)
+        .comment(Some(b'#'))
+        .from_path(path)
+        .map_err(|e| fail(None, format!("cannot read the table: {e}")))?;
+    let header = reader
+        .headers()
+        .map_err(|e| fail(Some((1, 1)), format!("cannot read the header: {e}")))?
+        .clone();
+    let mut columns = [0usize; 7];
+    for (slot, name) in columns.iter_mut().zip(&names) {
+        *slot = header
+            .iter()
+            .position(|h| h.eq_ignore_ascii_case(name))
+            .ok_or_else(|| fail(Some((1, 1)), format!("missing column {name}; {layout}")))?;
+    }
+    let mut rows: Vec<[f64; 7]> = Vec::new();
+    for record in reader.records() {
+        let record = record.map_err(|e| fail(None, format!("malformed row: {e}")))?;
+        let line = record.position().map_or(0, |p| p.line() as usize);
+        let mut row = [0.0; 7];
+        for (k, (&c, name)) in columns.iter().zip(&names).enumerate() {
+            let text = record.get(c).unwrap_or("");
+            row[k] = text.parse::<f64>().ok().filter(|v| v.is_finite()).ok_or_else(|| {
+                fail(
+                    Some((line, c + 1)),
+                    format!("column {name}: `{text}` is not a finite number"),
+                )
+            })?;
+        }
+        if let Some(prev) = rows.last()
+            && row[0] <= prev[0]
+        {
+            return Err(fail(
+                Some((line, columns[0] + 1)),
+                format!(
+                    "positions must increase strictly: {} mm after {} mm",
+                    row[0], prev[0]
+                ),
+            ));
+        }
+        rows.push(row);
+    }
+    if rows.len() < 2 {
+        return Err(fail(None, format!("a table needs at least 2 rows, found {}", rows.len())));
+    }
+    let (first, last) = (rows[0][0] * 1e-3, rows[rows.len() - 1][0] * 1e-3);
+    if first > stroke.0 + 1e-12 || last < stroke.1 - 1e-12 {
+        return Err(fail(
+            None,
+            format!(
+                "the table covers {} to {} mm but the {axis} stroke is {} to {} mm; it must cover the stroke",
+                first * 1e3,
+                last * 1e3,
+                stroke.0 * 1e3,
+                stroke.1 * 1e3
+            ),
+        ));
+    }
+    let positions: Vec<f64> = rows.iter().map(|r| r[0] * 1e-3).collect();
+    let mut out: [ErrorFunction; 6] = Default::default();
+    for (k, c) in Component::ALL.iter().enumerate() {
+        let values = rows.iter().map(|r| r[k + 1] * 1e-6).collect();
+        let table = ErrorTable::new(positions.clone(), values, interpolation)
+            .map_err(|e| fail(None, format!("{}: {e}", c.iso_name(axis))))?;
+        out[k] = ErrorFunction::Table(table);
+    }
+    Ok(out)
+}

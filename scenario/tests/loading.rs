@@ -1,0 +1,149 @@
+//! Scenario loading: the built-in machine, tables, and one clear located error per bad input.
+
+use std::path::Path;
+use vmt_model::kinematics::AxisState;
+use vmt_model::{Axis, Direction};
+use vmt_scenario::{BUILTIN_DEFAULT, ScenarioError, builtin, load, parse};
+
+fn with(replace: &str, by: &str) -> String {
+    assert!(BUILTIN_DEFAULT.contains(replace), "test edit `{replace}` not found");
+    BUILTIN_DEFAULT.replacen(replace, by, 1)
+}
+
+fn error_of(text: &str) -> ScenarioError {
+    parse(text, "machine.toml", None).expect_err("the scenario should be refused")
+}
+
+fn line_of(text: &str, needle: &str) -> usize {
+    text.lines().position(|l| l.contains(needle)).unwrap() + 1
+}
+
+#[test]
+fn builtin_machine_loads_with_realistic_errors() {
+    let s = builtin().unwrap();
+    let m = &s.machine;
+    assert_eq!(m.volumetric.kinematics.topology.to_string(), "WXYGZT");
+    assert_eq!((m.axis(Axis::X).min_m, m.axis(Axis::X).max_m), (0.0, 0.5));
+    let thermal = m.thermal.as_ref().unwrap();
+    assert_eq!(thermal.network.node_count(), 6);
+    // Volumetric error at 20 °C over the work zone: tens of µm, not nm and not mm.
+    let temps = vec![20.0; 6];
+    let mut worst: f64 = 0.0;
+    for (x, y, z) in [(0.0, 0.0, 0.0), (0.5, 0.4, -0.4), (0.25, 0.2, -0.2), (0.5, 0.0, -0.4)] {
+        for d in [Direction::Forward, Direction::Backward] {
+            let s = AxisState::new(nalgebra::Vector3::new(x, y, z), d);
+            worst = worst.max(m.volumetric_error(&s, &temps).unwrap().amax());
+        }
+    }
+    assert!((5e-6..100e-6).contains(&worst), "worst error {worst:e} m");
+    // X backlash of the default: 2 µm on EXX.
+    let exx = m.volumetric.errors.axis(Axis::X).get(vmt_model::geometric::Component::Tx);
+    assert!((exx.backlash(0.3) - 2e-6).abs() < 1e-15);
+}
+
+#[test]
+fn unknown_topology_is_refused_with_the_accepted_form() {
+    let text = with("topology = \"WXYGZT\"", "topology = \"WXXGZT\"");
+    let e = error_of(&text);
+    assert_eq!(e.key.as_deref(), Some("machine.topology"));
+    assert_eq!(e.position.unwrap().0, line_of(&text, "topology ="));
+    assert!(e.message.contains("unknown topology `WXXGZT`"), "{e}");
+    assert!(e.message.contains("WGXYZT"), "{e}");
+}
+
+#[test]
+fn nan_is_refused_naming_the_key() {
+    let text = with("moving_mass_kg = 250.0", "moving_mass_kg = nan");
+    let e = error_of(&text);
+    assert_eq!(e.key.as_deref(), Some("machine.axes.x.moving_mass_kg"));
+    assert_eq!(e.position.unwrap().0, line_of(&text, "moving_mass_kg = nan"));
+    assert!(e.message.contains("NaN is not accepted"), "{e}");
+}
+
+#[test]
+fn missing_axis_is_refused() {
+    let text = with("[machine.axes.z]\nstroke_mm = [-400.0, 0.0]\nmoving_mass_kg = 180.0\n", "");
+    let e = error_of(&text);
+    assert!(e.message.contains("missing field `z`"), "{e}");
+    assert!(e.position.is_some());
+}
+
+#[test]
+fn key_in_a_wrong_unit_is_refused_listing_the_accepted_keys() {
+    let text = with("stroke_mm = [0.0, 500.0]", "stroke_in = [0.0, 19.7]");
+    let e = error_of(&text);
+    assert_eq!(e.position.unwrap().0, line_of(&text, "stroke_in"));
+    assert!(e.message.contains("unknown field `stroke_in`"), "{e}");
+    assert!(e.message.contains("stroke_mm"), "{e}");
+    let text = with("EXX_um = [0.0, 4.0, -1.2, 0.5]", "EXX_mm = [0.0, 0.004]");
+    let e = error_of(&text);
+    assert_eq!(e.key.as_deref(), Some("machine.errors.x.forward.EXX_mm"));
+    assert!(e.message.contains("EXX_um"), "{e}");
+}
+
+#[test]
+fn out_of_range_values_are_refused() {
+    let e = error_of(&with("stroke_mm = [0.0, 400.0]", "stroke_mm = [400.0, 0.0]"));
+    assert_eq!(e.key.as_deref(), Some("machine.axes.y.stroke_mm"));
+    assert!(e.message.contains("min < max"), "{e}");
+    let e = error_of(&with("capacity_j_per_k = 23000.0", "capacity_j_per_k = -1.0"));
+    assert_eq!(e.key.as_deref(), Some("machine.thermal.nodes[0].capacity_j_per_k"));
+    let e = error_of(&with("EBX_urad = [0.0, 6.0, -3.0]", "EBX_urad = [0.0, 60000.0]"));
+    assert!(e.message.contains("10000"), "{e}");
+    let e = error_of(&with("node = \"x_screw\"\nalpha_per_k", "node = \"x_scew\"\nalpha_per_k"));
+    assert!(e.message.contains("no thermal node `x_scew`"), "{e}");
+    let e = error_of(&with("[machine.thermal.links.\"Z-T\"]", "[machine.thermal.links.\"X-T\"]"));
+    assert!(e.message.contains("W-X, X-Y, Y-G, G-Z, Z-T"), "{e}");
+}
+
+fn write_scenario_with_table(dir: &Path, rows: &str) -> std::path::PathBuf {
+    std::fs::write(dir.join("x.csv"), rows).unwrap();
+    let text = with(
+        "[machine.errors.x.forward]\nEXX_um = [0.0, 4.0, -1.2, 0.5]\nEYX_um = [0.0, 0.0, 2.0]\nEZX_um = [0.0, 0.0, -3.0, 0.6]\nEAX_urad = [0.0, 3.0]\nEBX_urad = [0.0, 6.0, -3.0]\nECX_urad = [0.0, -4.0, 2.0]\n\n[machine.errors.x.backward]\nEXX_um = [2.0, 4.0, -1.2, 0.5]   # 2 um positional backlash\nECX_urad = [1.5, -4.0, 2.0]      # yaw backlash of the table\n",
+        "[machine.errors.x.forward]\ntable = \"x.csv\"\ninterpolation = \"pchip\"\n",
+    );
+    let path = dir.join("m.toml");
+    std::fs::write(&path, text).unwrap();
+    path
+}
+
+#[test]
+fn compensation_tables_load_and_interpolate() {
+    let dir = tempfile::tempdir().unwrap();
+    let rows = "X, EXX, EYX, EZX, EAX, EBX, ECX\n0,0,0,0,0,0,0\n250,3.0,1,0,0,5,0\n500,4.0,0,0,0,10,0\n";
+    let s = load(&write_scenario_with_table(dir.path(), rows)).unwrap();
+    let x = s.machine.volumetric.errors.axis(Axis::X);
+    let exx = x.get(vmt_model::geometric::Component::Tx);
+    assert!((exx.forward.eval(0.25) - 3e-6).abs() < 1e-18);
+    // No backward section: the backward functions are the forward ones.
+    assert_eq!(exx.backlash(0.1), 0.0);
+}
+
+#[test]
+fn table_positions_that_do_not_increase_are_refused_with_file_and_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let rows = "X,EXX,EYX,EZX,EAX,EBX,ECX\n0,0,0,0,0,0,0\n300,1,0,0,0,0,0\n250,2,0,0,0,0,0\n500,0,0,0,0,0,0\n";
+    let e = load(&write_scenario_with_table(dir.path(), rows)).unwrap_err();
+    assert!(e.file.ends_with("x.csv"), "{e}");
+    assert_eq!(e.position, Some((4, 1)));
+    assert!(e.message.contains("250 mm after 300 mm"), "{e}");
+    let rows = "X,EXX,EYX,EAX,EBX,ECX\n0,0,0,0,0,0\n500,0,0,0,0,0\n";
+    let e = load(&write_scenario_with_table(dir.path(), rows)).unwrap_err();
+    assert!(e.message.contains("missing column EZX"), "{e}");
+    let rows = "X,EXX,EYX,EZX,EAX,EBX,ECX\n0,0,0,0,0,0,0\n400,0,0,0,0,0,0\n";
+    let e = load(&write_scenario_with_table(dir.path(), rows)).unwrap_err();
+    assert!(e.message.contains("must cover the stroke"), "{e}");
+}
+
+#[test]
+fn the_display_names_file_line_column_and_key() {
+    let text = with("moving_mass_kg = 450.0", "moving_mass_kg = -450.0");
+    let e = error_of(&text);
+    let line = line_of(&text, "moving_mass_kg = -450.0");
+    assert_eq!(
+        e.to_string(),
+        format!(
+            "machine.toml:{line}:18: key `machine.axes.y.moving_mass_kg`: -450 is out of range; a mass in kg from 0 to 100000 is accepted"
+        )
+    );
+}
