@@ -141,8 +141,9 @@ impl ThermalDeformationModel {
             }
         };
         let sum = |s: &[NodeSensitivity]| -> Result<Vector3<f64>, DeformationError> {
-            s.iter()
-                .try_fold(Vector3::zeros(), |acc, k| Ok(acc + k.per_kelvin * rise(k.node)?))
+            s.iter().try_fold(Vector3::zeros(), |acc, k| {
+                Ok(acc + k.per_kelvin * rise(k.node)?)
+            })
         };
         let mut out = ThermalDeformation::default();
         for (d, m) in out.links.iter_mut().zip(&self.links) {

@@ -88,7 +88,11 @@ fn tables_refuse_bad_rows() {
     let e = ErrorTable::new(vec![0.0, 0.2, 0.1], vec![0.0; 3], Interpolation::Linear);
     assert_eq!(
         e.unwrap_err(),
-        FunctionError::NotIncreasing { index: 2, value: 0.1, previous: 0.2 }
+        FunctionError::NotIncreasing {
+            index: 2,
+            value: 0.1,
+            previous: 0.2
+        }
     );
     let e = ErrorTable::new(vec![0.0, 0.1], vec![0.0, f64::NAN], Interpolation::Linear);
     assert!(matches!(e, Err(FunctionError::NotFinite { index: 1, .. })));

@@ -10,8 +10,7 @@ use vmt_model::geometric::{
 };
 use vmt_model::kinematics::{AxisState, Element, Kinematics, Topology, VolumetricModel};
 use vmt_model::thermal_deformation::{
-    AxisExpansion, JointThermalModel, NodeSensitivity, ThermalDeformation,
-    ThermalDeformationModel,
+    AxisExpansion, JointThermalModel, NodeSensitivity, ThermalDeformation, ThermalDeformationModel,
 };
 use vmt_model::{Axis, Direction};
 
@@ -168,7 +167,10 @@ impl AhnCho {
             + z4 * ep(y_, y_) * ep(z_, x_)
             + z4 * ep(y_, z_) * ep(z_, x_)
             + z4 * ep(y_, z_) * ep(z_, y_);
-        let dvz = dl(z_, x_) + dl(z_, y_) + dl(z_, z_) + y * ep(x_, x_)
+        let dvz = dl(z_, x_)
+            + dl(z_, y_)
+            + dl(z_, z_)
+            + y * ep(x_, x_)
             + dl(y_, y_) * ep(x_, x_)
             + dl(y_, z_) * ep(x_, x_)
             + dl(y_, z_) * ep(x_, y_)
@@ -201,7 +203,10 @@ impl AhnCho {
             + half_sq(col(1), Vector3::new(0.0, 0.0, z) + tool)
             + half_sq(col(2), tool)
             + half_sq(Vector3::new(0.0, 0.0, self.sxy), Vector3::new(0.0, y, 0.0))
-            + half_sq(Vector3::new(self.syz, -self.sxz, 0.0), Vector3::new(0.0, 0.0, z))
+            + half_sq(
+                Vector3::new(self.syz, -self.sxz, 0.0),
+                Vector3::new(0.0, 0.0, z),
+            )
     }
 
     /// Largest angle and translation, for the bound of the third-order remainder.
@@ -233,7 +238,11 @@ fn htm_chain_matches_ahn_cho_closed_form_within_third_order_bound() {
         let mut worst_ratio: f64 = 0.0;
         for _ in 0..500 {
             let z4 = rng.random_range(-0.25..0.25);
-            let m = model_with("WXYGZT", Vector3::new(0.0, 0.0, z4), random_errors(&mut rng, delta, eps));
+            let m = model_with(
+                "WXYGZT",
+                Vector3::new(0.0, 0.0, z4),
+                random_errors(&mut rng, delta, eps),
+            );
             let s = random_state(&mut rng);
             let a = AhnCho::from_model(&m, &s);
             let (y, z) = (s.position.y, s.position.z);
@@ -241,9 +250,13 @@ fn htm_chain_matches_ahn_cho_closed_form_within_third_order_bound() {
             let closed = a.delta_v(y, z, z4) + a.self_terms(y, z, z4);
             let (e, d) = a.magnitudes();
             let lever = y.abs() + z.abs() + z4.abs();
-            let bound = 35.0 * e.powi(3) * lever + 15.0 * e * e * d + 5.0 / 6.0 * e.powi(3) * lever + 1e-15;
+            let bound =
+                35.0 * e.powi(3) * lever + 15.0 * e * e * d + 5.0 / 6.0 * e.powi(3) * lever + 1e-15;
             let diff = (htm - closed).amax();
-            assert!(diff <= bound, "ΔV differs by {diff:e} m > bound {bound:e} (δ {delta}, ε {eps})");
+            assert!(
+                diff <= bound,
+                "ΔV differs by {diff:e} m > bound {bound:e} (δ {delta}, ε {eps})"
+            );
             worst_ratio = worst_ratio.max(diff / bound);
         }
         assert!(worst_ratio < 1.0);
@@ -260,7 +273,11 @@ fn ahn_cho_cross_terms_are_resolved_by_the_test() {
     let mut without = 0.0;
     for _ in 0..200 {
         let z4 = rng.random_range(-0.25..0.25);
-        let m = model_with("WXYGZT", Vector3::new(0.0, 0.0, z4), random_errors(&mut rng, delta, eps));
+        let m = model_with(
+            "WXYGZT",
+            Vector3::new(0.0, 0.0, z4),
+            random_errors(&mut rng, delta, eps),
+        );
         let s = random_state(&mut rng);
         let a = AhnCho::from_model(&m, &s);
         let (y, z) = (s.position.y, s.position.z);
@@ -270,7 +287,10 @@ fn ahn_cho_cross_terms_are_resolved_by_the_test() {
         with_cross += (htm - full).norm();
         without += (htm - first - a.self_terms(y, z, z4)).norm();
     }
-    assert!(without > 100.0 * with_cross, "cross terms: {without:e} vs {with_cross:e}");
+    assert!(
+        without > 100.0 * with_cross,
+        "cross terms: {without:e} vs {with_cross:e}"
+    );
 }
 
 /// The first-order part of eqs. (1)–(3).
@@ -280,7 +300,10 @@ fn first_order(a: &AhnCho, y: f64, z: f64, z4: f64) -> Vector3<f64> {
         d[0][0] + d[0][1] + d[0][2] - y * e[2][0] - y * a.sxy + z * e[1][0] + z * e[1][1]
             - z * a.sxz
             + z4 * (e[1][0] + e[1][1] + e[1][2]),
-        d[1][0] + d[1][1] + d[1][2] - z * e[0][0] - z * e[0][1] - z * a.syz
+        d[1][0] + d[1][1] + d[1][2]
+            - z * e[0][0]
+            - z * e[0][1]
+            - z * a.syz
             - z4 * (e[0][0] + e[0][1] + e[0][2]),
         d[2][0] + d[2][1] + d[2][2] + y * e[0][0],
     )
@@ -298,7 +321,10 @@ fn pure_pitch_with_tool_offset_is_the_abbe_error() {
     let h = s.position.z - length;
     let expected = Vector3::new(h * theta.sin(), 0.0, h * (theta.cos() - 1.0));
     let got = m.volumetric_error(&s, &no_heat());
-    assert!((got - expected).amax() < ROUNDING, "{got:?} vs {expected:?}");
+    assert!(
+        (got - expected).amax() < ROUNDING,
+        "{got:?} vs {expected:?}"
+    );
     // 40 µrad over 250 mm: 10 µm of Abbe error towards -X (first order: θ·h).
     assert!((got.x + 10e-6).abs() < theta * theta * h.abs());
 }
@@ -424,8 +450,9 @@ fn direction_state_selects_forward_or_backward_values() {
             backward: constant(b).forward,
         },
     );
-    let mut sq = SquarenessValue::default();
-    sq.values = [[10e-6, 12e-6], [14e-6, 16e-6]];
+    let sq = SquarenessValue {
+        values: [[10e-6, 12e-6], [14e-6, 16e-6]],
+    };
     e.set_squareness(SquarenessError::C0Y, sq);
     let m = model_with("WXYGZT", Vector3::zeros(), e);
     let p = Vector3::new(0.1, 0.2, -0.1);
@@ -443,7 +470,10 @@ fn direction_state_selects_forward_or_backward_values() {
     assert!((at(B, F).x - at(F, F).x - expected).abs() < ROUNDING);
     for (dx, dy, s) in [(F, F, 10e-6), (F, B, 12e-6), (B, F, 14e-6), (B, B, 16e-6)] {
         let expected_y = p.y * (f64::cos(s) - 1.0);
-        assert!((at(dx, dy).y - expected_y).abs() < ROUNDING, "{dx:?} {dy:?}");
+        assert!(
+            (at(dx, dy).y - expected_y).abs() < ROUNDING,
+            "{dx:?} {dy:?}"
+        );
     }
 }
 
@@ -499,7 +529,11 @@ fn scale_expansion_of_500_mm_at_one_kelvin_is_5_75_um() {
 /// turns the tool the other way when the carriage carries the workpiece.
 #[test]
 fn thermal_deformations_act_with_the_physical_sign_on_each_side() {
-    let m = model_with("WXYGZT", Vector3::new(0.0, 0.0, -0.1), GeometricErrors::zero());
+    let m = model_with(
+        "WXYGZT",
+        Vector3::new(0.0, 0.0, -0.1),
+        GeometricErrors::zero(),
+    );
     let s = AxisState::new(Vector3::new(0.2, 0.1, -0.1), Direction::Forward);
     let rise = Vector3::new(0.0, 0.0, 4e-6);
     for (link, sign) in [(0, -1.0), (1, -1.0), (2, -1.0), (3, 1.0), (4, 1.0)] {

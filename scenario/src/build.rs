@@ -10,6 +10,7 @@ use crate::table;
 use nalgebra::Vector3;
 use std::collections::BTreeMap;
 use std::path::Path;
+use vmt_model::Axis;
 use vmt_model::geometric::{
     AxisErrors, Component, Directional, ErrorFunction, GeometricErrors, Interpolation,
     LegendreSeries, SquarenessError, SquarenessValue,
@@ -23,7 +24,6 @@ use vmt_model::thermal::{
 use vmt_model::thermal_deformation::{
     AxisExpansion, JointThermalModel, LinkThermalModel, NodeSensitivity, ThermalDeformationModel,
 };
-use vmt_model::Axis;
 
 /// Largest geometric translation error accepted, µm (the small-error model's range).
 pub const MAX_TRANSLATION_UM: f64 = 1000.0;
@@ -85,12 +85,12 @@ pub fn scenario(raw: ScenarioFile, base_dir: Option<&Path>) -> Result<Scenario> 
 
 fn machine(m: &MachineToml, base_dir: Option<&Path>) -> Result<Machine> {
     let root = KeyPath::of(&["machine"]);
-    let topology: Topology = m
-        .topology
-        .parse()
-        .map_err(|e: vmt_model::kinematics::TopologyError| {
-            Invalid::new(root.key("topology"), e.to_string())
-        })?;
+    let topology: Topology =
+        m.topology
+            .parse()
+            .map_err(|e: vmt_model::kinematics::TopologyError| {
+                Invalid::new(root.key("topology"), e.to_string())
+            })?;
     let axes = [
         axis_spec(&m.axes.x, &root.key("axes").key("x"))?,
         axis_spec(&m.axes.y, &root.key("axes").key("y"))?,
@@ -124,17 +124,29 @@ fn finite(v: f64, path: &KeyPath, accepted: &str) -> std::result::Result<f64, In
     if v.is_finite() {
         Ok(v)
     } else {
-        Err(Invalid::new(path.clone(), format!("{v} is not accepted; {accepted}")))
+        Err(Invalid::new(
+            path.clone(),
+            format!("{v} is not accepted; {accepted}"),
+        ))
     }
 }
 
-fn in_range(v: f64, lo: f64, hi: f64, path: &KeyPath, what: &str) -> std::result::Result<f64, Invalid> {
+fn in_range(
+    v: f64,
+    lo: f64,
+    hi: f64,
+    path: &KeyPath,
+    what: &str,
+) -> std::result::Result<f64, Invalid> {
     let accepted = format!("{what} from {lo} to {hi} is accepted");
     let v = finite(v, path, &accepted)?;
     if (lo..=hi).contains(&v) {
         Ok(v)
     } else {
-        Err(Invalid::new(path.clone(), format!("{v} is out of range; {accepted}")))
+        Err(Invalid::new(
+            path.clone(),
+            format!("{v} is out of range; {accepted}"),
+        ))
     }
 }
 
@@ -143,27 +155,53 @@ fn positive(v: f64, hi: f64, path: &KeyPath, what: &str) -> std::result::Result<
     if v > 0.0 {
         Ok(v)
     } else {
-        Err(Invalid::new(path.clone(), format!("{v} is not accepted; {what} must be > 0")))
+        Err(Invalid::new(
+            path.clone(),
+            format!("{v} is not accepted; {what} must be > 0"),
+        ))
     }
 }
 
 fn vector_mm(v: &[f64; 3], path: &KeyPath) -> std::result::Result<Vector3<f64>, Invalid> {
     let mut out = Vector3::zeros();
     for i in 0..3 {
-        out[i] = in_range(v[i], -10_000.0, 10_000.0, &path.index(i), "a coordinate in mm")? * 1e-3;
+        out[i] = in_range(
+            v[i],
+            -10_000.0,
+            10_000.0,
+            &path.index(i),
+            "a coordinate in mm",
+        )? * 1e-3;
     }
     Ok(out)
 }
 
 fn axis_spec(a: &AxisToml, path: &KeyPath) -> std::result::Result<AxisSpec, Invalid> {
     let p = path.key("stroke_mm");
-    let lo = in_range(a.stroke_mm[0], -10_000.0, 10_000.0, &p.index(0), "a stroke end in mm")?;
-    let hi = in_range(a.stroke_mm[1], -10_000.0, 10_000.0, &p.index(1), "a stroke end in mm")?;
+    let lo = in_range(
+        a.stroke_mm[0],
+        -10_000.0,
+        10_000.0,
+        &p.index(0),
+        "a stroke end in mm",
+    )?;
+    let hi = in_range(
+        a.stroke_mm[1],
+        -10_000.0,
+        10_000.0,
+        &p.index(1),
+        "a stroke end in mm",
+    )?;
     if lo >= hi {
         let msg = format!("[{lo}, {hi}] is not accepted; the stroke is [min, max] with min < max");
         return Err(Invalid::new(p, msg));
     }
-    let mass = positive(a.moving_mass_kg, 100_000.0, &path.key("moving_mass_kg"), "a mass in kg")?;
+    let mass = positive(
+        a.moving_mass_kg,
+        100_000.0,
+        &path.key("moving_mass_kg"),
+        "a mass in kg",
+    )?;
     Ok(AxisSpec {
         min_m: lo * 1e-3,
         max_m: hi * 1e-3,
@@ -172,18 +210,43 @@ fn axis_spec(a: &AxisToml, path: &KeyPath) -> std::result::Result<AxisSpec, Inva
 }
 
 fn tool_offset(t: &ToolToml, path: &KeyPath) -> std::result::Result<Vector3<f64>, Invalid> {
-    let length = in_range(t.length_mm, 0.0, 1000.0, &path.key("length_mm"), "a tool length in mm")?;
+    let length = in_range(
+        t.length_mm,
+        0.0,
+        1000.0,
+        &path.key("length_mm"),
+        "a tool length in mm",
+    )?;
     let p = path.key("tcp_offset_mm");
-    let x = in_range(t.tcp_offset_mm[0], -1000.0, 1000.0, &p.index(0), "an offset in mm")?;
-    let y = in_range(t.tcp_offset_mm[1], -1000.0, 1000.0, &p.index(1), "an offset in mm")?;
+    let x = in_range(
+        t.tcp_offset_mm[0],
+        -1000.0,
+        1000.0,
+        &p.index(0),
+        "an offset in mm",
+    )?;
+    let y = in_range(
+        t.tcp_offset_mm[1],
+        -1000.0,
+        1000.0,
+        &p.index(1),
+        "an offset in mm",
+    )?;
     Ok(Vector3::new(x, y, -length) * 1e-3)
 }
 
-fn link_index(names: &[String; 5], name: &str, path: &KeyPath) -> std::result::Result<usize, Invalid> {
+fn link_index(
+    names: &[String; 5],
+    name: &str,
+    path: &KeyPath,
+) -> std::result::Result<usize, Invalid> {
     names.iter().position(|n| n == name).ok_or_else(|| {
         Invalid::new(
             path.clone(),
-            format!("no link `{name}` in this topology; its links are {}", names.join(", ")),
+            format!(
+                "no link `{name}` in this topology; its links are {}",
+                names.join(", ")
+            ),
         )
     })
 }
@@ -208,7 +271,10 @@ fn geometric(
             .into_iter()
             .find(|s| format!("{}_urad", s.iso_name()) == *key)
             .ok_or_else(|| {
-                Invalid::new(p.clone(), "unknown squareness; accepted keys: EC0Y_urad, EB0Z_urad, EA0Z_urad (µrad)")
+                Invalid::new(
+                    p.clone(),
+                    "unknown squareness; accepted keys: EC0Y_urad, EB0Z_urad, EA0Z_urad (µrad)",
+                )
             })?;
         out.set_squareness(which, squareness(value, &p)?);
     }
@@ -222,9 +288,23 @@ fn axis_errors(
     path: &KeyPath,
     base_dir: Option<&Path>,
 ) -> Result<AxisErrors> {
-    let forward = direction_errors(&raw.forward, None, axis, spec, &path.key("forward"), base_dir)?;
+    let forward = direction_errors(
+        &raw.forward,
+        None,
+        axis,
+        spec,
+        &path.key("forward"),
+        base_dir,
+    )?;
     let backward = match &raw.backward {
-        Some(b) => direction_errors(b, Some(&forward), axis, spec, &path.key("backward"), base_dir)?,
+        Some(b) => direction_errors(
+            b,
+            Some(&forward),
+            axis,
+            spec,
+            &path.key("backward"),
+            base_dir,
+        )?,
         None => forward.clone(),
     };
     let mut out = AxisErrors::zero();
@@ -258,7 +338,8 @@ fn direction_errors(
         None | Some("linear") => Interpolation::Linear,
         Some("pchip") => Interpolation::Pchip,
         Some(other) => {
-            let msg = format!("`{other}` is not accepted; interpolation is \"linear\" or \"pchip\"");
+            let msg =
+                format!("`{other}` is not accepted; interpolation is \"linear\" or \"pchip\"");
             return Err(Invalid::new(path.key("interpolation"), msg).into());
         }
     };
@@ -272,14 +353,18 @@ fn direction_errors(
             return Err(Invalid::new(path.key("table"), msg).into());
         };
         let stroke = (spec.min_m, spec.max_m);
-        return table::read(&dir.join(file), axis, interpolation, stroke).map_err(BuildError::External);
+        return table::read(&dir.join(file), axis, interpolation, stroke)
+            .map_err(BuildError::External);
     }
     if raw.interpolation.is_some() {
         let msg = "interpolation applies to tables only; add `table = \"file.csv\"` or remove it";
         return Err(Invalid::new(path.key("interpolation"), msg).into());
     }
     let mut out: [ErrorFunction; 6] = defaults.cloned().unwrap_or_default();
-    let accepted: Vec<String> = Component::ALL.iter().map(|c| component_key(*c, axis)).collect();
+    let accepted: Vec<String> = Component::ALL
+        .iter()
+        .map(|c| component_key(*c, axis))
+        .collect();
     for (key, value) in &raw.legendre {
         let p = path.key(key);
         let k = accepted.iter().position(|a| a == key).ok_or_else(|| {
@@ -305,7 +390,11 @@ fn legendre(
     } else {
         (MAX_TRANSLATION_UM, "µm")
     };
-    let coeffs = numbers(value, path, "a list of Legendre coefficients [c0, c1, c2, ...]")?;
+    let coeffs = numbers(
+        value,
+        path,
+        "a list of Legendre coefficients [c0, c1, c2, ...]",
+    )?;
     let total: f64 = coeffs.iter().map(|c| c.abs()).sum();
     if total > limit {
         let msg = format!(
@@ -319,7 +408,11 @@ fn legendre(
     Ok(ErrorFunction::Legendre(series))
 }
 
-fn numbers(value: &toml::Value, path: &KeyPath, what: &str) -> std::result::Result<Vec<f64>, Invalid> {
+fn numbers(
+    value: &toml::Value,
+    path: &KeyPath,
+    what: &str,
+) -> std::result::Result<Vec<f64>, Invalid> {
     let arr = value
         .as_array()
         .ok_or_else(|| Invalid::new(path.clone(), format!("expected {what}")))?;
@@ -328,7 +421,10 @@ fn numbers(value: &toml::Value, path: &KeyPath, what: &str) -> std::result::Resu
         .map(|(i, v)| {
             let x = v.as_float().or_else(|| v.as_integer().map(|n| n as f64));
             x.filter(|x| x.is_finite()).ok_or_else(|| {
-                Invalid::new(path.index(i), format!("`{v}` is not accepted; expected finite numbers: {what}"))
+                Invalid::new(
+                    path.index(i),
+                    format!("`{v}` is not accepted; expected finite numbers: {what}"),
+                )
             })
         })
         .collect()
@@ -336,12 +432,21 @@ fn numbers(value: &toml::Value, path: &KeyPath, what: &str) -> std::result::Resu
 
 /// A squareness value: a number, `{forward, backward}` (direction of the rotated axis) or
 /// `{ff, fb, bf, bb}` (reference axis direction, then rotated axis direction).
-fn squareness(value: &toml::Value, path: &KeyPath) -> std::result::Result<SquarenessValue, Invalid> {
+fn squareness(
+    value: &toml::Value,
+    path: &KeyPath,
+) -> std::result::Result<SquarenessValue, Invalid> {
     const FORMS: &str = "a number (µrad), { forward = .., backward = .. } by the direction of the rotated axis, or { ff = .., fb = .., bf = .., bb = .. } by the directions of the reference and rotated axes";
     let get = |v: &toml::Value, p: &KeyPath| -> std::result::Result<f64, Invalid> {
         let x = v.as_float().or_else(|| v.as_integer().map(|n| n as f64));
         let x = x.ok_or_else(|| Invalid::new(p.clone(), format!("expected {FORMS}")))?;
-        Ok(in_range(x, -MAX_ANGLE_URAD, MAX_ANGLE_URAD, p, "a squareness in µrad")? * 1e-6)
+        Ok(in_range(
+            x,
+            -MAX_ANGLE_URAD,
+            MAX_ANGLE_URAD,
+            p,
+            "a squareness in µrad",
+        )? * 1e-6)
     };
     if let Some(table) = value.as_table() {
         let mut keys: Vec<&str> = table.keys().map(String::as_str).collect();
@@ -352,10 +457,9 @@ fn squareness(value: &toml::Value, path: &KeyPath) -> std::result::Result<Square
                 let (f, b) = (field("forward")?, field("backward")?);
                 [[f, b], [f, b]]
             }
-            ["bb", "bf", "fb", "ff"] => [
-                [field("ff")?, field("fb")?],
-                [field("bf")?, field("bb")?],
-            ],
+            ["bb", "bf", "fb", "ff"] => {
+                [[field("ff")?, field("fb")?], [field("bf")?, field("bb")?]]
+            }
             _ => return Err(Invalid::new(path.clone(), format!("expected {FORMS}"))),
         };
         return Ok(SquarenessValue { values });
@@ -363,10 +467,20 @@ fn squareness(value: &toml::Value, path: &KeyPath) -> std::result::Result<Square
     Ok(SquarenessValue::constant(get(value, path)?))
 }
 
-fn node_index(names: &BTreeMap<&str, usize>, name: &str, path: &KeyPath) -> std::result::Result<usize, Invalid> {
+fn node_index(
+    names: &BTreeMap<&str, usize>,
+    name: &str,
+    path: &KeyPath,
+) -> std::result::Result<usize, Invalid> {
     names.get(name).copied().ok_or_else(|| {
         let known: Vec<&str> = names.keys().copied().collect();
-        Invalid::new(path.clone(), format!("no thermal node `{name}`; the nodes are {}", known.join(", ")))
+        Invalid::new(
+            path.clone(),
+            format!(
+                "no thermal node `{name}`; the nodes are {}",
+                known.join(", ")
+            ),
+        )
     })
 }
 
@@ -374,7 +488,10 @@ fn axis_named(name: &str, path: &KeyPath) -> std::result::Result<Axis, Invalid> 
     let mut chars = name.chars();
     match (chars.next().and_then(Axis::from_letter), chars.next()) {
         (Some(a), None) => Ok(a),
-        _ => Err(Invalid::new(path.clone(), format!("`{name}` is not an axis; accepted: x, y, z"))),
+        _ => Err(Invalid::new(
+            path.clone(),
+            format!("`{name}` is not an axis; accepted: x, y, z"),
+        )),
     }
 }
 
@@ -384,14 +501,35 @@ fn thermal(t: &ThermalToml, link_names: &[String; 5], path: &KeyPath) -> Result<
     for (i, n) in t.nodes.iter().enumerate() {
         let p = path.key("nodes").index(i);
         if names.insert(n.name.as_str(), i).is_some() {
-            return Err(Invalid::new(p.key("name"), format!("node name `{}` is used twice; names must be unique", n.name)).into());
+            return Err(Invalid::new(
+                p.key("name"),
+                format!("node name `{}` is used twice; names must be unique", n.name),
+            )
+            .into());
         }
         nodes.push(ThermalNode {
             name: n.name.clone(),
-            capacity_j_per_k: positive(n.capacity_j_per_k, 1e9, &p.key("capacity_j_per_k"), "a heat capacity in J/K")?,
-            to_ambient_w_per_k: in_range(n.to_ambient_w_per_k, 0.0, 1e6, &p.key("to_ambient_w_per_k"), "a conductance in W/K")?,
+            capacity_j_per_k: positive(
+                n.capacity_j_per_k,
+                1e9,
+                &p.key("capacity_j_per_k"),
+                "a heat capacity in J/K",
+            )?,
+            to_ambient_w_per_k: in_range(
+                n.to_ambient_w_per_k,
+                0.0,
+                1e6,
+                &p.key("to_ambient_w_per_k"),
+                "a conductance in W/K",
+            )?,
             initial_c: match n.initial_c {
-                Some(c) => Some(in_range(c, -50.0, 150.0, &p.key("initial_c"), "a temperature in °C")?),
+                Some(c) => Some(in_range(
+                    c,
+                    -50.0,
+                    150.0,
+                    &p.key("initial_c"),
+                    "a temperature in °C",
+                )?),
                 None => None,
             },
         });
@@ -405,9 +543,17 @@ fn thermal(t: &ThermalToml, link_names: &[String; 5], path: &KeyPath) -> Result<
         let a = node_index(&names, &c.between[0], &p.key("between").index(0))?;
         let b = node_index(&names, &c.between[1], &p.key("between").index(1))?;
         if a == b {
-            return Err(Invalid::new(p.key("between"), "a conductance joins two different nodes").into());
+            return Err(
+                Invalid::new(p.key("between"), "a conductance joins two different nodes").into(),
+            );
         }
-        let w = in_range(c.w_per_k, 0.0, 1e6, &p.key("w_per_k"), "a conductance in W/K")?;
+        let w = in_range(
+            c.w_per_k,
+            0.0,
+            1e6,
+            &p.key("w_per_k"),
+            "a conductance in W/K",
+        )?;
         conductances.push(Conductance { a, b, w_per_k: w });
     }
     let sources = t
@@ -420,21 +566,37 @@ fn thermal(t: &ThermalToml, link_names: &[String; 5], path: &KeyPath) -> Result<
     let network = ThermalNetwork::new(nodes, conductances, sources, ambient)
         .map_err(|e| Invalid::new(path.clone(), e.to_string()))?;
     let deformation = deformation(t, &names, link_names, path)?;
-    Ok(ThermalMachine { network, deformation })
+    Ok(ThermalMachine {
+        network,
+        deformation,
+    })
 }
 
-fn source(s: &SourceToml, names: &BTreeMap<&str, usize>, p: &KeyPath) -> std::result::Result<HeatSource, Invalid> {
+fn source(
+    s: &SourceToml,
+    names: &BTreeMap<&str, usize>,
+    p: &KeyPath,
+) -> std::result::Result<HeatSource, Invalid> {
     Ok(match s {
-        SourceToml::Spindle { node, w_per_rpm, w_per_rpm2 } => HeatSource::Spindle {
+        SourceToml::Spindle {
+            node,
+            w_per_rpm,
+            w_per_rpm2,
+        } => HeatSource::Spindle {
             node: node_index(names, node, &p.key("node"))?,
             w_per_rpm: in_range(*w_per_rpm, 0.0, 100.0, &p.key("w_per_rpm"), "W/rpm")?,
             w_per_rpm2: in_range(*w_per_rpm2, 0.0, 1.0, &p.key("w_per_rpm2"), "W/rpm²")?,
         },
-        SourceToml::Axis { node, axis, w_per_mm_s } => HeatSource::Axis {
+        SourceToml::Axis {
+            node,
+            axis,
+            w_per_mm_s,
+        } => HeatSource::Axis {
             node: node_index(names, node, &p.key("node"))?,
             axis: axis_named(axis, &p.key("axis"))?.index(),
             // W per (mm/s) to W per (m/s).
-            w_per_m_per_s: in_range(*w_per_mm_s, 0.0, 1000.0, &p.key("w_per_mm_s"), "W per mm/s")? * 1e3,
+            w_per_m_per_s: in_range(*w_per_mm_s, 0.0, 1000.0, &p.key("w_per_mm_s"), "W per mm/s")?
+                * 1e3,
         },
     })
 }
@@ -445,7 +607,12 @@ fn ambient(a: &AmbientToml, p: &KeyPath) -> std::result::Result<Ambient, Invalid
         AmbientToml::Constant { temperature_c } => Ambient::Constant {
             celsius: in_range(*temperature_c, -50.0, 80.0, &p.key("temperature_c"), "°C")?,
         },
-        AmbientToml::Sinusoid { mean_c, amplitude_k, period_h, phase_h } => Ambient::Sinusoid {
+        AmbientToml::Sinusoid {
+            mean_c,
+            amplitude_k,
+            period_h,
+            phase_h,
+        } => Ambient::Sinusoid {
             mean_c: in_range(*mean_c, -50.0, 80.0, &p.key("mean_c"), "°C")?,
             amplitude_k: in_range(*amplitude_k, 0.0, 50.0, &p.key("amplitude_k"), "K")?,
             period_s: positive(*period_h, 1e4, &p.key("period_h"), "a period in h")? * H,
@@ -454,7 +621,10 @@ fn ambient(a: &AmbientToml, p: &KeyPath) -> std::result::Result<Ambient, Invalid
         AmbientToml::Table { points_h_c } => {
             let pp = p.key("points_h_c");
             if points_h_c.is_empty() {
-                return Err(Invalid::new(pp, "at least one [time_h, temperature_c] point is needed"));
+                return Err(Invalid::new(
+                    pp,
+                    "at least one [time_h, temperature_c] point is needed",
+                ));
             }
             let mut times_s = Vec::new();
             let mut celsius = Vec::new();
@@ -463,7 +633,10 @@ fn ambient(a: &AmbientToml, p: &KeyPath) -> std::result::Result<Ambient, Invalid
                 if let Some(last) = times_s.last()
                     && t * H <= *last
                 {
-                    return Err(Invalid::new(pp.index(i).index(0), format!("{t} h is not accepted; times must increase strictly")));
+                    return Err(Invalid::new(
+                        pp.index(i).index(0),
+                        format!("{t} h is not accepted; times must increase strictly"),
+                    ));
                 }
                 times_s.push(t * H);
                 celsius.push(in_range(*c, -50.0, 80.0, &pp.index(i).index(1), "°C")?);
@@ -485,7 +658,8 @@ fn sensitivities(
             let node = node_index(names, node, &p)?;
             let mut per_kelvin = Vector3::zeros();
             for i in 0..3 {
-                per_kelvin[i] = in_range(v[i], -limit, limit, &p.index(i), "a sensitivity per K")? * 1e-6;
+                per_kelvin[i] =
+                    in_range(v[i], -limit, limit, &p.index(i), "a sensitivity per K")? * 1e-6;
             }
             Ok(NodeSensitivity { node, per_kelvin })
         })
@@ -504,7 +678,13 @@ fn deformation(
         let axis = axis_named(axis_name, &p)?;
         model.joints[axis.index()].expansion = Some(AxisExpansion {
             node: node_index(names, &e.node, &p.key("node"))?,
-            alpha_per_k: in_range(e.alpha_per_k, -1e-5, 1e-4, &p.key("alpha_per_k"), "an expansion coefficient in 1/K")?,
+            alpha_per_k: in_range(
+                e.alpha_per_k,
+                -1e-5,
+                1e-4,
+                &p.key("alpha_per_k"),
+                "an expansion coefficient in 1/K",
+            )?,
             reference_m: finite(e.reference_mm, &p.key("reference_mm"), "a position in mm")? * 1e-3,
         });
     }
@@ -512,8 +692,18 @@ fn deformation(
         let p = path.key("links").key(name);
         let k = link_index(link_names, name, &p)?;
         model.links[k] = LinkThermalModel {
-            translation: sensitivities(&s.translation_um_per_k, names, 1000.0, &p.key("translation_um_per_k"))?,
-            rotation: sensitivities(&s.rotation_urad_per_k, names, 1000.0, &p.key("rotation_urad_per_k"))?,
+            translation: sensitivities(
+                &s.translation_um_per_k,
+                names,
+                1000.0,
+                &p.key("translation_um_per_k"),
+            )?,
+            rotation: sensitivities(
+                &s.rotation_urad_per_k,
+                names,
+                1000.0,
+                &p.key("rotation_urad_per_k"),
+            )?,
         };
     }
     for (axis_name, s) in &t.joints {
@@ -524,7 +714,12 @@ fn deformation(
             return Err(Invalid::new(p.key("translation_um_per_k"), msg));
         }
         let joint: &mut JointThermalModel = &mut model.joints[axis.index()];
-        joint.rotation = sensitivities(&s.rotation_urad_per_k, names, 1000.0, &p.key("rotation_urad_per_k"))?;
+        joint.rotation = sensitivities(
+            &s.rotation_urad_per_k,
+            names,
+            1000.0,
+            &p.key("rotation_urad_per_k"),
+        )?;
     }
     Ok(model)
 }
@@ -542,17 +737,27 @@ fn thermal_run(run: &ThermalRunToml) -> std::result::Result<ThermalRunSpec, Inva
             let msg = format!("{until_h} h is not accepted; segment end times must increase");
             return Err(Invalid::new(p.key("until_h"), msg));
         }
-        let rpm = in_range(s.spindle_rpm, 0.0, 100_000.0, &p.key("spindle_rpm"), "a spindle speed in rpm")?;
+        let rpm = in_range(
+            s.spindle_rpm,
+            0.0,
+            100_000.0,
+            &p.key("spindle_rpm"),
+            "a spindle speed in rpm",
+        )?;
         let mut v = [0.0; 3];
-        for k in 0..3 {
+        for (k, (slot, mm_min)) in v.iter_mut().zip(s.axis_speed_mm_min).enumerate() {
             let pk = p.key("axis_speed_mm_min").index(k);
-            v[k] = in_range(s.axis_speed_mm_min[k], 0.0, 1e6, &pk, "a mean axis speed in mm/min")? / 60_000.0;
+            *slot = in_range(mm_min, 0.0, 1e6, &pk, "a mean axis speed in mm/min")? / 60_000.0;
         }
         segments.push(Segment {
             until_s: until_h * 3600.0,
-            op: Operating { spindle_rpm: rpm, axis_speed_m_s: v },
+            op: Operating {
+                spindle_rpm: rpm,
+                axis_speed_m_s: v,
+            },
         });
     }
-    let schedule = ThermalSchedule::new(segments).map_err(|e| Invalid::new(path.clone(), e.to_string()))?;
+    let schedule =
+        ThermalSchedule::new(segments).map_err(|e| Invalid::new(path.clone(), e.to_string()))?;
     Ok(ThermalRunSpec { schedule, step_s })
 }

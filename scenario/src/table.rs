@@ -54,12 +54,16 @@ pub fn read(
         let mut row = [0.0; 7];
         for (k, (&c, name)) in columns.iter().zip(&names).enumerate() {
             let text = record.get(c).unwrap_or("");
-            row[k] = text.parse::<f64>().ok().filter(|v| v.is_finite()).ok_or_else(|| {
-                fail(
-                    Some((line, c + 1)),
-                    format!("column {name}: `{text}` is not a finite number"),
-                )
-            })?;
+            row[k] = text
+                .parse::<f64>()
+                .ok()
+                .filter(|v| v.is_finite())
+                .ok_or_else(|| {
+                    fail(
+                        Some((line, c + 1)),
+                        format!("column {name}: `{text}` is not a finite number"),
+                    )
+                })?;
         }
         if let Some(prev) = rows.last()
             && row[0] <= prev[0]
@@ -75,7 +79,10 @@ pub fn read(
         rows.push(row);
     }
     if rows.len() < 2 {
-        return Err(fail(None, format!("a table needs at least 2 rows, found {}", rows.len())));
+        return Err(fail(
+            None,
+            format!("a table needs at least 2 rows, found {}", rows.len()),
+        ));
     }
     let (first, last) = (rows[0][0] * 1e-3, rows[rows.len() - 1][0] * 1e-3);
     if first > stroke.0 + 1e-12 || last < stroke.1 - 1e-12 {

@@ -6,7 +6,10 @@ use vmt_model::{Axis, Direction};
 use vmt_scenario::{BUILTIN_DEFAULT, ScenarioError, builtin, load, parse};
 
 fn with(replace: &str, by: &str) -> String {
-    assert!(BUILTIN_DEFAULT.contains(replace), "test edit `{replace}` not found");
+    assert!(
+        BUILTIN_DEFAULT.contains(replace),
+        "test edit `{replace}` not found"
+    );
     BUILTIN_DEFAULT.replacen(replace, by, 1)
 }
 
@@ -29,7 +32,12 @@ fn builtin_machine_loads_with_realistic_errors() {
     // Volumetric error at 20 °C over the work zone: tens of µm, not nm and not mm.
     let temps = vec![20.0; 6];
     let mut worst: f64 = 0.0;
-    for (x, y, z) in [(0.0, 0.0, 0.0), (0.5, 0.4, -0.4), (0.25, 0.2, -0.2), (0.5, 0.0, -0.4)] {
+    for (x, y, z) in [
+        (0.0, 0.0, 0.0),
+        (0.5, 0.4, 0.4),
+        (0.25, 0.2, 0.2),
+        (0.5, 0.0, 0.4),
+    ] {
         for d in [Direction::Forward, Direction::Backward] {
             let s = AxisState::new(nalgebra::Vector3::new(x, y, z), d);
             worst = worst.max(m.volumetric_error(&s, &temps).unwrap().amax());
@@ -37,7 +45,11 @@ fn builtin_machine_loads_with_realistic_errors() {
     }
     assert!((5e-6..100e-6).contains(&worst), "worst error {worst:e} m");
     // X backlash of the default: 2 µm on EXX.
-    let exx = m.volumetric.errors.axis(Axis::X).get(vmt_model::geometric::Component::Tx);
+    let exx = m
+        .volumetric
+        .errors
+        .axis(Axis::X)
+        .get(vmt_model::geometric::Component::Tx);
     assert!((exx.backlash(0.3) - 2e-6).abs() < 1e-15);
 }
 
@@ -56,13 +68,19 @@ fn nan_is_refused_naming_the_key() {
     let text = with("moving_mass_kg = 250.0", "moving_mass_kg = nan");
     let e = error_of(&text);
     assert_eq!(e.key.as_deref(), Some("machine.axes.x.moving_mass_kg"));
-    assert_eq!(e.position.unwrap().0, line_of(&text, "moving_mass_kg = nan"));
+    assert_eq!(
+        e.position.unwrap().0,
+        line_of(&text, "moving_mass_kg = nan")
+    );
     assert!(e.message.contains("NaN is not accepted"), "{e}");
 }
 
 #[test]
 fn missing_axis_is_refused() {
-    let text = with("[machine.axes.z]\nstroke_mm = [-400.0, 0.0]\nmoving_mass_kg = 180.0\n", "");
+    let text = with(
+        "[machine.axes.z]\nstroke_mm = [0.0, 400.0]\nmoving_mass_kg = 180.0\n",
+        "",
+    );
     let e = error_of(&text);
     assert!(e.message.contains("missing field `z`"), "{e}");
     assert!(e.position.is_some());
@@ -83,16 +101,34 @@ fn key_in_a_wrong_unit_is_refused_listing_the_accepted_keys() {
 
 #[test]
 fn out_of_range_values_are_refused() {
-    let e = error_of(&with("stroke_mm = [0.0, 400.0]", "stroke_mm = [400.0, 0.0]"));
+    let e = error_of(&with(
+        "stroke_mm = [0.0, 400.0]",
+        "stroke_mm = [400.0, 0.0]",
+    ));
     assert_eq!(e.key.as_deref(), Some("machine.axes.y.stroke_mm"));
     assert!(e.message.contains("min < max"), "{e}");
-    let e = error_of(&with("capacity_j_per_k = 23000.0", "capacity_j_per_k = -1.0"));
-    assert_eq!(e.key.as_deref(), Some("machine.thermal.nodes[0].capacity_j_per_k"));
-    let e = error_of(&with("EBX_urad = [0.0, 6.0, -3.0]", "EBX_urad = [0.0, 60000.0]"));
+    let e = error_of(&with(
+        "capacity_j_per_k = 23000.0",
+        "capacity_j_per_k = -1.0",
+    ));
+    assert_eq!(
+        e.key.as_deref(),
+        Some("machine.thermal.nodes[0].capacity_j_per_k")
+    );
+    let e = error_of(&with(
+        "EBX_urad = [0.0, 6.0, -3.0]",
+        "EBX_urad = [0.0, 60000.0]",
+    ));
     assert!(e.message.contains("10000"), "{e}");
-    let e = error_of(&with("node = \"x_screw\"\nalpha_per_k", "node = \"x_scew\"\nalpha_per_k"));
+    let e = error_of(&with(
+        "node = \"x_screw\"\nalpha_per_k",
+        "node = \"x_scew\"\nalpha_per_k",
+    ));
     assert!(e.message.contains("no thermal node `x_scew`"), "{e}");
-    let e = error_of(&with("[machine.thermal.links.\"Z-T\"]", "[machine.thermal.links.\"X-T\"]"));
+    let e = error_of(&with(
+        "[machine.thermal.links.\"Z-T\"]",
+        "[machine.thermal.links.\"X-T\"]",
+    ));
     assert!(e.message.contains("W-X, X-Y, Y-G, G-Z, Z-T"), "{e}");
 }
 
@@ -110,7 +146,8 @@ fn write_scenario_with_table(dir: &Path, rows: &str) -> std::path::PathBuf {
 #[test]
 fn compensation_tables_load_and_interpolate() {
     let dir = tempfile::tempdir().unwrap();
-    let rows = "X, EXX, EYX, EZX, EAX, EBX, ECX\n0,0,0,0,0,0,0\n250,3.0,1,0,0,5,0\n500,4.0,0,0,0,10,0\n";
+    let rows =
+        "X, EXX, EYX, EZX, EAX, EBX, ECX\n0,0,0,0,0,0,0\n250,3.0,1,0,0,5,0\n500,4.0,0,0,0,10,0\n";
     let s = load(&write_scenario_with_table(dir.path(), rows)).unwrap();
     let x = s.machine.volumetric.errors.axis(Axis::X);
     let exx = x.get(vmt_model::geometric::Component::Tx);

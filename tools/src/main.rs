@@ -1,1 +1,273 @@
-fn main(){}
+//! `vmt`: the virtual machine tool on the command line.
+
+use clap::{Args, Parser, Subcommand};
+use nalgebra::Vector3;
+use std::fs::File;
+use std::io::{BufWriter, Write};
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use vmt_model::kinematics::{Side, Topology};
+use vmt_model::thermal::temperatures_at;
+use vmt_model::thermal_deformation::REFERENCE_TEMPERATURE_C;
+use vmt_scenario::Scenario;
+use vmt_tools::map::{self, Plane};
+use vmt_tools::plot::{self, Format};
+use vmt_tools::{CliError, points, thermal};
+
+/// vmt — a physics-based virtual three-axis machining centre.
+///
+/// Scenarios (TOML) describe a machine: its topology, strokes, the 21 geometric errors of
+/// ISO 230-1 with forward/backward (backlash) values, and its thermal network. Without a
+/// SCENARIO argument the built-in default machine is used (scenarios/vmc500.toml: a 500 x 400 x
+/// 400 mm vertical machining centre).
+#[derive(Parser)]
+#[command(name = "vmt", version, propagate_version = true)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Volumetric error of the machine: at listed points, or as a map over a plane.
+    ///
+    /// Examples:
+    ///   vmt volumetric --points points.csv            (built-in machine, CSV to stdout)
+    ///   vmt volumetric my.toml --points p.csv --json --out errors.json
+    ///   vmt volumetric --map --plane xy --at-mm 150 --out out/
+    ///
+    /// Points CSV columns: x_mm,y_mm,z_mm (required); direction_x,direction_y,direction_z
+    /// (+1 forward / -1 backward approach, default +1); and optionally time_s (a time in the
+    /// scenario's thermal run) or temp_<node>_c for every thermal node. Without those the
+    /// machine is at 20 °C. Output: one row per point, dx_um,dy_um,dz_um (tool relative to the
+    /// workpiece, actual minus nominal).
+    #[command(verbatim_doc_comment)]
+    Volumetric(VolumetricArgs),
+    /// Run the scenario's thermal run (warm-up, cool-down, ambient drift, ISO 230-3): node
+    /// temperatures and the thermal drift of the tool point, as CSV and an image.
+    Thermal(ThermalArgs),
+    /// List the 24 three-axis topologies (chains from workpiece W to tool T, G = ground).
+    Topologies,
+}
+
+#[derive(Args)]
+struct VolumetricArgs {
+    /// Scenario file (TOML); the built-in default machine when omitted.
+    scenario: Option<PathBuf>,
+    /// CSV file of points to evaluate.
+    #[arg(long, conflicts_with = "map", required_unless_present = "map")]
+    points: Option<PathBuf>,
+    /// Write JSON instead of CSV (with --points).
+    #[arg(long, requires = "points")]
+    json: bool,
+    /// Map the error over a plane, for forward and backward approach.
+    #[arg(long)]
+    map: bool,
+    /// Plane of the map: xy, xz or yz.
+    #[arg(long, default_value = "xy", requires = "map")]
+    plane: Plane,
+    /// Coordinate of the axis normal to the plane, mm (within its stroke).
+    #[arg(long, allow_negative_numbers = true, required_if_eq("map", "true"))]
+    at_mm: Option<f64>,
+    /// Grid points per side of the map.
+    #[arg(long, default_value_t = 41, requires = "map")]
+    grid: usize,
+    /// Image format of the map.
+    #[arg(long, value_enum, default_value = "png", requires = "map")]
+    format: Format,
+    /// Evaluate the map at this time of the thermal run, h (default: the machine at 20 °C).
+    #[arg(long, requires = "map")]
+    time_h: Option<f64>,
+    /// Output: a file with --points (default stdout); a folder with --map (default `out`).
+    #[arg(long)]
+    out: Option<PathBuf>,
+}
+
+#[derive(Args)]
+struct ThermalArgs {
+    /// Scenario file (TOML); the built-in default machine when omitted.
+    scenario: Option<PathBuf>,
+    /// Tool position whose drift is reported, mm, as x,y,z.
+    #[arg(long, value_delimiter = ',', num_args = 3, default_values_t = [250.0, 200.0, 200.0], allow_negative_numbers = true)]
+    probe_mm: Vec<f64>,
+    /// Sampling interval of the report, s.
+    #[arg(long, default_value_t = 60.0)]
+    every_s: f64,
+    /// Image format.
+    #[arg(long, value_enum, default_value = "png")]
+    format: Format,
+    /// Output folder.
+    #[arg(long, default_value = "out")]
+    out: PathBuf,
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Volumetric(args) => volumetric(args),
+        Command::Thermal(args) => thermal_run(args),
+        Command::Topologies => {
+            topologies();
+            Ok(())
+        }
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e}");
+            ExitCode::from(2)
+        }
+    }
+}
+
+fn load(scenario: Option<&Path>) -> Result<Scenario, CliError> {
+    Ok(match scenario {
+        Some(p) => vmt_scenario::load(p)?,
+        None => vmt_scenario::builtin()?,
+    })
+}
+
+fn create(path: &Path) -> Result<BufWriter<File>, CliError> {
+    if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).map_err(|e| CliError::output(dir, e))?;
+    }
+    File::create(path)
+        .map(BufWriter::new)
+        .map_err(|e| CliError::output(path, e))
+}
+
+fn volumetric(args: VolumetricArgs) -> Result<(), CliError> {
+    let scenario = load(args.scenario.as_deref())?;
+    if let Some(path) = &args.points {
+        let pts = points::read(path, &scenario.machine)?;
+        let errors = points::evaluate(&scenario, &pts)?;
+        return match &args.out {
+            Some(out) => {
+                let mut w = create(out)?;
+                points::write(&mut w, &errors, args.json)
+                    .and_then(|_| w.flush())
+                    .map_err(|e| CliError::output(out, e))
+            }
+            None => {
+                let mut w = std::io::stdout().lock();
+                points::write(&mut w, &errors, args.json)
+                    .map_err(|e| CliError::output(Path::new("<stdout>"), e))
+            }
+        };
+    }
+    let at_mm = args
+        .at_mm
+        .ok_or_else(|| CliError::Argument("--map needs --at-mm".into()))?;
+    let temps = map_temperatures(&scenario, args.time_h)?;
+    let m = map::compute(
+        &scenario.machine,
+        args.plane,
+        at_mm * 1e-3,
+        args.grid,
+        &temps,
+    )?;
+    let dir = args.out.unwrap_or_else(|| PathBuf::from("out"));
+    let stem = format!(
+        "volumetric_{}_{}{:.0}mm",
+        args.plane,
+        m.plane.normal.letter().to_ascii_lowercase(),
+        at_mm
+    );
+    let csv_path = dir.join(format!("{stem}.csv"));
+    let mut w = create(&csv_path)?;
+    m.write_csv(&mut w)
+        .and_then(|_| w.flush())
+        .map_err(|e| CliError::output(&csv_path, e))?;
+    let image = dir.join(format!("{stem}.{}", args.format.extension()));
+    plot::draw_map(&m, &image, args.format)?;
+    println!(
+        "{}: volumetric error on the {} plane at {} = {at_mm} mm",
+        scenario.machine.name, args.plane, m.plane.normal
+    );
+    for (k, name) in ["X", "Y", "Z"].iter().enumerate() {
+        println!("  max |Δ{name}| = {:8.3} µm", m.max_abs(k) * 1e6);
+    }
+    println!("wrote {}\nwrote {}", csv_path.display(), image.display());
+    Ok(())
+}
+
+fn map_temperatures(scenario: &Scenario, time_h: Option<f64>) -> Result<Vec<f64>, CliError> {
+    let n = scenario
+        .machine
+        .thermal
+        .as_ref()
+        .map_or(0, |t| t.network.node_count());
+    let Some(h) = time_h else {
+        return Ok(vec![REFERENCE_TEMPERATURE_C; n]);
+    };
+    if !(h.is_finite() && h >= 0.0) {
+        return Err(CliError::Argument(format!(
+            "--time-h {h}: a time >= 0 h is accepted"
+        )));
+    }
+    let (Some(t), Some(run)) = (&scenario.machine.thermal, &scenario.thermal_run) else {
+        return Err(CliError::Argument(
+            "--time-h needs a scenario with a thermal model and [thermal_run]".into(),
+        ));
+    };
+    let temps = temperatures_at(&t.network, &run.schedule, run.step_s, &[h * 3600.0])
+        .map_err(|e| CliError::Model(e.to_string()))?;
+    Ok(temps.into_iter().next().unwrap_or_default())
+}
+
+fn thermal_run(args: ThermalArgs) -> Result<(), CliError> {
+    let scenario = load(args.scenario.as_deref())?;
+    let probe = Vector3::new(args.probe_mm[0], args.probe_mm[1], args.probe_mm[2]) * 1e-3;
+    let h = thermal::run(&scenario, probe, args.every_s)?;
+    let csv_path = args.out.join("thermal_run.csv");
+    let mut w = create(&csv_path)?;
+    h.write_csv(&mut w)
+        .and_then(|_| w.flush())
+        .map_err(|e| CliError::output(&csv_path, e))?;
+    let image = args
+        .out
+        .join(format!("thermal_run.{}", args.format.extension()));
+    h.draw(&image, args.format)?;
+    let taus: Vec<String> = h
+        .time_constants_s
+        .iter()
+        .map(|t| format!("{:.2}", t / 3600.0))
+        .collect();
+    println!(
+        "{}: thermal run of {:.1} h",
+        scenario.machine.name,
+        h.times_s.last().copied().unwrap_or(0.0) / 3600.0
+    );
+    println!("  time constants of the network (h): {}", taus.join(", "));
+    let worst = h.drift.iter().map(|d| d.amax()).fold(0.0, f64::max);
+    println!(
+        "  largest drift of the tool point at the probe: {:.2} µm",
+        worst * 1e6
+    );
+    println!("wrote {}\nwrote {}", csv_path.display(), image.display());
+    Ok(())
+}
+
+fn topologies() {
+    println!("The 24 topologies of a three-axis machine, workpiece (W) to tool (T), G = ground:");
+    for t in Topology::all() {
+        let side = |s: Side| {
+            let axes: Vec<String> = t
+                .axis_order()
+                .iter()
+                .filter(|a| t.axis_side(**a) == s)
+                .map(|a| a.to_string())
+                .collect();
+            if axes.is_empty() {
+                "-".to_string()
+            } else {
+                axes.join(" ")
+            }
+        };
+        println!(
+            "  {t}   workpiece carried by: {:6} tool carried by: {}",
+            side(Side::Workpiece),
+            side(Side::Tool)
+        );
+    }
+}

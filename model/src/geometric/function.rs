@@ -89,9 +89,7 @@ pub enum FunctionError {
         value: f64,
     },
     /// Table positions are not strictly increasing.
-    #[error(
-        "table positions must increase strictly: row {index} has {value} after {previous}"
-    )]
+    #[error("table positions must increase strictly: row {index} has {value} after {previous}")]
     NotIncreasing {
         /// Row (0-based).
         index: usize,
@@ -125,7 +123,10 @@ impl LegendreSeries {
     /// A series with `coefficients` (c0, c1, ...) over `[q_min, q_max]` (m).
     pub fn new(coefficients: Vec<f64>, q_min: f64, q_max: f64) -> Result<Self, FunctionError> {
         if !(q_min.is_finite() && q_max.is_finite() && q_min < q_max) {
-            return Err(FunctionError::BadInterval { lo: q_min, hi: q_max });
+            return Err(FunctionError::BadInterval {
+                lo: q_min,
+                hi: q_max,
+            });
         }
         check_finite(&coefficients)?;
         Ok(Self {

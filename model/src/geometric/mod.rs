@@ -173,8 +173,11 @@ pub enum SquarenessError {
 
 impl SquarenessError {
     /// The three squareness errors.
-    pub const ALL: [SquarenessError; 3] =
-        [SquarenessError::C0Y, SquarenessError::B0Z, SquarenessError::A0Z];
+    pub const ALL: [SquarenessError; 3] = [
+        SquarenessError::C0Y,
+        SquarenessError::B0Z,
+        SquarenessError::A0Z,
+    ];
 
     /// ISO 230-1 name.
     pub const fn iso_name(self) -> &'static str {
@@ -272,7 +275,8 @@ impl GeometricErrors {
         let mut rot = [Vector3::zeros(); 3];
         for s in SquarenessError::ALL {
             let (r, m) = s.axes();
-            let angle = self.squareness[s as usize].get(directions[r.index()], directions[m.index()]);
+            let angle =
+                self.squareness[s as usize].get(directions[r.index()], directions[m.index()]);
             rot[m.index()] += s.rotation_axis() * angle;
         }
         rot

@@ -155,13 +155,12 @@ impl VolumetricModel {
         let ev = self.evaluator(thermal);
         let chain = self.kinematics.topology.chain();
         let mut out = vec![ev.links[0]];
-        for k in 1..5 {
-            if let Element::Axis(a) = chain[k] {
-                out.push(ev.joint(a, state));
-            } else {
-                out.push(Htm::identity());
-            }
-            out.push(ev.links[k]);
+        for (element, link) in chain[1..5].iter().zip(&ev.links[1..]) {
+            out.push(match element {
+                Element::Axis(a) => ev.joint(*a, state),
+                _ => Htm::identity(),
+            });
+            out.push(*link);
         }
         out
     }

@@ -101,7 +101,10 @@ impl Topology {
 
     /// Position of the ground in the chain (1..=4).
     pub fn ground_index(&self) -> usize {
-        self.chain.iter().position(|e| *e == Element::Ground).unwrap_or(5)
+        self.chain
+            .iter()
+            .position(|e| *e == Element::Ground)
+            .unwrap_or(5)
     }
 
     /// Position of `axis` in the chain (1..=4).
@@ -146,7 +149,9 @@ impl Topology {
 
     /// The names of the five structural links, e.g. `W-X`, `X-Y`, `Y-G`, `G-Z`, `Z-T`.
     pub fn link_names(&self) -> [String; 5] {
-        std::array::from_fn(|k| format!("{}-{}", self.chain[k].letter(), self.chain[k + 1].letter()))
+        std::array::from_fn(|k| {
+            format!("{}-{}", self.chain[k].letter(), self.chain[k + 1].letter())
+        })
     }
 }
 
@@ -163,12 +168,16 @@ impl FromStr for Topology {
         Topology::all()
             .into_iter()
             .find(|t| t.to_string() == letters)
-            .ok_or_else(|| TopologyError { name: s.to_string() })
+            .ok_or_else(|| TopologyError {
+                name: s.to_string(),
+            })
     }
 }
 
 impl fmt::Display for Topology {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        self.chain.iter().try_for_each(|e| write!(f, "{}", e.letter()))
+        self.chain
+            .iter()
+            .try_for_each(|e| write!(f, "{}", e.letter()))
     }
 }

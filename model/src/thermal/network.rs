@@ -538,7 +538,13 @@ impl Modal {
 
     /// One step: `T ← T_amb + Φ (T − T_amb) + Γ Q`, evaluated in modal
     /// coordinates with the given factors.
-    fn apply(&self, temps_c: &mut [f64], heat_w: &[f64], ambient_c: f64, factors: (&[f64], &[f64])) {
+    fn apply(
+        &self,
+        temps_c: &mut [f64],
+        heat_w: &[f64],
+        ambient_c: f64,
+        factors: (&[f64], &[f64]),
+    ) {
         let n = self.mu.len();
         let y = DVector::from_iterator(
             n,
@@ -549,7 +555,10 @@ impl Modal {
         );
         let q = DVector::from_iterator(
             n,
-            heat_w.iter().zip(self.c_inv_sqrt.iter()).map(|(p, s)| s * p),
+            heat_w
+                .iter()
+                .zip(self.c_inv_sqrt.iter())
+                .map(|(p, s)| s * p),
         );
         let mut z = self.v.tr_mul(&y);
         let zq = self.v.tr_mul(&q);
@@ -625,7 +634,8 @@ impl ThermalStepper {
         }
         self.check_lengths(temps_c, heat_w);
         let (decay, gain) = self.modal.factors(h_s);
-        self.modal.apply(temps_c, heat_w, ambient_c, (&decay, &gain));
+        self.modal
+            .apply(temps_c, heat_w, ambient_c, (&decay, &gain));
     }
 
     fn check_lengths(&self, temps_c: &[f64], heat_w: &[f64]) {

@@ -54,7 +54,7 @@ impl ThermalSchedule {
     /// `[until_s[k−1], until_s[k])`. Stopped before 0, after the last
     /// segment, and for a NaN time.
     pub fn operating_at(&self, t_s: f64) -> Operating {
-        if !(t_s >= 0.0) {
+        if t_s.is_nan() || t_s < 0.0 {
             return Operating::STOPPED;
         }
         self.segments
@@ -183,9 +183,7 @@ impl<'a> ThermalRun<'a> {
     /// One exactly discretised step from the current time to `end`.
     fn step_to(&mut self, end: f64) {
         let mid = 0.5 * (self.t_s + end);
-        let heat = self
-            .network
-            .heat_input_w(&self.schedule.operating_at(mid));
+        let heat = self.network.heat_input_w(&self.schedule.operating_at(mid));
         let ambient = self.network.ambient().celsius_at(mid);
         self.stepper
             .step_by(&mut self.temps, &heat, ambient, end - self.t_s);

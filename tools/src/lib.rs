@@ -1,0 +1,10 @@
+//! vmt-tools: the pieces behind the `vmt` command line — input files, maps, reports and plots.
+//! The binary in `main.rs` only parses arguments, calls these and the library crates, and prints.
+
+pub mod error;
+pub mod map;
+pub mod plot;
+pub mod points;
+pub mod thermal;
+
+pub use error::CliError;

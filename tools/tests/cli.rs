@@ -1,0 +1,208 @@
+//! The `vmt` binary end to end: outputs that match the library, and one clear error per bad input.
+
+use std::path::Path;
+use std::process::{Command, Output};
+
+fn vmt(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_vmt"))
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+fn write(dir: &Path, name: &str, text: &str) -> String {
+    let p = dir.join(name);
+    std::fs::write(&p, text).unwrap();
+    p.display().to_string()
+}
+
+fn rows(o: &Output) -> Vec<Vec<f64>> {
+    String::from_utf8_lossy(&o.stdout)
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').map(|v| v.parse().unwrap()).collect())
+        .collect()
+}
+
+#[test]
+fn points_give_the_library_errors_and_reversal_shows_the_backlash() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = write(
+        dir.path(),
+        "p.csv",
+        "x_mm,y_mm,z_mm,direction_x\n250,200,150,1\n250,200,150,-1\n0,0,0,1\n",
+    );
+    let o = vmt(&["volumetric", "--points", &csv]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let r = rows(&o);
+    assert_eq!(r.len(), 3);
+    let s = vmt_scenario::builtin().unwrap();
+    let temps = vec![20.0; 6];
+    for (row, sign) in r.iter().zip([1, -1]) {
+        let state = vmt_model::kinematics::AxisState {
+            position: nalgebra::Vector3::new(0.25, 0.2, 0.15),
+            direction: [
+                vmt_model::Direction::from_sign(sign).unwrap(),
+                vmt_model::Direction::Forward,
+                vmt_model::Direction::Forward,
+            ],
+        };
+        let e = s.machine.volumetric_error(&state, &temps).unwrap() * 1e6;
+        for k in 0..3 {
+            assert!((row[k] - e[k]).abs() < 1e-6, "{row:?} vs {e:?}");
+        }
+    }
+    // Reversing X: the built-in 2 µm EXX backlash, plus 1.5 µrad of ECX (yaw) backlash turning
+    // the lever y = 200 mm about +Z, which moves the tool by -1.5 µrad * 0.2 m = -0.3 µm in X.
+    let reversal = r[1][0] - r[0][0];
+    assert!(
+        (reversal - (2.0 - 1.5 * 0.2)).abs() < 1e-5,
+        "ΔX reversal {reversal} µm"
+    );
+}
+
+#[test]
+fn json_output_has_one_object_per_point() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = write(
+        dir.path(),
+        "p.csv",
+        "z_mm,y_mm,x_mm\n10,20,30\n400,400,500\n",
+    );
+    let out = dir.path().join("e.json");
+    let o = vmt(&[
+        "volumetric",
+        "--points",
+        &csv,
+        "--json",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out).unwrap()).unwrap();
+    let arr = v.as_array().unwrap();
+    assert_eq!(arr.len(), 2);
+    assert!(arr[1]["dx_um"].as_f64().unwrap().abs() > 0.1);
+}
+
+#[test]
+fn time_in_the_thermal_run_warms_the_machine() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = write(
+        dir.path(),
+        "p.csv",
+        "x_mm,y_mm,z_mm,time_s\n250,200,200,0\n250,200,200,10800\n",
+    );
+    let o = vmt(&["volumetric", "--points", &csv]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let r = rows(&o);
+    // After 3 h of warm-up the spindle head has grown down: ΔZ falls by more than 10 µm.
+    assert!(r[1][2] - r[0][2] < -10.0, "{r:?}");
+}
+
+#[test]
+fn a_missing_column_is_refused_naming_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = write(dir.path(), "p.csv", "x_mm,y_mm\n1,2\n");
+    let o = vmt(&["volumetric", "--points", &csv]);
+    assert_eq!(o.status.code(), Some(2));
+    let e = stderr(&o);
+    assert!(e.contains("p.csv:1: missing column z_mm"), "{e}");
+    assert!(e.contains("accepted columns"), "{e}");
+}
+
+#[test]
+fn nan_and_bad_directions_are_refused_with_line_and_column() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = write(dir.path(), "p.csv", "x_mm,y_mm,z_mm\n1,2,3\n1,NaN,3\n");
+    let e = stderr(&vmt(&["volumetric", "--points", &csv]));
+    assert!(
+        e.contains("p.csv:3: column y_mm: `NaN` is not a finite number"),
+        "{e}"
+    );
+    let csv = write(dir.path(), "q.csv", "x_mm,y_mm,z_mm,direction_y\n1,2,3,0\n");
+    let e = stderr(&vmt(&["volumetric", "--points", &csv]));
+    assert!(
+        e.contains("q.csv:2: direction_y = 0; accepted: +1 (forward) or -1 (backward)"),
+        "{e}"
+    );
+}
+
+#[test]
+fn points_beyond_the_stroke_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = write(dir.path(), "p.csv", "x_mm,y_mm,z_mm\n520,0,0\n");
+    let e = stderr(&vmt(&["volumetric", "--points", &csv]));
+    assert!(
+        e.contains("p.csv:2: x_mm = 520 mm is outside the X stroke 0 to 500 mm"),
+        "{e}"
+    );
+}
+
+#[test]
+fn a_bad_scenario_is_refused_with_file_line_and_key() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = vmt_scenario::BUILTIN_DEFAULT.replace("topology = \"WXYGZT\"", "topology = \"XYZ\"");
+    let scenario = write(dir.path(), "m.toml", &text);
+    let csv = write(dir.path(), "p.csv", "x_mm,y_mm,z_mm\n1,2,3\n");
+    let e = stderr(&vmt(&["volumetric", &scenario, "--points", &csv]));
+    let line = text
+        .lines()
+        .position(|l| l.starts_with("topology"))
+        .unwrap()
+        + 1;
+    assert!(
+        e.contains(&format!(
+            "m.toml:{line}:12: key `machine.topology`: unknown topology `XYZ`"
+        )),
+        "{e}"
+    );
+}
+
+#[test]
+fn the_map_writes_csv_and_a_png_for_both_approaches() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().to_str().unwrap();
+    let o = vmt(&[
+        "volumetric",
+        "--map",
+        "--plane",
+        "xz",
+        "--at-mm",
+        "200",
+        "--grid",
+        "5",
+        "--out",
+        out,
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let csv = std::fs::read_to_string(dir.path().join("volumetric_xz_y200mm.csv")).unwrap();
+    assert_eq!(csv.lines().count(), 1 + 2 * 25);
+    assert!(
+        csv.lines()
+            .nth(1)
+            .unwrap()
+            .starts_with("forward,0.000,200.000,0.000,")
+    );
+    let png = std::fs::read(dir.path().join("volumetric_xz_y200mm.png")).unwrap();
+    assert_eq!(&png[..8], b"\x89PNG\r\n\x1a\n");
+    let e = stderr(&vmt(&[
+        "volumetric",
+        "--map",
+        "--plane",
+        "xy",
+        "--at-mm",
+        "450",
+        "--out",
+        out,
+    ]));
+    assert!(
+        e.contains("--at-mm 450 is outside the Z stroke 0 to 400 mm"),
+        "{e}"
+    );
+}
