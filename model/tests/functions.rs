@@ -113,3 +113,53 @@ fn direction_tracker_follows_the_last_motion_beyond_its_dead_band() {
     assert_eq!(t.update(0.000_4 + 0.5e-7), Direction::Backward);
     assert_eq!(t.update(0.000_6), Direction::Forward);
 }
+
+/// An axis' six functions evaluated together (shared Legendre basis, shared table segment, or
+/// one by one when their domains differ) equal each function evaluated on its own.
+mod joint_evaluation {
+    use proptest::prelude::*;
+    use vmt_model::Direction;
+    use vmt_model::geometric::{
+        AxisErrors, Component, Directional, ErrorFunction, ErrorTable, Interpolation,
+        LegendreSeries,
+    };
+
+    fn function(kind: u8, c: &[f64], shift: f64) -> ErrorFunction {
+        let q: Vec<f64> = (0..c.len()).map(|i| i as f64 * 0.05 + shift).collect();
+        match kind % 5 {
+            0 => ErrorFunction::Zero,
+            1 => ErrorFunction::Legendre(LegendreSeries::new(c.to_vec(), 0.0, 0.4).unwrap()),
+            2 => ErrorFunction::Legendre(LegendreSeries::new(c.to_vec(), shift, 0.5).unwrap()),
+            3 => {
+                ErrorFunction::Table(ErrorTable::new(q, c.to_vec(), Interpolation::Pchip).unwrap())
+            }
+            _ => {
+                ErrorFunction::Table(ErrorTable::new(q, c.to_vec(), Interpolation::Linear).unwrap())
+            }
+        }
+    }
+
+    proptest! {
+        #[test]
+        fn joint_evaluation_equals_separate_evaluation(
+            kinds in prop::array::uniform6(0u8..5),
+            same in any::<bool>(),
+            c in prop::collection::vec(-1e-5..1e-5f64, 3..12),
+            q in -0.05..0.6f64,
+        ) {
+            let mut axis = AxisErrors::zero();
+            for (k, comp) in Component::ALL.into_iter().enumerate() {
+                // With `same`, every function shares kind and domain; otherwise they mix.
+                let kind = if same { kinds[0] } else { kinds[k] };
+                let f = function(kind, &c, if same { 0.0 } else { 0.01 * k as f64 });
+                axis.set(comp, Directional { forward: f.clone(), backward: f });
+            }
+            let m = axis.motion(q, Direction::Backward);
+            for (k, comp) in Component::ALL.into_iter().enumerate() {
+                let direct = axis.get(comp).backward.eval(q);
+                let joint = if k < 3 { m.translation[k] } else { m.rotation[k - 3] };
+                prop_assert!((joint - direct).abs() <= 1e-20 + 1e-12 * direct.abs());
+            }
+        }
+    }
+}

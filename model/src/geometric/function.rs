@@ -47,26 +47,6 @@ impl ErrorFunction {
             ErrorFunction::Table(t) => Some((t.positions[0], t.positions[t.positions.len() - 1])),
         }
     }
-
-    /// The same function with its values multiplied by `k` (e.g. a unit conversion).
-    pub fn scaled(&self, k: f64) -> ErrorFunction {
-        match self {
-            ErrorFunction::Zero => ErrorFunction::Zero,
-            ErrorFunction::Legendre(s) => ErrorFunction::Legendre(LegendreSeries {
-                coefficients: s.coefficients.iter().map(|c| c * k).collect(),
-                ..s.clone()
-            }),
-            ErrorFunction::Table(t) => {
-                let values = t.values.iter().map(|v| v * k).collect();
-                let slopes = t.slopes.iter().map(|d| d * k).collect();
-                ErrorFunction::Table(ErrorTable {
-                    values,
-                    slopes,
-                    ..t.clone()
-                })
-            }
-        }
-    }
 }
 
 /// What is wrong with the data of an error function.
@@ -114,9 +94,14 @@ pub enum FunctionError {
 /// `e(q) = Σ c_n P_n(ξ)`, `ξ = (2q - q_min - q_max) / (q_max - q_min)`, `P_n` Legendre polynomials.
 #[derive(Clone, Debug, PartialEq)]
 pub struct LegendreSeries {
-    coefficients: Vec<f64>,
-    q_min: f64,
-    q_max: f64,
+    pub(super) coefficients: Vec<f64>,
+    pub(super) q_min: f64,
+    pub(super) q_max: f64,
+    /// ξ = q·scale + offset.
+    pub(super) scale: f64,
+    pub(super) offset: f64,
+    /// Recurrence factors (2n+1)/(n+1) and n/(n+1), precomputed so evaluation has no division.
+    pub(super) recurrence: Vec<(f64, f64)>,
 }
 
 impl LegendreSeries {
@@ -129,10 +114,19 @@ impl LegendreSeries {
             });
         }
         check_finite(&coefficients)?;
+        let recurrence = (0..coefficients.len())
+            .map(|n| {
+                let n = n as f64;
+                ((2.0 * n + 1.0) / (n + 1.0), n / (n + 1.0))
+            })
+            .collect();
         Ok(Self {
+            scale: 2.0 / (q_max - q_min),
+            offset: -(q_min + q_max) / (q_max - q_min),
             coefficients,
             q_min,
             q_max,
+            recurrence,
         })
     }
 
@@ -144,13 +138,12 @@ impl LegendreSeries {
     /// The value at `q` by the three-term recurrence `(n+1)P_{n+1} = (2n+1)ξP_n - nP_{n-1}`.
     #[inline]
     pub fn eval(&self, q: f64) -> f64 {
-        let xi = (2.0 * q - self.q_min - self.q_max) / (self.q_max - self.q_min);
+        let xi = q * self.scale + self.offset;
         let mut sum = 0.0;
         let (mut p_prev, mut p) = (0.0, 1.0);
-        for (n, c) in self.coefficients.iter().enumerate() {
+        for (c, (a, b)) in self.coefficients.iter().zip(&self.recurrence) {
             sum += c * p;
-            let nf = n as f64;
-            let p_next = ((2.0 * nf + 1.0) * xi * p - nf * p_prev) / (nf + 1.0);
+            let p_next = a * xi * p - b * p_prev;
             p_prev = p;
             p = p_next;
         }
@@ -174,10 +167,10 @@ pub enum Interpolation {
 /// cover the stroke, so evaluation never relies on that.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ErrorTable {
-    positions: Vec<f64>,
-    values: Vec<f64>,
-    slopes: Vec<f64>,
-    interpolation: Interpolation,
+    pub(super) positions: Vec<f64>,
+    pub(super) values: Vec<f64>,
+    pub(super) slopes: Vec<f64>,
+    pub(super) interpolation: Interpolation,
 }
 
 impl ErrorTable {
@@ -240,20 +233,54 @@ impl ErrorTable {
         let i = self.positions.partition_point(|&p| p <= q) - 1;
         let (q0, q1) = (self.positions[i], self.positions[i + 1]);
         let (v0, v1) = (self.values[i], self.values[i + 1]);
+        let weights = SegmentWeights::new(q, q0, q1, self.interpolation);
+        let slopes = match self.interpolation {
+            Interpolation::Linear => (0.0, 0.0),
+            Interpolation::Pchip => (self.slopes[i], self.slopes[i + 1]),
+        };
+        weights.apply(v0, v1, slopes.0, slopes.1)
+    }
+}
+
+/// Interpolation weights of a point within one table segment `[q0, q1]`: linear, or the cubic
+/// Hermite basis h00, h10, h01, h11 (Fritsch–Carlson PCHIP uses the latter).
+#[derive(Clone, Copy, Debug)]
+pub(super) struct SegmentWeights {
+    w0: f64,
+    w1: f64,
+    d0: f64,
+    d1: f64,
+}
+
+impl SegmentWeights {
+    #[inline]
+    pub(super) fn new(q: f64, q0: f64, q1: f64, interpolation: Interpolation) -> Self {
         let h = q1 - q0;
         let s = (q - q0) / h;
-        match self.interpolation {
-            Interpolation::Linear => v0 + s * (v1 - v0),
+        match interpolation {
+            Interpolation::Linear => Self {
+                w0: 1.0 - s,
+                w1: s,
+                d0: 0.0,
+                d1: 0.0,
+            },
             Interpolation::Pchip => {
-                let (d0, d1) = (self.slopes[i], self.slopes[i + 1]);
                 let s2 = s * s;
                 let s3 = s2 * s;
-                v0 * (2.0 * s3 - 3.0 * s2 + 1.0)
-                    + h * d0 * (s3 - 2.0 * s2 + s)
-                    + v1 * (-2.0 * s3 + 3.0 * s2)
-                    + h * d1 * (s3 - s2)
+                Self {
+                    w0: 2.0 * s3 - 3.0 * s2 + 1.0,
+                    w1: -2.0 * s3 + 3.0 * s2,
+                    d0: h * (s3 - 2.0 * s2 + s),
+                    d1: h * (s3 - s2),
+                }
             }
         }
+    }
+
+    /// The interpolated value from the end values and end slopes.
+    #[inline]
+    pub(super) fn apply(&self, v0: f64, v1: f64, d0: f64, d1: f64) -> f64 {
+        self.w0 * v0 + self.w1 * v1 + self.d0 * d0 + self.d1 * d1
     }
 }
 

@@ -19,11 +19,13 @@
 //! yaw backlash, ...). Squareness depends on the approach directions of both of its axes, so it
 //! has four values, whose differences are its two backlash components.
 
+mod compiled;
 mod function;
 
 pub use function::{ErrorFunction, ErrorTable, FunctionError, Interpolation, LegendreSeries};
 
 use crate::axis::{Axis, Direction};
+use compiled::Compiled;
 use nalgebra::Vector3;
 
 /// One of the six error motions of an axis: a translation along or rotation about X, Y or Z.
@@ -131,6 +133,8 @@ pub struct ErrorMotion {
 #[derive(Clone, Debug, PartialEq, Default)]
 pub struct AxisErrors {
     components: [Directional; 6],
+    /// The functions of each direction arranged for joint evaluation.
+    compiled: [Compiled; 2],
 }
 
 impl AxisErrors {
@@ -142,6 +146,10 @@ impl AxisErrors {
     /// Sets a component's functions.
     pub fn set(&mut self, component: Component, functions: Directional) {
         self.components[component.index()] = functions;
+        for d in [Direction::Forward, Direction::Backward] {
+            let f = std::array::from_fn(|k| self.components[k].get(d));
+            self.compiled[d.index()] = Compiled::new(f);
+        }
     }
 
     /// A component's functions.
@@ -152,10 +160,10 @@ impl AxisErrors {
     /// The error motion at axis position `q` (m) approached in `direction`.
     #[inline]
     pub fn motion(&self, q: f64, direction: Direction) -> ErrorMotion {
-        let v = |k: usize| self.components[k].get(direction).eval(q);
+        let v = self.compiled[direction.index()].eval(q);
         ErrorMotion {
-            translation: Vector3::new(v(0), v(1), v(2)),
-            rotation: Vector3::new(v(3), v(4), v(5)),
+            translation: Vector3::new(v[0], v[1], v[2]),
+            rotation: Vector3::new(v[3], v[4], v[5]),
         }
     }
 }

@@ -93,6 +93,14 @@ pub struct VolumetricEvaluator<'a> {
     links: [Htm; 5],
     link_identity: [bool; 5],
     joint_thermal: [Option<Matrix3<f64>>; 3],
+    /// Unit vectors of the axes' reference straight lines (squareness), for each of the eight
+    /// combinations of direction states, indexed by [`direction_index`].
+    axis_lines: [[Vector3<f64>; 3]; 8],
+}
+
+/// Index 0..8 of a combination of the three direction states.
+fn direction_index(d: &[Direction; 3]) -> usize {
+    d[0].index() | d[1].index() << 1 | d[2].index() << 2
 }
 
 impl VolumetricModel {
@@ -125,8 +133,17 @@ impl VolumetricModel {
                 Side::Tool => rotation_matrix(eps),
             })
         });
+        let axis_lines = std::array::from_fn(|combo| {
+            let dirs = std::array::from_fn(|i| match combo >> i & 1 {
+                0 => Direction::Forward,
+                _ => Direction::Backward,
+            });
+            let turns = self.errors.axis_line_rotations(&dirs);
+            std::array::from_fn(|i| rotation_matrix(turns[i]).column(i).into_owned())
+        });
         VolumetricEvaluator {
             model: self,
+            axis_lines,
             thermal: *thermal,
             links,
             link_identity,
@@ -168,26 +185,32 @@ impl VolumetricModel {
 
 impl VolumetricEvaluator<'_> {
     /// The joint matrix of `axis` at `state`.
-    #[inline]
     pub fn joint(&self, axis: Axis, state: &AxisState) -> Htm {
+        let (geometric, thermal) = self.joint_parts(axis, state);
+        match thermal {
+            Some(r) => Htm {
+                rotation: geometric.rotation * r,
+                translation: geometric.translation,
+            },
+            None => geometric,
+        }
+    }
+
+    /// The joint matrix as `geometric · R(±ε_j)`: the geometric part `Trans(q·u + δ) · R(ε)`
+    /// and the thermal rotation, if any, kept apart so a point can go through them in turn.
+    #[inline]
+    fn joint_parts(&self, axis: Axis, state: &AxisState) -> (Htm, Option<&Matrix3<f64>>) {
         let i = axis.index();
         let q = state.position[i];
-        let dir = state.direction[i];
-        let errors = &self.model.errors;
-        let motion = errors.axis(axis).motion(q, dir);
-        let line_rotation = errors.axis_line_rotations(&state.direction)[i];
-        let nominal = Vector3::ith(i, 1.0);
-        let u = rotation_matrix(line_rotation) * nominal;
+        let motion = self.model.errors.axis(axis).motion(q, state.direction[i]);
+        let u = self.axis_lines[direction_index(&state.direction)][i];
         let jt = &self.thermal.joints[i];
         let travel = q + jt.strain * (q - jt.reference_m);
-        let mut rotation = rotation_matrix(motion.rotation);
-        if let Some(r) = &self.joint_thermal[i] {
-            rotation *= r;
-        }
-        Htm {
-            rotation,
+        let geometric = Htm {
+            rotation: rotation_matrix(motion.rotation),
             translation: u * travel + motion.translation,
-        }
+        };
+        (geometric, self.joint_thermal[i].as_ref())
     }
 
     /// The actual tool point relative to the workpiece, m.
@@ -202,7 +225,11 @@ impl VolumetricEvaluator<'_> {
             if k > 0
                 && let Element::Axis(a) = chain[k]
             {
-                p = self.joint(a, state).transform_point(&p);
+                let (geometric, thermal) = self.joint_parts(a, state);
+                if let Some(r) = thermal {
+                    p = r * p;
+                }
+                p = geometric.transform_point(&p);
             }
         }
         p

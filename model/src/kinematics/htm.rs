@@ -65,6 +65,7 @@ impl Htm {
     }
 
     /// The product `self * other` of the two 4x4 matrices.
+    #[inline]
     pub fn compose(&self, other: &Htm) -> Htm {
         Htm {
             rotation: self.rotation * other.rotation,
@@ -82,6 +83,7 @@ impl Htm {
     }
 
     /// The image of point `p` (m).
+    #[inline]
     pub fn transform_point(&self, p: &Vector3<f64>) -> Vector3<f64> {
         self.rotation * p + self.translation
     }
@@ -96,17 +98,34 @@ impl Htm {
 }
 
 /// The exact rotation matrix of the rotation vector `theta` (rad), by Rodrigues' formula.
+#[inline]
 pub fn rotation_matrix(theta: Vector3<f64>) -> Matrix3<f64> {
     let t2 = theta.norm_squared();
     let (a, b) = if t2 < 1e-4 {
-        // Taylor series of sin(t)/t and (1 - cos t)/t² to the t^8 term; exact in f64 here.
-        let a = 1.0 - t2 / 6.0 * (1.0 - t2 / 20.0 * (1.0 - t2 / 42.0 * (1.0 - t2 / 72.0)));
-        let b = 0.5 * (1.0 - t2 / 12.0 * (1.0 - t2 / 30.0 * (1.0 - t2 / 56.0 * (1.0 - t2 / 90.0))));
+        // Taylor series of sin(t)/t and (1 - cos t)/t² to the t^8 term, by Horner with
+        // reciprocal factorials; exact in f64 here.
+        const A: [f64; 4] = [1.0 / 6.0, 1.0 / 120.0, 1.0 / 5040.0, 1.0 / 362_880.0];
+        const B: [f64; 4] = [1.0 / 24.0, 1.0 / 720.0, 1.0 / 40_320.0, 1.0 / 3_628_800.0];
+        let a = 1.0 - t2 * (A[0] - t2 * (A[1] - t2 * (A[2] - t2 * A[3])));
+        let b = 0.5 - t2 * (B[0] - t2 * (B[1] - t2 * (B[2] - t2 * B[3])));
         (a, b)
     } else {
         let t = t2.sqrt();
         (t.sin() / t, (1.0 - t.cos()) / t2)
     };
-    let k = theta.cross_matrix();
-    Matrix3::identity() + k * a + k * k * b
+    // R = I + a[θ]x + b(θθᵀ - |θ|²I), written out element by element.
+    let (x, y, z) = (theta.x, theta.y, theta.z);
+    let (bxy, bxz, byz) = (b * x * y, b * x * z, b * y * z);
+    let c = 1.0 - b * t2;
+    Matrix3::new(
+        c + b * x * x,
+        bxy - a * z,
+        bxz + a * y,
+        bxy + a * z,
+        c + b * y * y,
+        byz - a * x,
+        bxz - a * y,
+        byz + a * x,
+        c + b * z * z,
+    )
 }
