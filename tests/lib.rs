@@ -1,1 +1,2 @@
-//! End-to-end tests live in `tests/`; this library is empty on purpose.
+//! End-to-end tests of vmt across its crates, run on the scenarios shipped in `scenarios/`.
+//! The tests are in `tests/tests/`; this library holds nothing.
