@@ -2,6 +2,7 @@
 //! machines. No files, no clocks, no global state.
 //!
 //! - [`axis`]: the axes and their direction states.
+//! - [`drive`]: feed drives: cascaded servo control, ball screw with backlash, LuGre friction.
 //! - [`geometric`]: the 21 direction-dependent geometric errors of ISO 230-1.
 //! - [`machine`]: a whole machine: axes, error chain, thermal model.
 //! - [`kinematics`]: the 24 topologies and the exact homogeneous-transform chain that gives the
@@ -12,6 +13,7 @@
 //! Units are SI throughout (m, rad, s, K, W); conversions happen at the edges.
 
 pub mod axis;
+pub mod drive;
 pub mod geometric;
 pub mod kinematics;
 pub mod machine;

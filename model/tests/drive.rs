@@ -1,0 +1,224 @@
+//! Feed-drive physics: LuGre friction laws, the integrator's stability limit, following error,
+//! backlash in semi-closed loop.
+
+use proptest::prelude::*;
+use vmt_model::drive::axis::symplectic_euler_limit;
+use vmt_model::drive::{
+    AxisCommand, DriveParams, Feedback, LuGre, LuGreParams, ReducedAxis, ScrewParams, ServoParams,
+};
+
+const SERVO: f64 = 125e-6;
+const SUBSTEPS: usize = 4;
+
+fn guide_friction() -> LuGreParams {
+    LuGreParams {
+        sigma0_n_per_m: 2e7,
+        sigma1_n_s_per_m: 3e4,
+        sigma2_n_s_per_m: 200.0,
+        coulomb_n: 50.0,
+        static_n: 65.0,
+        stribeck_m_s: 1e-3,
+        stribeck_exponent: 2.0,
+    }
+}
+
+/// A 250 kg table on a 10 mm-lead screw, 2 µm of backlash, semi-closed loop.
+fn table_drive(backlash_m: f64) -> (DriveParams, ServoParams) {
+    let params = DriveParams {
+        motor_inertia_kg_m2: 0.003,
+        screw: ScrewParams {
+            lead_m: 0.01,
+            stiffness_n_per_m: 1.8e8,
+            damping_n_s_per_m: 2e4,
+            backlash_m,
+        },
+        carriage_mass_kg: 250.0,
+        guide_friction: guide_friction(),
+        screw_friction: LuGreParams {
+            coulomb_n: 30.0,
+            static_n: 40.0,
+            ..guide_friction()
+        },
+        encoder_counts_per_rev: (1u32 << 20) as f64,
+        feedback: Feedback::MotorEncoder,
+    };
+    let servo = ServoParams {
+        kv_per_s: 33.0,
+        velocity_kp_n_s_per_m: 5.4e5,
+        velocity_ti_s: 0.01,
+        velocity_ff: 0.0,
+        acceleration_ff: 0.0,
+        current_time_constant_s: 0.5e-3,
+        force_limit_n: 6000.0,
+    };
+    (params, servo)
+}
+
+/// Runs the axis along `command(t)` for `duration` s; returns samples (t, motor position,
+/// carriage position, following error) every servo period, positions at the period's end.
+fn run(
+    axis: &mut ReducedAxis,
+    duration: f64,
+    command: impl Fn(f64) -> AxisCommand,
+) -> Vec<(f64, f64, f64, f64)> {
+    let n = (duration / SERVO).round() as usize;
+    let h = SERVO / SUBSTEPS as f64;
+    let mut out = Vec::with_capacity(n);
+    for k in 0..n {
+        let t = k as f64 * SERVO;
+        let cmd = command(t);
+        axis.control(&cmd, SERVO);
+        for _ in 0..SUBSTEPS {
+            axis.step(h, 0.0);
+        }
+        out.push((
+            t,
+            axis.drive.motor_position_m,
+            axis.carriage.position_m,
+            axis.drive.following_error_m(),
+        ));
+    }
+    out
+}
+
+/// Constant-velocity ramp from rest (with a smooth 50 ms velocity ramp-up).
+fn ramp(v: f64) -> impl Fn(f64) -> AxisCommand {
+    move |t: f64| {
+        let t0 = 0.05;
+        if t < t0 {
+            AxisCommand {
+                position: 0.5 * v / t0 * t * t,
+                velocity: v * t / t0,
+                acceleration: v / t0,
+            }
+        } else {
+            AxisCommand {
+                position: 0.5 * v * t0 + v * (t - t0),
+                velocity: v,
+                acceleration: 0.0,
+            }
+        }
+    }
+}
+
+proptest! {
+    /// In steady sliding LuGre gives the Stribeck curve plus viscous friction.
+    #[test]
+    fn lugre_steady_sliding_is_the_stribeck_curve(v in prop_oneof![-0.2..-1e-5f64, 1e-5..0.2f64]) {
+        let p = guide_friction();
+        let mut c = LuGre::default();
+        let mut f = 0.0;
+        for _ in 0..20_000 {
+            f = c.step(&p, v, 1e-5);
+        }
+        let expected = p.steady_state_force(v);
+        prop_assert!((f - expected).abs() < 1e-6 * expected.abs().max(1.0), "{f} vs {expected}");
+    }
+}
+
+/// Before breakaway the contact is a spring of stiffness σ0 (pre-sliding): a 0.1 µm creep
+/// gives σ0 · 0.1 µm of force.
+#[test]
+fn lugre_pre_sliding_is_a_spring_of_stiffness_sigma0() {
+    let p = LuGreParams {
+        sigma1_n_s_per_m: 0.0,
+        ..guide_friction()
+    };
+    let mut c = LuGre::default();
+    let v = 1e-6;
+    let mut f = 0.0;
+    for _ in 0..100 {
+        f = c.step(&p, v, 1e-3);
+    }
+    // 0.1 µm creep at 1 µm/s; g(v) = Fs/σ0 = 3.25 µm, so the bristles are far from sliding.
+    let spring = p.sigma0_n_per_m * 1e-7;
+    assert!(
+        (f - spring - p.sigma2_n_s_per_m * v).abs() < 0.02 * spring,
+        "{f} vs {spring}"
+    );
+}
+
+/// The semi-implicit Euler limit is where the integration of a damped oscillator turns unstable.
+#[test]
+fn symplectic_euler_limit_separates_stable_from_unstable() {
+    for (k, c, m) in [(1.8e8, 2e4, 206.0), (2e7, 3e4, 250.0), (1e6, 0.0, 1.0)] {
+        let h_max = symplectic_euler_limit(k, c, m);
+        let grows = |h: f64| {
+            let (mut x, mut v) = (1e-6, 0.0);
+            (0..20_000).any(|_| {
+                v += h * (-k * x - c * v) / m;
+                x += h * v;
+                x.abs() > 1e-3
+            })
+        };
+        assert!(!grows(0.99 * h_max), "k {k}: stable below the limit");
+        assert!(grows(1.01 * h_max), "k {k}: unstable above the limit");
+    }
+}
+
+/// At constant velocity the following error of a P position loop is v / Kv (the integral of
+/// the velocity loop takes up friction), within 1 %.
+#[test]
+fn following_error_at_constant_velocity_is_v_over_kv() {
+    let (p, s) = table_drive(0.0);
+    let (h_max, _) = p.largest_stable_step_s();
+    assert!(SERVO / SUBSTEPS as f64 <= h_max);
+    for v in [1000.0 / 60_000.0, 5000.0 / 60_000.0] {
+        let mut axis = ReducedAxis::new(p, s, 0.0);
+        let samples = run(&mut axis, 0.6, ramp(v));
+        let steady: Vec<f64> = samples.iter().filter(|x| x.0 > 0.4).map(|x| x.3).collect();
+        let mean = steady.iter().sum::<f64>() / steady.len() as f64;
+        let expected = v / s.kv_per_s;
+        assert!(
+            (mean - expected).abs() < 0.01 * expected,
+            "v {v}: {mean} vs {expected}"
+        );
+    }
+}
+
+/// Semi-closed loop: the controller positions the motor, so after a reversal the carriage is
+/// off by the whole gap: b/2 behind going forward, b/2 ahead going backward, each plus the screw's
+/// compression F/k under the guideway friction F it pushes against.
+#[test]
+fn backlash_shifts_the_carriage_by_the_gap_at_a_reversal() {
+    let b = 4e-6;
+    let (p, s) = table_drive(b);
+    let v = 500.0 / 60_000.0;
+    let forward = ramp(v);
+    let mut axis = ReducedAxis::new(p, s, 0.0);
+    // Forward for 0.5 s, hold, then back.
+    let cmd = |t: f64| {
+        if t < 0.5 {
+            forward(t)
+        } else if t < 1.0 {
+            AxisCommand {
+                position: forward(0.5).position,
+                ..Default::default()
+            }
+        } else {
+            let back = forward(t - 1.0);
+            AxisCommand {
+                position: forward(0.5).position - back.position,
+                velocity: -back.velocity,
+                acceleration: -back.acceleration,
+            }
+        }
+    };
+    let samples = run(&mut axis, 1.5, cmd);
+    // Carriage minus motor position, once each motion has settled.
+    let offset = |t0: f64, t1: f64| {
+        let sel: Vec<_> = samples.iter().filter(|x| x.0 > t0 && x.0 < t1).collect();
+        sel.iter().map(|x| x.2 - x.1).sum::<f64>() / sel.len() as f64
+    };
+    let compression = p.guide_friction.steady_state_force(v) / p.screw.stiffness_n_per_m;
+    let fwd = offset(0.3, 0.5);
+    let bwd = offset(1.3, 1.5);
+    assert!(
+        (fwd + b / 2.0 + compression).abs() < 0.02e-6,
+        "forward offset {fwd:e}"
+    );
+    assert!(
+        (bwd - b / 2.0 - compression).abs() < 0.02e-6,
+        "backward offset {bwd:e}"
+    );
+}
