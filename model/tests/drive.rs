@@ -40,6 +40,7 @@ fn table_drive(backlash_m: f64) -> (DriveParams, ServoParams) {
             ..guide_friction()
         },
         encoder_counts_per_rev: (1u32 << 20) as f64,
+        torque_constant_n_m_per_a: 1.2,
         feedback: Feedback::MotorEncoder,
     };
     let servo = ServoParams {

@@ -546,8 +546,15 @@ fn thermal_deformations_act_with_the_physical_sign_on_each_side() {
     let mut d = ThermalDeformation::default();
     d.joints[0].rotation = tilt; // X carries the workpiece in WXYGZT
     let e = m.volumetric_error(&s, &d);
-    let lever = Vector3::new(0.0, 0.1, -0.2);
+    // The table turns with its own travel: the lever is the whole x + y + z + tool.
+    let lever = Vector3::new(0.2, 0.1, -0.2);
     assert!((e - (-tilt).cross(&lever)).amax() < tilt.norm_squared() * lever.norm());
+    // On the tool side (Z head) the tilt turns only what the head carries: the tool.
+    let mut d = ThermalDeformation::default();
+    d.joints[2].rotation = tilt;
+    let e = m.volumetric_error(&s, &d);
+    let tool = Vector3::new(0.0, 0.0, -0.1);
+    assert!((e - tilt.cross(&tool)).amax() < tilt.norm_squared() * tool.norm());
     // A node-temperature model drives the same terms linearly.
     let mut tm = ThermalDeformationModel::default();
     tm.links[3].translation.push(NodeSensitivity {

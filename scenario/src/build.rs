@@ -39,6 +39,19 @@ pub struct ThermalRunSpec {
     pub step_s: f64,
 }
 
+/// What is needed to execute the scenario's job in time.
+#[derive(Clone, Debug)]
+pub struct Execution {
+    /// Drive and servo of X, Y, Z.
+    pub axes: [vmt_sim::simulate::AxisDynamics; 3],
+    /// Interpolator and servo timing.
+    pub controller: vmt_sim::interpolator::InterpolatorConfig,
+    /// Fidelity, substeps, log rate, seed.
+    pub settings: vmt_sim::simulate::SimSettings,
+    /// The job.
+    pub job: vmt_sim::simulate::Job,
+}
+
 /// A loaded scenario.
 #[derive(Clone, Debug)]
 pub struct Scenario {
@@ -46,6 +59,8 @@ pub struct Scenario {
     pub machine: Machine,
     /// The thermal run, if the scenario has one.
     pub thermal_run: Option<ThermalRunSpec>,
+    /// Drives, controller and job, if the scenario has them all.
+    pub execution: Option<Execution>,
 }
 
 /// A failure while building: in this document (located by key) or in another file.
@@ -77,10 +92,58 @@ pub fn scenario(raw: ScenarioFile, base_dir: Option<&Path>) -> Result<Scenario> 
             Some(thermal_run(run)?)
         }
     };
+    let execution = execution(&raw, &machine, base_dir)?;
     Ok(Scenario {
         machine,
         thermal_run,
+        execution,
     })
+}
+
+/// A located error in a file other than the scenario.
+pub fn external(file: &str, position: Option<(usize, usize)>, message: String) -> BuildError {
+    BuildError::External(ScenarioError {
+        file: file.to_string(),
+        position,
+        key: None,
+        message,
+    })
+}
+
+fn execution(
+    raw: &ScenarioFile,
+    machine: &Machine,
+    base_dir: Option<&Path>,
+) -> Result<Option<Execution>> {
+    use crate::dynamics;
+    let a = &raw.machine.axes;
+    let moving = machine.axes.map(|s| s.moving_mass_kg);
+    let axes = dynamics::axes(
+        [
+            (&a.x.drive, &a.x.servo),
+            (&a.y.drive, &a.y.servo),
+            (&a.z.drive, &a.z.servo),
+        ],
+        moving,
+    )?;
+    let (Some(axes), Some(c), Some(job)) = (axes, &raw.controller, &raw.job) else {
+        return Ok(None);
+    };
+    let (controller, substeps) = dynamics::controller(c)?;
+    let default = dynamics::SimulationToml {
+        fidelity: "reduced".into(),
+        seed: 0,
+        log_rate_hz: 1000.0,
+    };
+    let settings = dynamics::simulation(raw.simulation.as_ref().unwrap_or(&default), substeps)?;
+    let tool = machine.volumetric.kinematics.tool_offset;
+    let job = dynamics::job(job, &raw.instruments, tool, base_dir)?;
+    Ok(Some(Execution {
+        axes,
+        controller,
+        settings,
+        job,
+    }))
 }
 
 fn machine(m: &MachineToml, base_dir: Option<&Path>) -> Result<Machine> {
@@ -726,7 +789,7 @@ fn deformation(
 
 fn thermal_run(run: &ThermalRunToml) -> std::result::Result<ThermalRunSpec, Invalid> {
     let path = KeyPath::of(&["thermal_run"]);
-    let step_s = positive(run.step_s, 3600.0, &path.key("step_s"), "a step in s")?;
+    let step_s = in_range(run.step_s, 0.01, 3600.0, &path.key("step_s"), "a step in s")?;
     let mut segments = Vec::new();
     for (i, s) in run.segments.iter().enumerate() {
         let p = path.key("segments").index(i);

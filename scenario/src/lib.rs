@@ -6,11 +6,12 @@
 //! NaN, tables whose positions do not increase. See `scenarios/vmc500.toml` for the format.
 
 mod build;
+mod dynamics;
 mod error;
 mod schema;
 mod table;
 
-pub use build::{MAX_ANGLE_URAD, MAX_TRANSLATION_UM, Scenario, ThermalRunSpec};
+pub use build::{Execution, MAX_ANGLE_URAD, MAX_TRANSLATION_UM, Scenario, ThermalRunSpec};
 pub use error::{KeyPath, ScenarioError};
 
 use build::BuildError;

@@ -13,6 +13,11 @@ use std::collections::BTreeMap;
 pub struct ScenarioFile {
     pub machine: MachineToml,
     pub thermal_run: Option<ThermalRunToml>,
+    pub controller: Option<crate::dynamics::ControllerToml>,
+    pub simulation: Option<crate::dynamics::SimulationToml>,
+    pub job: Option<crate::dynamics::JobToml>,
+    #[serde(default)]
+    pub instruments: crate::dynamics::InstrumentsToml,
 }
 
 #[derive(Debug, Deserialize)]
@@ -52,6 +57,8 @@ pub struct AxesToml {
 pub struct AxisToml {
     pub stroke_mm: [f64; 2],
     pub moving_mass_kg: f64,
+    pub drive: Option<crate::dynamics::DriveToml>,
+    pub servo: Option<crate::dynamics::ServoToml>,
 }
 
 #[derive(Debug, Deserialize, Default)]

@@ -2,9 +2,12 @@
 //! The binary in `main.rs` only parses arguments, calls these and the library crates, and prints.
 
 pub mod error;
+pub mod formats;
+pub mod job;
 pub mod map;
 pub mod plot;
 pub mod points;
+pub mod program;
 pub mod thermal;
 
 pub use error::CliError;

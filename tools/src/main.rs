@@ -12,6 +12,7 @@ use vmt_model::thermal_deformation::REFERENCE_TEMPERATURE_C;
 use vmt_scenario::Scenario;
 use vmt_tools::map::{self, Plane};
 use vmt_tools::plot::{self, Format};
+use vmt_tools::program::{self, BallbarArgs};
 use vmt_tools::{CliError, points, thermal};
 
 /// vmt — a physics-based virtual three-axis machining centre.
@@ -48,6 +49,26 @@ enum Command {
     Thermal(ThermalArgs),
     /// List the 24 three-axis topologies (chains from workpiece W to tool T, G = ground).
     Topologies,
+    /// Generate NC programs (G-code) for tests.
+    #[command(subcommand)]
+    Program(ProgramCommand),
+    /// Run a scenario's job (e.g. a ball-bar test) through the controller, drives and error
+    /// chain; writes run.mcap, run.rrd, ballbar_polar.png and ground_truth.json.
+    Run(RunArgs),
+    /// The built-in machine runs the ISO 230-4 XY test (150 mm, 1000 mm/min, CW and CCW);
+    /// writes the MCAP, the Rerun recording and the polar plot, and prints a summary.
+    Demo(RunArgs),
+}
+
+#[derive(Subcommand)]
+enum ProgramCommand {
+    /// A ball-bar circular test (ISO 230-4): feed-in, overshoot, data arc, overshoot, feed-out,
+    /// for each direction; the data arcs lie between (DATA CW START) and (DATA CW END) comments.
+    ///
+    /// Example:
+    ///   vmt program ballbar --plane XY --radius-mm 150 --feed-mm-min 1000 --directions cw,ccw
+    #[command(verbatim_doc_comment)]
+    Ballbar(BallbarArgs),
 }
 
 #[derive(Args)]
@@ -101,11 +122,72 @@ struct ThermalArgs {
     out: PathBuf,
 }
 
+#[derive(Args)]
+struct RunArgs {
+    /// Scenario file (TOML); the built-in default machine when omitted.
+    scenario: Option<PathBuf>,
+    /// Output folder.
+    #[arg(long, default_value = "out")]
+    out: PathBuf,
+    /// Plant fidelity, overriding the scenario: reduced or multibody.
+    #[arg(long)]
+    fidelity: Option<String>,
+    /// No progress bar.
+    #[arg(long)]
+    quiet: bool,
+}
+
+fn run_job(args: RunArgs) -> Result<(), CliError> {
+    let text = match &args.scenario {
+        Some(p) => std::fs::read_to_string(p)
+            .map_err(|e| CliError::input(&p.display().to_string(), None, e.to_string()))?,
+        None => vmt_scenario::BUILTIN_DEFAULT.to_string(),
+    };
+    let scenario = load(args.scenario.as_deref())?;
+    let fidelity = match args.fidelity.as_deref() {
+        None => None,
+        Some("reduced") => Some(vmt_sim::plant::Fidelity::Reduced),
+        Some("multibody") => Some(vmt_sim::plant::Fidelity::Multibody),
+        Some(other) => {
+            return Err(CliError::Argument(format!(
+                "--fidelity {other}: accepted: reduced, multibody"
+            )));
+        }
+    };
+    let run = vmt_tools::job::execute(&scenario, &text, fidelity, args.quiet)?;
+    let written = vmt_tools::job::write(&run, &args.out)?;
+    println!(
+        "{} ({} plant, seed {})",
+        run.scenario_name, run.fidelity, run.seed
+    );
+    println!("{}", vmt_tools::job::summary_figures(&run));
+    let truth = &run.ground_truth["drives"];
+    for a in ["x", "y", "z"] {
+        println!(
+            "  truth {}: backlash {:.2} um (seen by a ball bar {:.2} um), Kv {} 1/s",
+            a.to_uppercase(),
+            truth[a]["backlash_um"].as_f64().unwrap_or(f64::NAN),
+            truth[a]["backlash_seen_um"].as_f64().unwrap_or(f64::NAN),
+            truth[a]["kv_per_s"]
+        );
+    }
+    for f in written.files {
+        println!("wrote {}", f.display());
+    }
+    Ok(())
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Volumetric(args) => volumetric(args),
         Command::Thermal(args) => thermal_run(args),
+        Command::Program(ProgramCommand::Ballbar(args)) => program::ballbar(&args),
+        Command::Run(args) => run_job(args),
+        Command::Demo(args) => run_job(RunArgs {
+            scenario: None,
+            ..args
+        }),
         Command::Topologies => {
             topologies();
             Ok(())

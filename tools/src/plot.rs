@@ -6,8 +6,10 @@ use nalgebra::Vector3;
 use plotters::coord::Shift;
 use plotters::prelude::*;
 use plotters::style::FontStyle;
+use plotters::style::text_anchor::{HPos, Pos, VPos};
 use std::path::Path;
 use std::sync::Once;
+use vmt_sim::run::BallbarTrace;
 
 /// Image formats.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
@@ -298,4 +300,338 @@ fn draw_thermal_on<DB: DrawingBackend>(
         .border_style(BLACK)
         .draw()?;
     Ok(())
+}
+
+const MONO: &str = "monospace";
+
+/// Registers the embedded DejaVu Sans Mono font once (for tables of figures).
+fn register_mono_font() {
+    static ONCE: Once = Once::new();
+    ONCE.call_once(|| {
+        // The font is compiled in; registration fails only for a corrupt font file.
+        let _ =
+            plotters::style::register_font(MONO, FontStyle::Normal, dejavu::sans_mono::regular());
+    });
+}
+
+/// Size of a polar plot image, pixels.
+pub const POLAR_SIZE: (u32, u32) = (1400, 1000);
+
+/// Draws ball-bar traces as the polar plot of ball-bar software: the nominal circle, the
+/// deviations (measured minus nominal length) magnified about it on a scale of round µm per
+/// division chosen so that the largest deviation fits the radial band, the division rings, the
+/// plane's axes and angles, the traces overlaid in colours (CCW blue, CW red when there is one of
+/// each) with a legend, a title with the radius and feed, and `iso_figures` (e.g. the ISO 230-4
+/// circular deviation G and hysteresis H, as ready text, one figure a line) beside the plot.
+///
+/// The plane and its axis names come from the first trace (`XY`: +X to the right, +Y up; `ZX`:
+/// +Z right, +X up; `YZ`: +Y right, +Z up), as in ISO 230-4. The image is
+/// [`POLAR_SIZE`] pixels. Fails when there is no trace with a finite sample or the file cannot be
+/// written.
+pub fn draw_polar(
+    traces: &[BallbarTrace],
+    path: &Path,
+    format: Format,
+    iso_figures: Option<&str>,
+) -> Result<(), CliError> {
+    register_font();
+    register_mono_font();
+    let polar = Polar::new(traces).ok_or_else(|| {
+        CliError::Argument(format!(
+            "{}: no ball-bar trace with a finite sample to draw",
+            path.display()
+        ))
+    })?;
+    let err = |e: &dyn std::fmt::Display| CliError::output(path, e);
+    match format {
+        Format::Png => {
+            let root = BitMapBackend::new(path, POLAR_SIZE).into_drawing_area();
+            polar
+                .draw_on(&root, traces, iso_figures)
+                .map_err(|e| err(&e))?;
+            root.present().map_err(|e| err(&e))
+        }
+        Format::Svg => {
+            let root = SVGBackend::new(path, POLAR_SIZE).into_drawing_area();
+            polar
+                .draw_on(&root, traces, iso_figures)
+                .map_err(|e| err(&e))?;
+            root.present().map_err(|e| err(&e))
+        }
+    }
+}
+
+/// The geometry of a polar plot: where the nominal circle is and how deviations are magnified.
+struct Polar {
+    /// Centre of the plot, pixels.
+    centre: (i32, i32),
+    /// Radius of the plot area (angle labels outside it), pixels.
+    half: f64,
+    /// Radius of the nominal circle, pixels.
+    nominal_px: f64,
+    /// One division, µm.
+    div_um: f64,
+    /// Divisions on each side of the nominal circle.
+    divisions: u32,
+    /// Pixels per µm of deviation.
+    px_per_um: f64,
+}
+
+impl Polar {
+    /// The scale for `traces`: the smallest round division (1, 2, 5 × 10ⁿ µm) that shows the
+    /// largest deviation within three divisions either side of the nominal circle.
+    fn new(traces: &[BallbarTrace]) -> Option<Self> {
+        let finite = traces
+            .iter()
+            .flat_map(|t| t.angle_deg.iter().zip(&t.deviation_um))
+            .filter(|(a, d)| a.is_finite() && d.is_finite());
+        let mut any = false;
+        let mut max_dev = 0.0_f64;
+        for (_, d) in finite {
+            any = true;
+            max_dev = max_dev.max(d.abs());
+        }
+        if !any {
+            return None;
+        }
+        let div_um = nice_ceil_125((max_dev / 3.0).max(0.01));
+        let divisions = ((max_dev / div_um).ceil() as u32).clamp(1, 3);
+        let half = 420.0;
+        let band = 0.32 * half;
+        Some(Polar {
+            centre: (60 + half as i32 + 10, 90 + half as i32),
+            half,
+            nominal_px: 0.6 * half,
+            div_um,
+            divisions,
+            px_per_um: band / (f64::from(divisions) * div_um),
+        })
+    }
+
+    /// The pixel of a point at radius `r_px` and `angle_deg` (counter-clockwise, y up).
+    fn pixel(&self, r_px: f64, angle_deg: f64) -> (i32, i32) {
+        let a = angle_deg.to_radians();
+        (
+            self.centre.0 + (r_px * a.cos()).round() as i32,
+            self.centre.1 - (r_px * a.sin()).round() as i32,
+        )
+    }
+
+    fn draw_on<DB: DrawingBackend>(
+        &self,
+        root: &DrawingArea<DB, Shift>,
+        traces: &[BallbarTrace],
+        iso_figures: Option<&str>,
+    ) -> DrawResult<DB> {
+        root.fill(&WHITE)?;
+        self.draw_title(root, traces)?;
+        self.draw_grid(root)?;
+        self.draw_axes(root, traces.first().map_or("XY", |t| t.plane.as_str()))?;
+        for (i, t) in traces.iter().enumerate() {
+            self.draw_trace(root, t, trace_colour(traces, i))?;
+        }
+        let y = self.draw_legend(root, traces)?;
+        if let Some(text) = iso_figures {
+            draw_text_block(root, text, (1000, y + 40))?;
+        }
+        Ok(())
+    }
+
+    fn draw_title<DB: DrawingBackend>(
+        &self,
+        root: &DrawingArea<DB, Shift>,
+        traces: &[BallbarTrace],
+    ) -> DrawResult<DB> {
+        let plane = distinct(traces.iter().map(|t| t.plane.to_uppercase()));
+        let radius = distinct(traces.iter().map(|t| format!("{}", t.radius_mm)));
+        let feed = distinct(traces.iter().map(|t| format!("{}", t.feed_mm_min)));
+        let title =
+            format!("Ball-bar circular test, {plane} plane: R = {radius} mm, F = {feed} mm/min");
+        root.draw(&Text::new(title, (30, 18), (FONT, 28).into_font()))?;
+        let sub = "Radial deviation (measured − nominal bar length), magnified about the \
+                   nominal circle";
+        root.draw(&Text::new(
+            sub,
+            (30, 54),
+            (FONT, 17).into_font().color(&RGBColor(80, 80, 80)),
+        ))?;
+        Ok(())
+    }
+
+    fn draw_grid<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> DrawResult<DB> {
+        let light = RGBColor(200, 200, 200);
+        for k in (0..12).map(|k| f64::from(k) * 30.0) {
+            let inner = self.pixel(0.12 * self.half, k);
+            let outer = self.pixel(self.half, k);
+            root.draw(&PathElement::new(vec![inner, outer], light.stroke_width(1)))?;
+        }
+        let n = self.divisions as i32;
+        for j in -n..=n {
+            let r = self.nominal_px + f64::from(j) * self.div_um * self.px_per_um;
+            let style = if j == 0 {
+                RGBColor(60, 60, 60).stroke_width(2)
+            } else {
+                light.stroke_width(1)
+            };
+            root.draw(&Circle::new(self.centre, r.round() as u32, style))?;
+            let step = fmt_um(f64::from(j.abs()) * self.div_um);
+            let label = match j.signum() {
+                0 => "0 µm".to_string(),
+                1 => format!("+{step}"),
+                _ => format!("−{step}"),
+            };
+            let font = (FONT, 13).into_font().color(&RGBColor(110, 110, 110));
+            let at = self.pixel(r + 3.0, 45.0);
+            root.draw(&Text::new(label, at, font))?;
+        }
+        let scale = format!("Scale: {} µm/div", fmt_um(self.div_um));
+        let at = (self.centre.0 - 60, self.centre.1 + 16);
+        root.draw(&Text::new(scale, at, (FONT, 18).into_font()))?;
+        let nominal = "nominal circle = 0".to_string();
+        root.draw(&Text::new(
+            nominal,
+            (self.centre.0 - 60, self.centre.1 + 40),
+            (FONT, 14).into_font().color(&RGBColor(90, 90, 90)),
+        ))?;
+        Ok(())
+    }
+
+    fn draw_axes<DB: DrawingBackend>(
+        &self,
+        root: &DrawingArea<DB, Shift>,
+        plane: &str,
+    ) -> DrawResult<DB> {
+        let letters: Vec<char> = plane.to_uppercase().chars().collect();
+        let (u, v) = match letters.as_slice() {
+            [u, v] => (*u, *v),
+            _ => ('X', 'Y'),
+        };
+        let centred = Pos::new(HPos::Center, VPos::Center);
+        for k in 0..12 {
+            let deg = k * 30;
+            let label = match deg {
+                0 => format!("+{u}"),
+                90 => format!("+{v}"),
+                180 => format!("−{u}"),
+                270 => format!("−{v}"),
+                _ => format!("{deg}°"),
+            };
+            let (size, colour) = if deg % 90 == 0 {
+                (22, BLACK)
+            } else {
+                (14, RGBColor(110, 110, 110))
+            };
+            let at = self.pixel(self.half + 26.0, f64::from(deg));
+            let font = (FONT, size).into_font().color(&colour).pos(centred);
+            root.draw(&Text::new(label, at, font))?;
+        }
+        Ok(())
+    }
+
+    fn draw_trace<DB: DrawingBackend>(
+        &self,
+        root: &DrawingArea<DB, Shift>,
+        t: &BallbarTrace,
+        colour: RGBColor,
+    ) -> DrawResult<DB> {
+        let points: Vec<(i32, i32)> = t
+            .angle_deg
+            .iter()
+            .zip(&t.deviation_um)
+            .filter(|(a, d)| a.is_finite() && d.is_finite())
+            .map(|(a, d)| self.pixel(self.nominal_px + d * self.px_per_um, *a))
+            .collect();
+        if let Some(&start) = points.first() {
+            root.draw(&Circle::new(start, 5, colour.filled()))?;
+        }
+        root.draw(&PathElement::new(points, colour.stroke_width(2)))
+    }
+
+    /// The legend beside the plot; returns the y pixel below it.
+    fn draw_legend<DB: DrawingBackend>(
+        &self,
+        root: &DrawingArea<DB, Shift>,
+        traces: &[BallbarTrace],
+    ) -> Result<i32, DrawingAreaErrorKind<DB::ErrorType>> {
+        let x = 1000;
+        let mut y = 120;
+        root.draw(&Text::new("Traces", (x, y), (FONT, 20).into_font()))?;
+        y += 36;
+        for (i, t) in traces.iter().enumerate() {
+            let colour = trace_colour(traces, i);
+            let line = vec![(x, y + 9), (x + 34, y + 9)];
+            root.draw(&PathElement::new(line, colour.stroke_width(3)))?;
+            let text = format!("{} ({})", t.label, t.direction.to_uppercase());
+            root.draw(&Text::new(text, (x + 44, y), (FONT, 16).into_font()))?;
+            y += 28;
+        }
+        let note = "● start of a trace";
+        root.draw(&Text::new(
+            note,
+            (x, y + 6),
+            (FONT, 14).into_font().color(&RGBColor(90, 90, 90)),
+        ))?;
+        Ok(y + 30)
+    }
+}
+
+/// Lines of text in the monospaced font, from `top_left` down.
+fn draw_text_block<DB: DrawingBackend>(
+    root: &DrawingArea<DB, Shift>,
+    text: &str,
+    top_left: (i32, i32),
+) -> DrawResult<DB> {
+    let (x, mut y) = top_left;
+    for line in text.lines() {
+        root.draw(&Text::new(line.to_string(), (x, y), (MONO, 16).into_font()))?;
+        y += 24;
+    }
+    Ok(())
+}
+
+/// The colour of trace `i`: CCW blue and CW red when each direction appears once, otherwise a
+/// palette in order.
+fn trace_colour(traces: &[BallbarTrace], i: usize) -> RGBColor {
+    const PALETTE: [RGBColor; 6] = [
+        RGBColor(30, 80, 200),
+        RGBColor(200, 30, 30),
+        RGBColor(30, 150, 60),
+        RGBColor(230, 130, 0),
+        RGBColor(130, 50, 170),
+        RGBColor(0, 150, 160),
+    ];
+    let dir = |t: &BallbarTrace| t.direction.to_ascii_lowercase();
+    let once = |d: &str| traces.iter().filter(|t| dir(t) == d).count() == 1;
+    match traces.get(i).map(dir).as_deref() {
+        Some("ccw") if once("ccw") && traces.len() <= 2 => PALETTE[0],
+        Some("cw") if once("cw") && traces.len() <= 2 => PALETTE[1],
+        _ => PALETTE[i % PALETTE.len()],
+    }
+}
+
+/// The distinct values joined by `/`, in first-seen order.
+fn distinct(values: impl Iterator<Item = String>) -> String {
+    let mut out: Vec<String> = Vec::new();
+    for v in values {
+        if !out.contains(&v) {
+            out.push(v);
+        }
+    }
+    out.join(" / ")
+}
+
+/// The smallest of 1, 2, 5 × 10ⁿ not below `x` (x > 0).
+fn nice_ceil_125(x: f64) -> f64 {
+    let e = 10f64.powf(x.log10().floor());
+    [1.0, 2.0, 5.0, 10.0]
+        .into_iter()
+        .map(|m| m * e)
+        .find(|v| *v >= x * (1.0 - 1e-9))
+        .unwrap_or(10.0 * e)
+}
+
+/// A deviation in µm without trailing zeros: 5, 0.5, 2.5.
+fn fmt_um(x: f64) -> String {
+    let s = format!("{x:.3}");
+    s.trim_end_matches('0').trim_end_matches('.').to_string()
 }

@@ -42,6 +42,9 @@ pub struct Points {
     pub thermal: ThermalInput,
 }
 
+/// Longest time into a thermal run that is evaluated, s (116 days).
+pub const MAX_TIME_S: f64 = 1e7;
+
 const POSITION: [&str; 3] = ["x_mm", "y_mm", "z_mm"];
 const DIRECTION: [&str; 3] = ["direction_x", "direction_y", "direction_z"];
 

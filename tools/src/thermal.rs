@@ -63,6 +63,11 @@ pub fn run(
         .map_err(|e| CliError::Model(e.to_string()))?;
     let duration = spec.schedule.duration_s();
     let samples = (duration / every_s).ceil() as usize;
+    if samples > 1_000_000 {
+        return Err(CliError::Argument(format!(
+            "--every-s {every_s}: {samples} samples over the {duration} s run; up to 1 000 000 are accepted"
+        )));
+    }
     let mut h = ThermalHistory {
         nodes: thermal.network.node_names().map(str::to_string).collect(),
         times_s: Vec::new(),

@@ -53,6 +53,8 @@ pub struct DriveParams {
     pub screw_friction: LuGreParams,
     /// Motor encoder counts per revolution.
     pub encoder_counts_per_rev: f64,
+    /// Motor torque constant, N·m/A (for the current channel).
+    pub torque_constant_n_m_per_a: f64,
     /// Position feedback.
     pub feedback: Feedback,
 }
@@ -66,6 +68,11 @@ impl DriveParams {
     /// Motor-side plus carriage mass, kg.
     pub fn total_mass_kg(&self) -> f64 {
         self.reflected_motor_mass_kg() + self.carriage_mass_kg
+    }
+
+    /// Motor current (A) for a motor force `force_n` (N, linear coordinates).
+    pub fn current_a(&self, force_n: f64) -> f64 {
+        force_n * self.screw.m_per_rad() / self.torque_constant_n_m_per_a
     }
 
     /// Resolution of the motor encoder in carriage travel, m.

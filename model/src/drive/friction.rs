@@ -60,7 +60,13 @@ impl LuGreParams {
     /// The Stribeck force `Fc + (Fs - Fc) exp(-(|v|/vs)^δ)`, N (without the viscous part).
     #[inline]
     pub fn stribeck_force(&self, v: f64) -> f64 {
-        let r = (v.abs() / self.stribeck_m_s).powf(self.stribeck_exponent);
+        let x = v.abs() / self.stribeck_m_s;
+        // δ = 2 is the usual Gaussian shape: avoid the general power there.
+        let r = if self.stribeck_exponent == 2.0 {
+            x * x
+        } else {
+            x.powf(self.stribeck_exponent)
+        };
         self.coulomb_n + (self.static_n - self.coulomb_n) * (-r).exp()
     }
 

@@ -11,13 +11,15 @@
 //! with one joint matrix `J` per axis element (the ground has none) and one structural link `Lk`
 //! between elements `k` and `k+1`:
 //!
-//! - `J(q) = Trans(q·u + δ(q) + P(T)(q - q_ref)·u) · R(ε(q)) · R(±ε_j(T))`, where `u` is the unit
-//!   vector of the axis' reference straight line (the nominal axis turned by the squareness
-//!   errors), `δ` the translational errors (EX?, EY?, EZ?) and `ε` the angular errors
-//!   (EA?, EB?, EC?) for the axis' direction state. The geometric errors are motions of the tool
-//!   relative to the workpiece (ISO 230-1, Ahn & Cho's sign rules), so this form holds on both
-//!   sides of the ground; the thermal rotation `ε_j` is a physical rotation of the carriage and is
-//!   reversed (`-ε_j`) for an axis that carries the workpiece.
+//! - `J(q) = Trans(q·u + δ(q) + P(T)(q - q_ref)·u) · R(ε(q))`, where `u` is the unit vector of the
+//!   axis' reference straight line (the nominal axis turned by the squareness errors), `δ` the
+//!   translational errors (EX?, EY?, EZ?) and `ε` the angular errors (EA?, EB?, EC?) for the
+//!   axis' direction state. The geometric errors are motions of the tool relative to the
+//!   workpiece (ISO 230-1, Ahn & Cho's sign rules), so this form holds on both sides of the
+//!   ground. The thermal rotation `ε_j` is a physical rotation of the carriage: on the tool side
+//!   it turns what the carriage carries, `J·R(ε_j)`; on the workpiece side the carriage is the
+//!   inverse of its motion in Min & Chung's chain, `(R(ε_j)·Trans(-q))⁻¹ = R(-ε_j)·Trans(q)`, so
+//!   it turns the carriage's own travel as well, `R(-ε_j)·J`.
 //! - `Lk = S_k` on the tool side and `S_k⁻¹` on the workpiece side, where
 //!   `S_k = Trans(Δ(T)) · Trans(p_k) · R(ε_s(T)) · Trans(-p_k)` is the physical deformation of the
 //!   link, rotating about its pivot `p_k` (e.g. the foot of the column) and translating by Δ.
@@ -187,12 +189,16 @@ impl VolumetricEvaluator<'_> {
     /// The joint matrix of `axis` at `state`.
     pub fn joint(&self, axis: Axis, state: &AxisState) -> Htm {
         let (geometric, thermal) = self.joint_parts(axis, state);
-        match thermal {
-            Some(r) => Htm {
+        match (thermal, self.model.kinematics.topology.axis_side(axis)) {
+            (None, _) => geometric,
+            (Some(r), Side::Tool) => Htm {
                 rotation: geometric.rotation * r,
                 translation: geometric.translation,
             },
-            None => geometric,
+            (Some(r), Side::Workpiece) => Htm {
+                rotation: r * geometric.rotation,
+                translation: r * geometric.translation,
+            },
         }
     }
 
@@ -226,10 +232,11 @@ impl VolumetricEvaluator<'_> {
                 && let Element::Axis(a) = chain[k]
             {
                 let (geometric, thermal) = self.joint_parts(a, state);
-                if let Some(r) = thermal {
-                    p = r * p;
-                }
-                p = geometric.transform_point(&p);
+                p = match (thermal, self.model.kinematics.topology.axis_side(a)) {
+                    (None, _) => geometric.transform_point(&p),
+                    (Some(r), Side::Tool) => geometric.transform_point(&(r * p)),
+                    (Some(r), Side::Workpiece) => r * geometric.transform_point(&p),
+                };
             }
         }
         p

@@ -1,0 +1,517 @@
+//! Scenario sections for executing jobs: each axis' drive and servo, the controller, the
+//! simulation settings, the job and the ball bar.
+
+use crate::build::BuildError;
+use crate::error::{Invalid, KeyPath};
+use nalgebra::Vector3;
+use serde::Deserialize;
+use std::path::Path;
+use vmt_model::drive::{DriveParams, Feedback, LuGreParams, ScrewParams, ServoParams};
+use vmt_sim::ballbar::BallbarSpec;
+use vmt_sim::interpolator::{InterpolatorConfig, Limits};
+use vmt_sim::nc::{ArcDirection, CircularTest, Plane, parse};
+use vmt_sim::plant::Fidelity;
+use vmt_sim::simulate::{AxisDynamics, BallbarSetup, Job, SimSettings};
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DriveToml {
+    pub motor_inertia_kg_m2: f64,
+    pub screw_lead_mm: f64,
+    pub screw_stiffness_n_per_um: f64,
+    pub screw_damping_n_s_per_m: f64,
+    pub backlash_um: f64,
+    pub encoder_counts_per_rev: f64,
+    pub torque_constant_n_m_per_a: f64,
+    #[serde(default = "motor_encoder")]
+    pub feedback: String,
+    pub scale_resolution_nm: Option<f64>,
+    pub guide_friction: FrictionToml,
+    pub screw_friction: FrictionToml,
+}
+
+fn motor_encoder() -> String {
+    "motor_encoder".into()
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FrictionToml {
+    pub coulomb_n: f64,
+    pub static_n: f64,
+    pub stribeck_mm_s: f64,
+    #[serde(default = "two")]
+    pub stribeck_exponent: f64,
+    pub bristle_stiffness_n_per_um: f64,
+    pub bristle_damping_n_s_per_m: f64,
+    pub viscous_n_s_per_m: f64,
+}
+
+fn two() -> f64 {
+    2.0
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ServoToml {
+    pub kv_per_s: f64,
+    pub velocity_bandwidth_hz: f64,
+    pub velocity_integral_ms: f64,
+    #[serde(default)]
+    pub velocity_ff: f64,
+    #[serde(default)]
+    pub acceleration_ff: f64,
+    pub current_time_constant_ms: f64,
+    pub peak_torque_n_m: f64,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ControllerToml {
+    pub servo_period_us: f64,
+    pub ipo_period_ms: f64,
+    pub plant_substeps: usize,
+    pub rapid_mm_min: f64,
+    pub max_feed_mm_min: f64,
+    pub path_accel_m_s2: f64,
+    pub path_jerk_m_s3: f64,
+    pub axis_accel_m_s2: [f64; 3],
+    pub corner_tolerance_um: f64,
+    #[serde(default)]
+    pub exact_stop: bool,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SimulationToml {
+    #[serde(default = "reduced")]
+    pub fidelity: String,
+    #[serde(default)]
+    pub seed: u64,
+    #[serde(default = "khz")]
+    pub log_rate_hz: f64,
+}
+
+fn reduced() -> String {
+    "reduced".into()
+}
+
+fn khz() -> f64 {
+    1000.0
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields, tag = "kind", rename_all = "lowercase")]
+pub enum JobToml {
+    Ballbar {
+        plane: String,
+        center_mm: [f64; 3],
+        radius_mm: f64,
+        feed_mm_min: f64,
+        #[serde(default = "full")]
+        arc_deg: f64,
+        #[serde(default = "both")]
+        directions: Vec<String>,
+    },
+    Program {
+        program: String,
+    },
+}
+
+fn full() -> f64 {
+    360.0
+}
+
+fn both() -> Vec<String> {
+    vec!["cw".into(), "ccw".into()]
+}
+
+#[derive(Debug, Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+pub struct InstrumentsToml {
+    pub ballbar: Option<BallbarToml>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BallbarToml {
+    #[serde(default = "tenth")]
+    pub resolution_um: f64,
+    #[serde(default)]
+    pub noise_um: f64,
+    #[serde(default = "khz")]
+    pub sample_rate_hz: f64,
+    #[serde(default)]
+    pub setup_eccentricity_um: [f64; 3],
+    #[serde(default = "twenty")]
+    pub bar_temperature_c: f64,
+    #[serde(default = "steel")]
+    pub bar_alpha_per_k: f64,
+}
+
+fn tenth() -> f64 {
+    0.1
+}
+
+fn twenty() -> f64 {
+    20.0
+}
+
+fn steel() -> f64 {
+    11.5e-6
+}
+
+type R<T> = Result<T, Invalid>;
+
+fn pos(v: f64, path: &KeyPath, what: &str) -> R<f64> {
+    if v.is_finite() && v > 0.0 {
+        Ok(v)
+    } else {
+        Err(Invalid::new(
+            path.clone(),
+            format!("{v} is not accepted; {what} must be a finite number > 0"),
+        ))
+    }
+}
+
+fn nonneg(v: f64, path: &KeyPath, what: &str) -> R<f64> {
+    if v.is_finite() && v >= 0.0 {
+        Ok(v)
+    } else {
+        Err(Invalid::new(
+            path.clone(),
+            format!("{v} is not accepted; {what} must be a finite number >= 0"),
+        ))
+    }
+}
+
+fn friction(f: &FrictionToml, p: &KeyPath) -> R<LuGreParams> {
+    let out = LuGreParams {
+        sigma0_n_per_m: pos(
+            f.bristle_stiffness_n_per_um,
+            &p.key("bristle_stiffness_n_per_um"),
+            "a bristle stiffness",
+        )? * 1e6,
+        sigma1_n_s_per_m: nonneg(
+            f.bristle_damping_n_s_per_m,
+            &p.key("bristle_damping_n_s_per_m"),
+            "a damping",
+        )?,
+        sigma2_n_s_per_m: nonneg(
+            f.viscous_n_s_per_m,
+            &p.key("viscous_n_s_per_m"),
+            "a viscous coefficient",
+        )?,
+        coulomb_n: nonneg(f.coulomb_n, &p.key("coulomb_n"), "a Coulomb force")?,
+        static_n: nonneg(f.static_n, &p.key("static_n"), "a static force")?,
+        stribeck_m_s: pos(
+            f.stribeck_mm_s,
+            &p.key("stribeck_mm_s"),
+            "a Stribeck velocity",
+        )? * 1e-3,
+        stribeck_exponent: pos(
+            f.stribeck_exponent,
+            &p.key("stribeck_exponent"),
+            "a Stribeck exponent",
+        )?,
+    };
+    out.check().map_err(|m| Invalid::new(p.clone(), m))?;
+    Ok(out)
+}
+
+/// The drive of an axis.
+pub fn drive(d: &DriveToml, moving_mass_kg: f64, p: &KeyPath) -> R<DriveParams> {
+    let feedback = match d.feedback.as_str() {
+        "motor_encoder" => Feedback::MotorEncoder,
+        "linear_scale" => {
+            let r = d.scale_resolution_nm.ok_or_else(|| {
+                Invalid::new(
+                    p.key("scale_resolution_nm"),
+                    "a linear scale needs scale_resolution_nm",
+                )
+            })?;
+            Feedback::LinearScale {
+                resolution_m: pos(r, &p.key("scale_resolution_nm"), "a resolution")? * 1e-9,
+            }
+        }
+        other => {
+            let msg = format!(
+                "`{other}` is not accepted; feedback is \"motor_encoder\" (semi-closed loop) or \"linear_scale\""
+            );
+            return Err(Invalid::new(p.key("feedback"), msg));
+        }
+    };
+    Ok(DriveParams {
+        motor_inertia_kg_m2: pos(
+            d.motor_inertia_kg_m2,
+            &p.key("motor_inertia_kg_m2"),
+            "an inertia",
+        )?,
+        screw: ScrewParams {
+            lead_m: pos(d.screw_lead_mm, &p.key("screw_lead_mm"), "a lead")? * 1e-3,
+            stiffness_n_per_m: pos(
+                d.screw_stiffness_n_per_um,
+                &p.key("screw_stiffness_n_per_um"),
+                "a stiffness",
+            )? * 1e6,
+            damping_n_s_per_m: nonneg(
+                d.screw_damping_n_s_per_m,
+                &p.key("screw_damping_n_s_per_m"),
+                "a damping",
+            )?,
+            backlash_m: nonneg(d.backlash_um, &p.key("backlash_um"), "a backlash")? * 1e-6,
+        },
+        carriage_mass_kg: moving_mass_kg,
+        guide_friction: friction(&d.guide_friction, &p.key("guide_friction"))?,
+        screw_friction: friction(&d.screw_friction, &p.key("screw_friction"))?,
+        encoder_counts_per_rev: pos(
+            d.encoder_counts_per_rev,
+            &p.key("encoder_counts_per_rev"),
+            "a count",
+        )?,
+        torque_constant_n_m_per_a: pos(
+            d.torque_constant_n_m_per_a,
+            &p.key("torque_constant_n_m_per_a"),
+            "a torque constant",
+        )?,
+        feedback,
+    })
+}
+
+/// The servo of an axis driving `drive`: the velocity gain from the bandwidth and total mass.
+pub fn servo(s: &ServoToml, drive: &DriveParams, p: &KeyPath) -> R<ServoParams> {
+    let ff = |v: f64, k: &str| -> R<f64> {
+        if (0.0..=1.0).contains(&v) {
+            Ok(v)
+        } else {
+            Err(Invalid::new(
+                p.key(k),
+                format!("{v} is not accepted; a feed-forward factor from 0 to 1"),
+            ))
+        }
+    };
+    let bandwidth = pos(
+        s.velocity_bandwidth_hz,
+        &p.key("velocity_bandwidth_hz"),
+        "a bandwidth",
+    )?;
+    Ok(ServoParams {
+        kv_per_s: pos(s.kv_per_s, &p.key("kv_per_s"), "a position loop gain")?,
+        velocity_kp_n_s_per_m: drive.total_mass_kg() * std::f64::consts::TAU * bandwidth,
+        velocity_ti_s: pos(
+            s.velocity_integral_ms,
+            &p.key("velocity_integral_ms"),
+            "an integral time",
+        )? * 1e-3,
+        velocity_ff: ff(s.velocity_ff, "velocity_ff")?,
+        acceleration_ff: ff(s.acceleration_ff, "acceleration_ff")?,
+        current_time_constant_s: pos(
+            s.current_time_constant_ms,
+            &p.key("current_time_constant_ms"),
+            "a time constant",
+        )? * 1e-3,
+        force_limit_n: pos(s.peak_torque_n_m, &p.key("peak_torque_n_m"), "a torque")?
+            / drive.screw.m_per_rad(),
+    })
+}
+
+/// The controller: interpolator settings and plant substeps.
+pub fn controller(c: &ControllerToml) -> R<(InterpolatorConfig, usize)> {
+    let p = KeyPath::of(&["controller"]);
+    let mm_min = 1.0 / 60_000.0;
+    let mut axis_accel = [0.0; 3];
+    for (i, (slot, v)) in axis_accel.iter_mut().zip(c.axis_accel_m_s2).enumerate() {
+        *slot = pos(v, &p.key("axis_accel_m_s2").index(i), "an acceleration")?;
+    }
+    let rapid = pos(c.rapid_mm_min, &p.key("rapid_mm_min"), "a rapid rate")? * mm_min;
+    let limits = Limits {
+        rapid_m_s: rapid,
+        max_feed_m_s: pos(c.max_feed_mm_min, &p.key("max_feed_mm_min"), "a feed")? * mm_min,
+        path_accel_m_s2: pos(
+            c.path_accel_m_s2,
+            &p.key("path_accel_m_s2"),
+            "an acceleration",
+        )?,
+        path_jerk_m_s3: pos(c.path_jerk_m_s3, &p.key("path_jerk_m_s3"), "a jerk")?,
+        axis_velocity_m_s: [rapid; 3],
+        axis_accel_m_s2: axis_accel,
+        corner_tolerance_m: pos(
+            c.corner_tolerance_um,
+            &p.key("corner_tolerance_um"),
+            "a tolerance",
+        )? * 1e-6,
+    };
+    let config = InterpolatorConfig {
+        limits,
+        ipo_period_s: pos(c.ipo_period_ms, &p.key("ipo_period_ms"), "a period")? * 1e-3,
+        servo_period_s: pos(c.servo_period_us, &p.key("servo_period_us"), "a period")? * 1e-6,
+        exact_stop: c.exact_stop,
+    };
+    config
+        .validate()
+        .map_err(|e| Invalid::new(p.clone(), e.to_string()))?;
+    if !(1..=64).contains(&c.plant_substeps) {
+        return Err(Invalid::new(
+            p.key("plant_substeps"),
+            format!(
+                "{} is not accepted; 1 to 64 plant steps per servo period",
+                c.plant_substeps
+            ),
+        ));
+    }
+    Ok((config, c.plant_substeps))
+}
+
+/// Simulation settings.
+pub fn simulation(s: &SimulationToml, substeps: usize) -> R<SimSettings> {
+    let p = KeyPath::of(&["simulation"]);
+    let fidelity = match s.fidelity.as_str() {
+        "reduced" => Fidelity::Reduced,
+        "multibody" => Fidelity::Multibody,
+        other => {
+            return Err(Invalid::new(
+                p.key("fidelity"),
+                format!("`{other}` is not accepted; \"reduced\" or \"multibody\""),
+            ));
+        }
+    };
+    Ok(SimSettings {
+        fidelity,
+        plant_substeps: substeps,
+        log_rate_hz: pos(s.log_rate_hz, &p.key("log_rate_hz"), "a rate")?,
+        seed: s.seed,
+    })
+}
+
+fn ballbar_spec(b: Option<&BallbarToml>) -> R<BallbarSpec> {
+    let Some(b) = b else {
+        return Ok(BallbarSpec::default());
+    };
+    let p = KeyPath::of(&["instruments", "ballbar"]);
+    Ok(BallbarSpec {
+        resolution_m: nonneg(b.resolution_um, &p.key("resolution_um"), "a resolution")? * 1e-6,
+        noise_m: nonneg(b.noise_um, &p.key("noise_um"), "a noise")? * 1e-6,
+        sample_rate_hz: pos(b.sample_rate_hz, &p.key("sample_rate_hz"), "a sample rate")?,
+        setup_eccentricity_m: Vector3::from(b.setup_eccentricity_um) * 1e-6,
+        bar_temperature_c: b.bar_temperature_c,
+        bar_alpha_per_k: b.bar_alpha_per_k,
+    })
+}
+
+/// The job, its program and ball bar; `base_dir` resolves program files.
+pub fn job(
+    j: &JobToml,
+    instruments: &InstrumentsToml,
+    tool_offset: Vector3<f64>,
+    base_dir: Option<&Path>,
+) -> Result<Job, BuildError> {
+    let p = KeyPath::of(&["job"]);
+    match j {
+        JobToml::Ballbar {
+            plane,
+            center_mm,
+            radius_mm,
+            feed_mm_min,
+            arc_deg,
+            directions,
+        } => {
+            let plane = match plane.to_ascii_uppercase().as_str() {
+                "XY" => Plane::Xy,
+                "ZX" | "XZ" => Plane::Zx,
+                "YZ" => Plane::Yz,
+                other => {
+                    return Err(Invalid::new(
+                        p.key("plane"),
+                        format!("`{other}` is not accepted; XY, ZX or YZ"),
+                    )
+                    .into());
+                }
+            };
+            let dirs = directions
+                .iter()
+                .enumerate()
+                .map(|(i, d)| match d.to_ascii_lowercase().as_str() {
+                    "cw" => Ok(ArcDirection::Cw),
+                    "ccw" => Ok(ArcDirection::Ccw),
+                    other => Err(Invalid::new(
+                        p.key("directions").index(i),
+                        format!("`{other}` is not accepted; cw or ccw"),
+                    )),
+                })
+                .collect::<R<Vec<_>>>()?;
+            let center = Vector3::from(*center_mm) * 1e-3;
+            let mut test =
+                CircularTest::iso230_4(plane, center, radius_mm * 1e-3, feed_mm_min / 60_000.0);
+            test.arc_deg = *arc_deg;
+            test.directions = dirs;
+            test.validate()
+                .map_err(|e| Invalid::new(p.clone(), e.to_string()))?;
+            let program = parse(&test.gcode(), test.start_point())
+                .map_err(|e| Invalid::new(p.clone(), e.to_string()))?;
+            let data = test.data_blocks(&program).unwrap_or_default();
+            let spec = ballbar_spec(instruments.ballbar.as_ref())?;
+            let ballbar = Some(BallbarSetup {
+                spec,
+                center,
+                radius_m: test.radius_m,
+                plane,
+                feed_m_s: test.feed_m_s,
+                data,
+            });
+            Ok(Job { program, ballbar })
+        }
+        JobToml::Program { program } => {
+            let Some(dir) = base_dir else {
+                return Err(Invalid::new(
+                    p.key("program"),
+                    "the built-in scenario cannot refer to files",
+                )
+                .into());
+            };
+            let path = dir.join(program);
+            let file = path.display().to_string();
+            let text = std::fs::read_to_string(&path)
+                .map_err(|e| crate::build::external(&file, None, format!("cannot read: {e}")))?;
+            let program = parse(&text, tool_offset).map_err(|e| {
+                crate::build::external(&file, Some((e.line, e.column)), e.message.clone())
+            })?;
+            Ok(Job {
+                program,
+                ballbar: None,
+            })
+        }
+    }
+}
+
+/// All axes' dynamics, if every axis has both a drive and a servo section.
+pub fn axes(
+    raw: [(&Option<DriveToml>, &Option<ServoToml>); 3],
+    moving: [f64; 3],
+) -> R<Option<[AxisDynamics; 3]>> {
+    let mut out = Vec::new();
+    for (i, (d, s)) in raw.into_iter().enumerate() {
+        let name = ["x", "y", "z"][i];
+        let p = KeyPath::of(&["machine", "axes", name]);
+        match (d, s) {
+            (Some(d), Some(s)) => {
+                let drive = drive(d, moving[i], &p.key("drive"))?;
+                let servo = servo(s, &drive, &p.key("servo"))?;
+                out.push(AxisDynamics { drive, servo });
+            }
+            (None, None) => return Ok(None),
+            (Some(_), None) => {
+                return Err(Invalid::new(
+                    p.clone(),
+                    "a drive needs its servo section [machine.axes.<axis>.servo]",
+                ));
+            }
+            (None, Some(_)) => {
+                return Err(Invalid::new(
+                    p.clone(),
+                    "a servo needs its drive section [machine.axes.<axis>.drive]",
+                ));
+            }
+        }
+    }
+    Ok(out.try_into().ok())
+}

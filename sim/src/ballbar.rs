@@ -1,0 +1,105 @@
+//! The ball bar: a telescoping linear transducer between a ball on the table (the pivot) and a
+//! ball in the spindle (the tool point), ISO 230-4 circular tests.
+//!
+//! ```text
+//! L_true = |P_tool - (C + e)|                      bar length, m (C nominal centre, e set-up
+//!                                                  eccentricity of the pivot, m)
+//! r      = L_true - R - α_bar R (T_bar - 20 °C)    transducer reading: the bar body grows with its
+//!                                                  temperature and the reading drops by as much
+//! d      = q·round((r + n) / q),  n ~ N(0, σ²)     noise σ, resolution q (0.1 µm)
+//! ```
+//!
+//! sampled at the instrument's rate (1 kHz by default) on the run's clock. The angle is the
+//! bar's direction in the test plane from the plane's first axis (X for XY, Z for ZX, Y for YZ).
+
+use crate::nc::program::Plane;
+use nalgebra::Vector3;
+use rand::SeedableRng;
+use rand::rngs::StdRng;
+use rand_distr::{Distribution, StandardNormal};
+
+/// Ball-bar instrument settings, SI units.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BallbarSpec {
+    /// Transducer resolution, m (0.1 µm).
+    pub resolution_m: f64,
+    /// Standard deviation of the reading noise, m.
+    pub noise_m: f64,
+    /// Sample rate, Hz.
+    pub sample_rate_hz: f64,
+    /// Set-up eccentricity of the pivot from the nominal centre, m.
+    pub setup_eccentricity_m: Vector3<f64>,
+    /// Temperature of the bar, °C.
+    pub bar_temperature_c: f64,
+    /// Expansion coefficient of the bar body, 1/K.
+    pub bar_alpha_per_k: f64,
+}
+
+impl Default for BallbarSpec {
+    fn default() -> Self {
+        Self {
+            resolution_m: 0.1e-6,
+            noise_m: 0.0,
+            sample_rate_hz: 1000.0,
+            setup_eccentricity_m: Vector3::zeros(),
+            bar_temperature_c: 20.0,
+            bar_alpha_per_k: 11.5e-6,
+        }
+    }
+}
+
+/// A ball bar set up for one test: nominal centre, length and plane.
+#[derive(Debug)]
+pub struct Ballbar {
+    spec: BallbarSpec,
+    center: Vector3<f64>,
+    radius_m: f64,
+    plane: Plane,
+    rng: StdRng,
+}
+
+impl Ballbar {
+    /// A bar of nominal length `radius_m` about `center` (m) in `plane`; `seed` drives the noise.
+    pub fn new(
+        spec: BallbarSpec,
+        center: Vector3<f64>,
+        radius_m: f64,
+        plane: Plane,
+        seed: u64,
+    ) -> Self {
+        Self {
+            spec,
+            center,
+            radius_m,
+            plane,
+            rng: StdRng::seed_from_u64(seed),
+        }
+    }
+
+    /// The reading (length minus nominal, m) and the bar's angle (rad, wrapped to (-π, π]) for
+    /// a tool point `tool` (m, relative to the workpiece).
+    pub fn read(&mut self, tool: &Vector3<f64>) -> (f64, f64) {
+        let bar = tool - (self.center + self.spec.setup_eccentricity_m);
+        let growth =
+            self.spec.bar_alpha_per_k * self.radius_m * (self.spec.bar_temperature_c - 20.0);
+        let r = bar.norm() - self.radius_m - growth;
+        let n: f64 = StandardNormal.sample(&mut self.rng);
+        let noisy = r + self.spec.noise_m * n;
+        let q = self.spec.resolution_m;
+        let reading = if q > 0.0 {
+            (noisy / q).round() * q
+        } else {
+            noisy
+        };
+        (reading, plane_angle(self.plane, &bar))
+    }
+}
+
+/// The angle of `v` in `plane` from the plane's first axis, rad.
+pub fn plane_angle(plane: Plane, v: &Vector3<f64>) -> f64 {
+    match plane {
+        Plane::Xy => v.y.atan2(v.x),
+        Plane::Zx => v.x.atan2(v.z),
+        Plane::Yz => v.z.atan2(v.y),
+    }
+}

@@ -1,0 +1,450 @@
+//! The interpolator of the CNC: from an NC [`Program`] to position, velocity and acceleration
+//! setpoints at the servo rate.
+//!
+//! It works as a controller's interpolator does (Altintas, *Manufacturing Automation*, 2nd ed.,
+//! ch. 6 "Trajectory generation"; Biagiotti & Melchiorri, *Trajectory Planning for Automatic
+//! Machines and Robots*, 2008, ch. 3 and 4 on trapezoidal and double-S profiles and their
+//! generation by FIR filters), in four stages. Units are SI: m, s, m/s, m/s², m/s³.
+//!
+//! 1. **Path geometry** ([`path`]). Every motion block is a segment parameterised by its path
+//!    length `s`. Lines `p(s) = p₀ + s·d`; arcs and helices exactly from centre, radius and angle,
+//!    `p = c + r·(cos θ·u + sin θ·v) + n·h·s/L`, `θ = θ₀ + φ·s/L` (no chords). A full circle is an
+//!    arc whose end equals its start (sweep exactly ±360°); its direction is counter-clockwise
+//!    (G3) or clockwise (G2) seen from the `+` end of the plane normal (Z for G17, Y for G18, X for
+//!    G19). G0 is a straight line at the rapid rate. Blocks shorter than 1 pm are skipped.
+//!
+//! 2. **Feed planning with look-ahead** ([`planning`]). The blocks between two stops form a
+//!    *section* that is planned as a whole. Each segment's speed is the programmed feed (the rapid
+//!    rate for G0), reduced so that no axis exceeds its velocity, and on arcs so that the
+//!    centripetal acceleration `v²κ` stays within [`feed_limits::CENTRIPETAL_SHARE`] of the
+//!    in-plane axis acceleration limits; its tangential acceleration is `a_max`, reduced for the
+//!    axis acceleration limits ([`feed_limits`]). Corners get the junction speed of
+//!    [`junction`]: the smaller of the *velocity-jump rule* `v ≤ min_i A_i T_ipo / |Δt_i|` and
+//!    the *junction-deviation rule* with the corner tolerance `δ`; tangent junctions keep their
+//!    speed. A stop (a junction at rest) is made at the program start and end, at every dwell,
+//!    before and after every rapid move (in-position check, as Fanuc and Siemens do by default),
+//!    at every junction in exact-stop mode, and at reversals. Backward and forward passes give the
+//!    time-optimal trapezoidal-velocity (constant-acceleration) profile from rest to rest.
+//!
+//! 3. **Jerk limitation** ([`profile`]). The path parameter (not the axes: the path stays exact)
+//!    is smoothed by a moving-average FIR filter of length `T_j = N·T_ipo`,
+//!    `N = ⌈a_max / (j_max T_ipo)⌉`:
+//!    `s_f(t) = (1/T_j) ∫_{t−T_j}^{t} s(τ) dτ`, which turns each acceleration step of at most
+//!    `a_max` into a ramp of jerk at most `a_max / T_j ≤ j_max` (the planner keeps the raw
+//!    profile from accelerating and decelerating within one window, capping short peaks). A
+//!    rest-to-rest section of raw duration `T` lasts `T + T_j` after filtering; a long line at feed
+//!    `F` (cruise reached, `F/a_max ≥ T_j`) takes `L/F + F/a_max + T_j`, the time of the
+//!    seven-phase double-S profile with `T_j = a_max/j_max`. The filtered profile is evaluated
+//!    exactly at the IPO instants `t_k = k·T_ipo` (equivalently: a discrete FIR of `N` taps over
+//!    the per-period means of `s`). Every section and dwell starts on an IPO tick; dwells are
+//!    rounded up to whole IPO periods.
+//!
+//! 4. **Fine interpolation** ([`fine`]). From the IPO samples `(s_k, ṡ_k)` a cubic Hermite
+//!    polynomial gives `s`, `ṡ`, `s̈` at every servo tick `t = k·T_s` (`T_s` divides `T_ipo`;
+//!    defaults 1 ms and 125 µs), then `p = p(s)`, `ṗ = p′(s)·ṡ`, `p̈ = p″(s)·ṡ² + p′(s)·s̈` for
+//!    the controller's feed-forward. At a corner passed at speed `v` the axis velocities step by
+//!    `v·Δt` (at most `A_i T_ipo` each) from one servo tick to the next; the reported acceleration
+//!    is the smooth part.
+//!
+//! Memory is the IPO samples (16 bytes per IPO period: 1 MB per minute at 1 ms) and the phases of
+//! the profile; servo setpoints are computed on demand. No randomness, no clock: the same program
+//! and configuration give the same setpoints, bit for bit.
+
+mod config;
+mod error;
+pub mod feed_limits;
+pub mod fine;
+pub mod junction;
+pub mod path;
+pub mod planning;
+pub mod profile;
+
+use std::ops::Range;
+
+use nalgebra::Vector3;
+
+pub use config::{InterpolatorConfig, Limits};
+pub use error::InterpolatorError;
+
+use crate::nc::program::{Program, Spindle};
+use fine::IpoSamples;
+use path::{Dwell, MoveKind, Segment, Step, build_steps};
+use profile::{PathState, RawProfile};
+
+/// Corners slower than this (m/s) are stops.
+const MIN_CORNER_SPEED_M_S: f64 = 1e-6;
+/// The largest number of IPO ticks a program may take (2²⁴: 4.6 h at 1 ms, 256 MB of samples).
+const MAX_IPO_TICKS: usize = 1 << 24;
+/// Relative slack when rounding durations up to whole IPO periods.
+const TICK_SLACK: f64 = 1e-9;
+
+/// One servo-rate setpoint.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Setpoint {
+    /// Time since the program start, s (`k·T_s`).
+    pub time_s: f64,
+    /// Commanded tool position relative to the workpiece, m.
+    pub position: Vector3<f64>,
+    /// Commanded velocity, m/s (`p′(s)·ṡ`).
+    pub velocity: Vector3<f64>,
+    /// Commanded acceleration for feed-forward, m/s² (`p″(s)·ṡ² + p′(s)·s̈`).
+    pub acceleration: Vector3<f64>,
+    /// Index in [`Program::blocks`] of the block being executed; `None` before any motion (an
+    /// empty program).
+    pub block: Option<usize>,
+    /// Spindle state of that block.
+    pub spindle: Spindle,
+}
+
+/// What happens during a stretch of IPO ticks.
+#[derive(Clone, Debug)]
+enum Activity {
+    /// A rest-to-rest motion over `segments` (indices into [`Interpolator::segments`]) from
+    /// path length `s_start` (m).
+    Motion {
+        segments: Range<usize>,
+        s_start: f64,
+        profile: RawProfile,
+    },
+    /// A dwell at path length `s` (m), position `position` (m).
+    Dwell {
+        dwell: Dwell,
+        s: f64,
+        position: Vector3<f64>,
+    },
+}
+
+/// An activity and the IPO ticks `start..end` it occupies.
+#[derive(Clone, Debug)]
+struct Item {
+    start: usize,
+    end: usize,
+    activity: Activity,
+}
+
+/// The interpolated program: built once by [`Interpolator::new`], then queried for setpoints at
+/// any servo tick.
+#[derive(Clone, Debug)]
+pub struct Interpolator {
+    start: Vector3<f64>,
+    segments: Vec<Segment>,
+    items: Vec<Item>,
+    samples: IpoSamples,
+    ipo_period_s: f64,
+    servo_period_s: f64,
+    ticks_per_ipo: usize,
+    window_s: f64,
+}
+
+/// Collects steps into timeline items.
+struct Builder<'a> {
+    config: &'a InterpolatorConfig,
+    window_s: f64,
+    segments: Vec<Segment>,
+    items: Vec<Item>,
+    /// First segment of the open section and the junction speeds inside it.
+    open: Option<usize>,
+    corners: Vec<f64>,
+    tick: usize,
+}
+
+impl<'a> Builder<'a> {
+    fn new(config: &'a InterpolatorConfig, window_s: f64) -> Self {
+        Builder {
+            config,
+            window_s,
+            segments: Vec::new(),
+            items: Vec::new(),
+            open: None,
+            corners: Vec::new(),
+            tick: 0,
+        }
+    }
+
+    /// Junction speed from the last segment into `next`; `None` for a stop.
+    fn junction(&self, next: &Segment) -> Option<f64> {
+        let prev = self.segments.last()?;
+        if self.config.exact_stop || prev.kind == MoveKind::Rapid || next.kind == MoveKind::Rapid {
+            return None;
+        }
+        let speed = junction::corner_speed(
+            &prev.geometry.end_tangent(),
+            &next.geometry.start_tangent(),
+            &self.config.limits,
+            self.config.ipo_period_s,
+        );
+        (speed >= MIN_CORNER_SPEED_M_S).then_some(speed)
+    }
+
+    fn add_move(&mut self, segment: Segment) -> Result<(), InterpolatorError> {
+        match (self.open, self.junction(&segment)) {
+            (Some(_), Some(corner)) => self.corners.push(corner),
+            _ => {
+                self.close()?;
+                self.open = Some(self.segments.len());
+            }
+        }
+        self.segments.push(segment);
+        Ok(())
+    }
+
+    fn add_dwell(&mut self, dwell: Dwell, start: Vector3<f64>) -> Result<(), InterpolatorError> {
+        self.close()?;
+        let (s, position) = self
+            .segments
+            .last()
+            .map_or((0.0, start), |seg| (seg.s_end(), seg.geometry.end()));
+        let ticks = self.ticks(dwell.seconds)?;
+        self.push(ticks, Activity::Dwell { dwell, s, position });
+        Ok(())
+    }
+
+    /// Plans the open section, if any.
+    fn close(&mut self) -> Result<(), InterpolatorError> {
+        let Some(first) = self.open.take() else {
+            return Ok(());
+        };
+        let range = first..self.segments.len();
+        let segments = &self.segments[range.clone()];
+        let profile =
+            planning::plan_section(segments, &self.corners, &self.config.limits, self.window_s)?;
+        self.corners.clear();
+        let ticks = self.ticks(profile.duration + self.window_s)?;
+        let s_start = segments[0].s_start;
+        self.push(
+            ticks,
+            Activity::Motion {
+                segments: range,
+                s_start,
+                profile,
+            },
+        );
+        Ok(())
+    }
+
+    /// Whole IPO periods covering `seconds`, refusing programs beyond [`MAX_IPO_TICKS`].
+    fn ticks(&self, seconds: f64) -> Result<usize, InterpolatorError> {
+        let period = self.config.ipo_period_s;
+        let ticks = (seconds / period * (1.0 - TICK_SLACK)).ceil().max(0.0);
+        let total = self.tick as f64 + ticks;
+        if total.is_nan() || total > MAX_IPO_TICKS as f64 {
+            return Err(InterpolatorError::ProgramTooLong {
+                duration_s: total * period,
+                max_duration_s: MAX_IPO_TICKS as f64 * period,
+            });
+        }
+        Ok(ticks as usize)
+    }
+
+    fn push(&mut self, ticks: usize, activity: Activity) {
+        let start = self.tick;
+        self.tick += ticks;
+        self.items.push(Item {
+            start,
+            end: self.tick,
+            activity,
+        });
+    }
+}
+
+impl Interpolator {
+    /// Plans `program` under `config`: validates both, builds the path, plans every section and
+    /// computes the IPO samples.
+    pub fn new(program: &Program, config: &InterpolatorConfig) -> Result<Self, InterpolatorError> {
+        config.validate()?;
+        let ticks_per_ipo = config.servo_ticks_per_ipo()?;
+        let window_s = config.filter_taps() as f64 * config.ipo_period_s;
+        let mut builder = Builder::new(config, window_s);
+        for step in build_steps(program)? {
+            match step {
+                Step::Move(segment) => builder.add_move(*segment)?,
+                Step::Dwell(dwell) => builder.add_dwell(dwell, program.start)?,
+            }
+        }
+        builder.close()?;
+        let mut interpolator = Interpolator {
+            start: program.start,
+            segments: builder.segments,
+            items: builder.items,
+            samples: IpoSamples::default(),
+            ipo_period_s: config.ipo_period_s,
+            servo_period_s: config.servo_period_s,
+            ticks_per_ipo,
+            window_s,
+        };
+        interpolator.samples = interpolator.sample_ipo();
+        Ok(interpolator)
+    }
+
+    /// Total duration, s: the last IPO tick, at which the machine is at rest at the end point.
+    pub fn duration_s(&self) -> f64 {
+        self.ipo_ticks() as f64 * self.ipo_period_s
+    }
+
+    /// Servo period `T_s`, s.
+    pub fn servo_period_s(&self) -> f64 {
+        self.servo_period_s
+    }
+
+    /// Interpolation period `T_ipo`, s.
+    pub fn ipo_period_s(&self) -> f64 {
+        self.ipo_period_s
+    }
+
+    /// Length of the jerk filter window `T_j = N·T_ipo`, s.
+    pub fn jerk_window_s(&self) -> f64 {
+        self.window_s
+    }
+
+    /// Number of servo ticks, `duration_s / servo_period_s + 1` (ticks `0..=` the end).
+    pub fn servo_ticks(&self) -> usize {
+        self.ipo_ticks() * self.ticks_per_ipo + 1
+    }
+
+    /// The setpoint of the `k`-th servo tick (`t = k·T_s`); `None` after the end.
+    pub fn setpoint(&self, k: usize) -> Option<Setpoint> {
+        if k >= self.servo_ticks() {
+            return None;
+        }
+        let (m, r) = (k / self.ticks_per_ipo, k % self.ticks_per_ipo);
+        let time_s = k as f64 * self.servo_period_s;
+        let Some(item) = self.item_at(m) else {
+            return Some(self.rest(time_s, self.start, None, Spindle::Stopped));
+        };
+        match &item.activity {
+            Activity::Dwell {
+                dwell, position, ..
+            } => Some(self.rest(time_s, *position, Some(dwell.block), dwell.spindle)),
+            Activity::Motion {
+                segments,
+                s_start,
+                profile,
+            } => {
+                let tau = r as f64 / self.ticks_per_ipo as f64;
+                let mut state = self.samples.at(m, tau);
+                let s_end = s_start + profile.length;
+                state.s = state.s.clamp(*s_start, s_end);
+                Some(self.on_path(time_s, segments.clone(), state, state.s >= s_end))
+            }
+        }
+    }
+
+    /// All setpoints from `t = 0` to the end, at the servo rate.
+    pub fn iter(&self) -> impl Iterator<Item = Setpoint> + '_ {
+        (0..self.servo_ticks()).filter_map(|k| self.setpoint(k))
+    }
+
+    /// For every executed block, in order: its index, and the times (s) at which the setpoint
+    /// enters and leaves it (a dwell: from its start to its end on the IPO grid). Skipped
+    /// zero-length blocks are not listed.
+    pub fn block_times(&self) -> Vec<(usize, f64, f64)> {
+        let mut times = Vec::with_capacity(self.segments.len());
+        for item in &self.items {
+            let t0 = item.start as f64 * self.ipo_period_s;
+            match &item.activity {
+                Activity::Dwell { dwell, .. } => {
+                    times.push((dwell.block, t0, item.end as f64 * self.ipo_period_s));
+                }
+                Activity::Motion {
+                    segments,
+                    s_start,
+                    profile,
+                } => {
+                    for seg in &self.segments[segments.clone()] {
+                        let at = |s: f64| t0 + profile.filtered_time_at(self.window_s, s - s_start);
+                        times.push((seg.block, at(seg.s_start), at(seg.s_end())));
+                    }
+                }
+            }
+        }
+        times
+    }
+
+    fn ipo_ticks(&self) -> usize {
+        self.items.last().map_or(0, |item| item.end)
+    }
+
+    /// The item running at IPO tick `m` (the last one at the final tick).
+    fn item_at(&self, m: usize) -> Option<&Item> {
+        let i = self.items.partition_point(|item| item.end <= m);
+        self.items.get(i).or(self.items.last())
+    }
+
+    fn rest(
+        &self,
+        time_s: f64,
+        position: Vector3<f64>,
+        block: Option<usize>,
+        spindle: Spindle,
+    ) -> Setpoint {
+        Setpoint {
+            time_s,
+            position,
+            velocity: Vector3::zeros(),
+            acceleration: Vector3::zeros(),
+            block,
+            spindle,
+        }
+    }
+
+    /// The setpoint at path state `state` on one of `segments` (at the end point of the last
+    /// one if `at_end`).
+    fn on_path(
+        &self,
+        time_s: f64,
+        segments: Range<usize>,
+        state: PathState,
+        at_end: bool,
+    ) -> Setpoint {
+        let run = &self.segments[segments];
+        let i = run
+            .partition_point(|seg| seg.s_end() <= state.s)
+            .min(run.len() - 1);
+        let seg = &run[i];
+        let local = if at_end {
+            seg.geometry.length()
+        } else {
+            state.s - seg.s_start
+        };
+        let point = seg.geometry.point(local);
+        Setpoint {
+            time_s,
+            position: point.position,
+            velocity: point.tangent * state.v,
+            acceleration: point.curvature * (state.v * state.v) + point.tangent * state.a,
+            block: Some(seg.block),
+            spindle: seg.spindle,
+        }
+    }
+
+    /// The filtered path state at every IPO tick.
+    fn sample_ipo(&self) -> IpoSamples {
+        let total = self.ipo_ticks();
+        let mut samples = IpoSamples::with_capacity(self.ipo_period_s, total + 1);
+        let mut last_s = 0.0;
+        for item in &self.items {
+            for k in item.start..item.end {
+                let t = (k - item.start) as f64 * self.ipo_period_s;
+                let (s, v) = match &item.activity {
+                    Activity::Dwell { s, .. } => (*s, 0.0),
+                    Activity::Motion {
+                        s_start, profile, ..
+                    } => {
+                        let f = profile.filtered(self.window_s, t);
+                        (s_start + f.s, f.v)
+                    }
+                };
+                samples.push(s, v);
+            }
+            last_s = match &item.activity {
+                Activity::Dwell { s, .. } => *s,
+                Activity::Motion {
+                    s_start, profile, ..
+                } => s_start + profile.length,
+            };
+        }
+        samples.push(last_s, 0.0);
+        debug_assert_eq!(samples.len(), total + 1);
+        samples
+    }
+}

@@ -1,0 +1,19 @@
+//! vmt-sim: executes a job in time. NC program -> interpolator -> controller -> plant -> error
+//! chain -> instruments -> a run (channels and ground truth).
+//!
+//! - [`nc`]: NC programs: G-code parsing into SI motion blocks, and generators of test programs
+//!   (ISO 230-4 circular tests, Kwon's seven-step ball-bar procedure).
+//! - [`interpolator`]: path speed planning with acceleration and jerk limits, exact arcs, the
+//!   interpolation period and fine interpolation down to the servo rate.
+//! - [`plant`]: the moving assemblies and their drives, reduced or rapier3d multibody.
+//! - [`simulate`]: runs a job through interpolator, controllers, plant, error chain and
+//!   instruments ([`ballbar`]); [`truth`] writes its ground truth.
+//! - [`run`]: what a simulation produces: time-stamped streams, ball-bar traces, ground truth.
+
+pub mod ballbar;
+pub mod interpolator;
+pub mod nc;
+pub mod plant;
+pub mod run;
+pub mod simulate;
+pub mod truth;

@@ -1,0 +1,103 @@
+//! A run: what the instruments recorded, time-stamped, with the ground truth that produced it
+//! and the scenario it came from.
+//!
+//! Channels are grouped in [`Stream`]s that share one clock. The simulator writes the stream
+//! `servo` (logged at the log rate, 1 kHz by default) with the channels, for each axis
+//! `a` in `x`, `y`, `z` (positions in the axis' coordinate: the commanded tool position relative
+//! to the workpiece):
+//! `command_a` (m), `position_a` (m, the carriage), `encoder_a` (m, quantised motor encoder),
+//! `following_error_a` (m), `motor_force_a` (N), `motor_current_a` (A), `guide_friction_a` (N),
+//! `screw_friction_a` (N), and `tool_x`, `tool_y`, `tool_z` (m, the actual tool point relative to
+//! the workpiece through the error chain). Ball-bar traces are kept as [`BallbarTrace`]s.
+//! Times are simulation time in seconds from the start of the job; there is no wall clock in a
+//! run, so the same scenario and seed give the same run.
+
+use serde::Serialize;
+
+/// One recorded quantity.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Channel {
+    /// Name, e.g. `following_error_x`.
+    pub name: String,
+    /// SI or engineering unit, e.g. `m`, `um`, `N`.
+    pub unit: String,
+    /// One value per sample of its stream.
+    pub values: Vec<f64>,
+}
+
+/// Channels sampled at the same instants.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Stream {
+    /// Name, e.g. `servo`, `ballbar`.
+    pub name: String,
+    /// What it is, for humans and for the files' documentation.
+    pub description: String,
+    /// Sample times, s.
+    pub times_s: Vec<f64>,
+    /// The channels.
+    pub channels: Vec<Channel>,
+}
+
+impl Stream {
+    /// The channel called `name`.
+    pub fn channel(&self, name: &str) -> Option<&Channel> {
+        self.channels.iter().find(|c| c.name == name)
+    }
+}
+
+/// One ball-bar trace (one direction of one circular test), in the form ball-bar software uses.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct BallbarTrace {
+    /// Label, e.g. `XY 150 mm 1000 mm/min CCW`.
+    pub label: String,
+    /// `XY`, `ZX` or `YZ`.
+    pub plane: String,
+    /// `cw` or `ccw`.
+    pub direction: String,
+    /// Nominal bar length, mm.
+    pub radius_mm: f64,
+    /// Feed, mm/min.
+    pub feed_mm_min: f64,
+    /// Sample times, s.
+    pub times_s: Vec<f64>,
+    /// Angle of the bar in its plane from the plane's first axis, deg (unwrapped, increasing
+    /// for CCW).
+    pub angle_deg: Vec<f64>,
+    /// Measured length minus nominal length, µm.
+    pub deviation_um: Vec<f64>,
+}
+
+/// What a viewer needs to draw the machine.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct MachineSummary {
+    /// Machine name.
+    pub name: String,
+    /// Topology, e.g. `WXYGZT` (see vmt-model's `Topology`).
+    pub topology: String,
+    /// Strokes of X, Y, Z as [min, max], m.
+    pub strokes_m: [[f64; 2]; 3],
+    /// Tool length, m.
+    pub tool_length_m: f64,
+}
+
+/// A complete run.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Run {
+    /// Scenario name.
+    pub scenario_name: String,
+    /// The scenario text that made the run (TOML).
+    pub scenario_toml: String,
+    /// The seed of every random draw in the run.
+    pub seed: u64,
+    /// `reduced` or `multibody`.
+    pub fidelity: String,
+    /// The machine, for viewers.
+    pub machine: MachineSummary,
+    /// Recorded streams.
+    pub streams: Vec<Stream>,
+    /// Ball-bar traces, one per direction of each circular test.
+    pub ballbar: Vec<BallbarTrace>,
+    /// Every injected parameter and derived figure, as a JSON object (the truth a diagnosis is
+    /// scored against).
+    pub ground_truth: serde_json::Value,
+}

@@ -1,0 +1,531 @@
+//! Executing a job: NC program -> interpolator -> controller -> plant -> error chain ->
+//! instruments -> [`Run`].
+//!
+//! Programmed coordinates are the tool centre point relative to the workpiece; the controller
+//! applies the tool length and TCP offset (tool length compensation, as G43 does), so the axes
+//! are commanded to `q = p - ˢP_T` and the nominal tool point is the programmed one.
+//!
+//! Time advances in servo periods `T_s` (125 µs by default): at each tick the interpolator gives
+//! the setpoint, the three axis controllers compute their force references from the quantised
+//! feedback, and the plant is advanced by `n` substeps of `h = T_s / n` (semi-implicit Euler for
+//! the drives; rapier for the multibody carriages). The step is checked against the stiffest
+//! drive mode before the run ([`SimError::StepTooCoarse`]). The actual carriage positions and
+//! their direction states go through the geometric and thermal error chain of the model crate to
+//! give the tool point relative to the workpiece; the thermal network is advanced every second
+//! with the heat of the spindle and of the axes' motion. Instruments sample the tool point on the
+//! run's clock.
+
+use crate::ballbar::{Ballbar, BallbarSpec};
+use crate::interpolator::{Interpolator, InterpolatorConfig, InterpolatorError, Setpoint};
+use crate::nc::program::{ArcDirection, Plane, Program, Spindle};
+use crate::plant::{Fidelity, MultibodyPlant, Plant, PlantError, ReducedPlant, layout};
+use crate::run::{BallbarTrace, Channel, MachineSummary, Run, Stream};
+use nalgebra::Vector3;
+use std::ops::Range;
+use thiserror::Error;
+use vmt_model::drive::{AxisCommand, Drive, DriveParams, ServoParams};
+use vmt_model::kinematics::AxisState;
+use vmt_model::machine::Machine;
+use vmt_model::thermal::{Operating, ThermalStepper};
+use vmt_model::{Axis, Direction, DirectionTracker};
+
+/// Drive and controller of one axis.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct AxisDynamics {
+    /// Physical drive parameters (the carriage mass is the axis' moving mass).
+    pub drive: DriveParams,
+    /// Controller settings.
+    pub servo: ServoParams,
+}
+
+/// How to simulate.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SimSettings {
+    /// Plant fidelity.
+    pub fidelity: Fidelity,
+    /// Plant steps per servo period.
+    pub plant_substeps: usize,
+    /// Rate of the `servo` log stream, Hz.
+    pub log_rate_hz: f64,
+    /// Seed of every random draw (instrument noise).
+    pub seed: u64,
+}
+
+/// A ball bar mounted for a circular test, and which blocks are its data arcs.
+#[derive(Clone, Debug)]
+pub struct BallbarSetup {
+    /// The instrument.
+    pub spec: BallbarSpec,
+    /// Nominal centre of the circle, m.
+    pub center: Vector3<f64>,
+    /// Nominal bar length, m.
+    pub radius_m: f64,
+    /// Test plane.
+    pub plane: Plane,
+    /// Feed of the test, m/s.
+    pub feed_m_s: f64,
+    /// Data arcs: direction and the program blocks they span.
+    pub data: Vec<(ArcDirection, Range<usize>)>,
+}
+
+/// A job: a program and the instruments watching it.
+#[derive(Clone, Debug)]
+pub struct Job {
+    /// The NC program.
+    pub program: Program,
+    /// The ball bar, for circular tests.
+    pub ballbar: Option<BallbarSetup>,
+}
+
+/// Why a job cannot run.
+#[derive(Debug, Error)]
+pub enum SimError {
+    /// The interpolator refused the program or its settings.
+    #[error(transparent)]
+    Interpolator(#[from] InterpolatorError),
+    /// The machine cannot be built as a plant.
+    #[error(transparent)]
+    Plant(#[from] PlantError),
+    /// A block takes an axis beyond its stroke.
+    #[error(
+        "block at line {line}: the {axis} axis would reach {position_mm:.3} mm, beyond its stroke {min_mm} to {max_mm} mm"
+    )]
+    Stroke {
+        /// Source line of the block.
+        line: usize,
+        /// The axis.
+        axis: Axis,
+        /// Where it would go, mm.
+        position_mm: f64,
+        /// Stroke, mm.
+        min_mm: f64,
+        /// Stroke, mm.
+        max_mm: f64,
+    },
+    /// The plant step is beyond the stability limit of a drive mode.
+    #[error(
+        "a plant step of {step_us:.2} µs is too coarse for the {mode} of the {axis} drive: the largest stable step is {limit_us:.2} µs; raise plant_substeps"
+    )]
+    StepTooCoarse {
+        /// The axis.
+        axis: Axis,
+        /// The mode.
+        mode: &'static str,
+        /// Step, µs.
+        step_us: f64,
+        /// Largest stable step, µs.
+        limit_us: f64,
+    },
+    /// Settings out of range.
+    #[error("{0}")]
+    Settings(String),
+    /// The thermal model refused a step.
+    #[error("thermal model: {0}")]
+    Thermal(String),
+}
+
+/// Thermal update interval during a job, s.
+const THERMAL_PERIOD_S: f64 = 1.0;
+
+/// Runs `job` on `machine` and returns what was recorded. `progress` is called with the fraction
+/// done (0 to 1) about a hundred times.
+pub fn simulate(
+    machine: &Machine,
+    axes: &[AxisDynamics; 3],
+    ipo: &InterpolatorConfig,
+    job: &Job,
+    settings: &SimSettings,
+    scenario_toml: &str,
+    progress: &mut dyn FnMut(f64),
+) -> Result<Run, SimError> {
+    let interpolator = Interpolator::new(&job.program, ipo)?;
+    let tcp = machine.volumetric.kinematics.tool_offset;
+    check_strokes(machine, &interpolator, &job.program, &tcp)?;
+    let period = interpolator.servo_period_s();
+    let substeps = settings.plant_substeps.max(1);
+    let h = period / substeps as f64;
+    check_step(axes, h)?;
+    if !(settings.log_rate_hz > 0.0 && settings.log_rate_hz <= 1.0 / period) {
+        return Err(SimError::Settings(format!(
+            "log rate {} Hz: from 0 to the servo rate {} Hz is accepted",
+            settings.log_rate_hz,
+            1.0 / period
+        )));
+    }
+    let start = job.program.start - tcp;
+    let mut plant = build_plant(machine, axes, &start, settings.fidelity, h)?;
+    let mut recorder = Recorder::new(job, settings, period);
+    let mut heat = HeatTracker::new(machine)?;
+    let ticks = interpolator.servo_ticks();
+    let mut trackers =
+        Axis::ALL.map(|a| DirectionTracker::new(start[a.index()], Direction::Forward, 0.05e-6));
+    for k in 0..ticks {
+        let Some(sp) = interpolator.setpoint(k) else {
+            break;
+        };
+        let commands: [AxisCommand; 3] = std::array::from_fn(|i| AxisCommand {
+            position: sp.position[i] - tcp[i],
+            velocity: sp.velocity[i],
+            acceleration: sp.acceleration[i],
+        });
+        plant.control(&commands, period);
+        for _ in 0..substeps {
+            plant.step(h);
+        }
+        let carriages = plant.carriages();
+        let q = Vector3::from_fn(|i, _| carriages[i].position_m);
+        let direction = std::array::from_fn(|i| trackers[i].update(q[i]));
+        heat.accumulate(&sp, &carriages.map(|c| c.velocity_m_s), period, machine)?;
+        recorder.record(
+            k,
+            &sp,
+            plant.as_ref(),
+            &AxisState {
+                position: q,
+                direction,
+            },
+            machine,
+            &heat,
+        )?;
+        if k.is_multiple_of((ticks / 100).max(1)) {
+            progress(k as f64 / ticks as f64);
+        }
+    }
+    progress(1.0);
+    Ok(recorder.finish(machine, axes, job, settings, scenario_toml))
+}
+
+fn check_strokes(
+    machine: &Machine,
+    ipo: &Interpolator,
+    program: &Program,
+    tcp: &Vector3<f64>,
+) -> Result<(), SimError> {
+    for sp in ipo.iter() {
+        let q = sp.position - tcp;
+        if let Some(axis) = machine.outside_stroke(&q) {
+            let spec = machine.axis(axis);
+            let line = sp
+                .block
+                .and_then(|b| program.blocks.get(b))
+                .map_or(0, |b| b.span.line);
+            return Err(SimError::Stroke {
+                line,
+                axis,
+                position_mm: q[axis.index()] * 1e3,
+                min_mm: spec.min_m * 1e3,
+                max_mm: spec.max_m * 1e3,
+            });
+        }
+    }
+    Ok(())
+}
+
+fn check_step(axes: &[AxisDynamics; 3], h: f64) -> Result<(), SimError> {
+    for (a, d) in Axis::ALL.into_iter().zip(axes) {
+        let (limit, mode) = d.drive.largest_stable_step_s();
+        if h > limit {
+            return Err(SimError::StepTooCoarse {
+                axis: a,
+                mode,
+                step_us: h * 1e6,
+                limit_us: limit * 1e6,
+            });
+        }
+    }
+    Ok(())
+}
+
+fn build_plant(
+    machine: &Machine,
+    axes: &[AxisDynamics; 3],
+    start: &Vector3<f64>,
+    fidelity: Fidelity,
+    h: f64,
+) -> Result<Box<dyn Plant>, SimError> {
+    let moving = machine.axes.map(|a| a.moving_mass_kg);
+    let l = layout(&machine.volumetric.kinematics.topology, moving)?;
+    let drives: [Drive; 3] = std::array::from_fn(|i| {
+        let mut params = axes[i].drive;
+        params.carriage_mass_kg = moving[i];
+        Drive::new(params, axes[i].servo, start[i])
+    });
+    Ok(match fidelity {
+        Fidelity::Reduced => Box::new(ReducedPlant::new(drives, &l)),
+        Fidelity::Multibody => Box::new(MultibodyPlant::new(drives, &l, h)?),
+    })
+}
+
+/// The machine's temperatures during the job: spindle and axis heat, stepped every second.
+struct HeatTracker {
+    stepper: Option<ThermalStepper>,
+    temps_c: Vec<f64>,
+    elapsed_s: f64,
+    time_s: f64,
+    distance_m: [f64; 3],
+    spindle_rev: f64,
+    deformation: vmt_model::thermal_deformation::ThermalDeformation,
+}
+
+impl HeatTracker {
+    fn new(machine: &Machine) -> Result<Self, SimError> {
+        let (stepper, temps_c) = match &machine.thermal {
+            Some(t) => (
+                Some(
+                    t.network
+                        .discretize(THERMAL_PERIOD_S)
+                        .map_err(|e| SimError::Thermal(e.to_string()))?,
+                ),
+                t.network.initial_temperatures(),
+            ),
+            None => (None, Vec::new()),
+        };
+        let deformation = machine
+            .thermal_deformation(&temps_c)
+            .map_err(|e| SimError::Thermal(e.to_string()))?;
+        Ok(Self {
+            stepper,
+            temps_c,
+            elapsed_s: 0.0,
+            time_s: 0.0,
+            distance_m: [0.0; 3],
+            spindle_rev: 0.0,
+            deformation,
+        })
+    }
+
+    /// Adds one servo period of motion; every thermal period, steps the network with the mean
+    /// heat of that period.
+    fn accumulate(
+        &mut self,
+        sp: &Setpoint,
+        v: &[f64; 3],
+        dt: f64,
+        machine: &Machine,
+    ) -> Result<(), SimError> {
+        let (Some(stepper), Some(thermal)) = (&self.stepper, &machine.thermal) else {
+            return Ok(());
+        };
+        self.elapsed_s += dt;
+        for (d, v) in self.distance_m.iter_mut().zip(v) {
+            *d += v.abs() * dt;
+        }
+        self.spindle_rev += match sp.spindle {
+            Spindle::Clockwise(n) | Spindle::CounterClockwise(n) => n * dt,
+            Spindle::Stopped => 0.0,
+        };
+        if self.elapsed_s + 1e-12 < THERMAL_PERIOD_S {
+            return Ok(());
+        }
+        let op = Operating {
+            spindle_rpm: self.spindle_rev / self.elapsed_s,
+            axis_speed_m_s: self.distance_m.map(|d| d / self.elapsed_s),
+        };
+        let heat = thermal.network.heat_input_w(&op);
+        let ambient = thermal
+            .network
+            .ambient()
+            .celsius_at(self.time_s + 0.5 * self.elapsed_s);
+        stepper.step(&mut self.temps_c, &heat, ambient);
+        self.time_s += self.elapsed_s;
+        self.elapsed_s = 0.0;
+        self.distance_m = [0.0; 3];
+        self.spindle_rev = 0.0;
+        self.deformation = machine
+            .thermal_deformation(&self.temps_c)
+            .map_err(|e| SimError::Thermal(e.to_string()))?;
+        Ok(())
+    }
+}
+
+const SERVO_CHANNELS: [(&str, &str); 8] = [
+    ("command", "m"),
+    ("position", "m"),
+    ("encoder", "m"),
+    ("following_error", "m"),
+    ("motor_force", "N"),
+    ("motor_current", "A"),
+    ("guide_friction", "N"),
+    ("screw_friction", "N"),
+];
+
+/// Collects the streams and traces of a run.
+struct Recorder {
+    log_every: usize,
+    bar_every: usize,
+    times: Vec<f64>,
+    servo: Vec<Vec<f64>>,
+    tool: [Vec<f64>; 3],
+    ballbar: Option<Ballbar>,
+    /// Program blocks of each trace's data arc.
+    data: Vec<Range<usize>>,
+    traces: Vec<BallbarTrace>,
+}
+
+impl Recorder {
+    fn new(job: &Job, settings: &SimSettings, period: f64) -> Self {
+        let log_every = ((1.0 / settings.log_rate_hz) / period).round().max(1.0) as usize;
+        let (ballbar, traces, bar_every) = match &job.ballbar {
+            Some(b) => {
+                let every = ((1.0 / b.spec.sample_rate_hz) / period).round().max(1.0) as usize;
+                let bar = Ballbar::new(b.spec, b.center, b.radius_m, b.plane, settings.seed);
+                let traces = b.data.iter().map(|(d, _)| new_trace(b, *d)).collect();
+                (Some(bar), traces, every)
+            }
+            None => (None, Vec::new(), usize::MAX),
+        };
+        let data = job
+            .ballbar
+            .iter()
+            .flat_map(|b| b.data.iter().map(|(_, r)| r.clone()))
+            .collect();
+        Self {
+            log_every,
+            bar_every,
+            times: Vec::new(),
+            servo: vec![Vec::new(); SERVO_CHANNELS.len() * 3],
+            tool: Default::default(),
+            ballbar,
+            data,
+            traces,
+        }
+    }
+
+    fn record(
+        &mut self,
+        k: usize,
+        sp: &Setpoint,
+        plant: &dyn Plant,
+        state: &AxisState,
+        machine: &Machine,
+        heat: &HeatTracker,
+    ) -> Result<(), SimError> {
+        let log = k.is_multiple_of(self.log_every);
+        let bar = self.ballbar.is_some() && k.is_multiple_of(self.bar_every);
+        if !log && !bar {
+            return Ok(());
+        }
+        let tool = machine
+            .volumetric
+            .evaluator(&heat.deformation)
+            .tool_point(state);
+        if log {
+            self.times.push(sp.time_s);
+            let carriages = plant.carriages();
+            for i in 0..3 {
+                let d = plant.drive(i);
+                let (_, encoder) = d.feedback(carriages[i].position_m);
+                let values = [
+                    sp.position[i] - machine.volumetric.kinematics.tool_offset[i],
+                    carriages[i].position_m,
+                    encoder,
+                    d.following_error_m(),
+                    d.motor_force_n,
+                    d.params.current_a(d.motor_force_n),
+                    carriages[i].friction_force_n,
+                    d.screw_friction_force_n,
+                ];
+                for (c, v) in values.into_iter().enumerate() {
+                    self.servo[c * 3 + i].push(v);
+                }
+                self.tool[i].push(tool[i]);
+            }
+        }
+        if bar
+            && let (Some(b), Some(block)) = (&mut self.ballbar, sp.block)
+            && let Some(j) = self.data.iter().position(|r| r.contains(&block))
+        {
+            let (reading, angle) = b.read(&tool);
+            let t = &mut self.traces[j];
+            let mut deg = angle.to_degrees();
+            if let Some(last) = t.angle_deg.last() {
+                deg += 360.0 * ((last - deg) / 360.0).round();
+            }
+            t.times_s.push(sp.time_s);
+            t.angle_deg.push(deg);
+            t.deviation_um.push(reading * 1e6);
+        }
+        Ok(())
+    }
+
+    fn finish(
+        self,
+        machine: &Machine,
+        axes: &[AxisDynamics; 3],
+        job: &Job,
+        settings: &SimSettings,
+        scenario_toml: &str,
+    ) -> Run {
+        let names = ["x", "y", "z"];
+        let mut channels = Vec::new();
+        let mut servo = self.servo.into_iter();
+        for (name, unit) in SERVO_CHANNELS {
+            for axis in names {
+                channels.push(Channel {
+                    name: format!("{name}_{axis}"),
+                    unit: unit.into(),
+                    values: servo.next().unwrap_or_default(),
+                });
+            }
+        }
+        for (i, axis) in names.iter().enumerate() {
+            channels.push(Channel {
+                name: format!("tool_{axis}"),
+                unit: "m".into(),
+                values: self.tool[i].clone(),
+            });
+        }
+        let stream = Stream {
+            name: "servo".into(),
+            description: "axis commands, carriage positions, encoders, following errors, motor forces and currents, friction forces, tool point".into(),
+            times_s: self.times,
+            channels,
+        };
+        Run {
+            scenario_name: machine.name.clone(),
+            scenario_toml: scenario_toml.to_string(),
+            seed: settings.seed,
+            fidelity: settings.fidelity.name().into(),
+            machine: summary(machine),
+            streams: vec![stream],
+            ballbar: self.traces,
+            ground_truth: crate::truth::ground_truth(machine, axes, job),
+        }
+    }
+}
+
+fn new_trace(b: &BallbarSetup, d: ArcDirection) -> BallbarTrace {
+    let plane = match b.plane {
+        Plane::Xy => "XY",
+        Plane::Zx => "ZX",
+        Plane::Yz => "YZ",
+    };
+    let dir = match d {
+        ArcDirection::Cw => "cw",
+        ArcDirection::Ccw => "ccw",
+    };
+    BallbarTrace {
+        label: format!(
+            "{plane} {:.0} mm {:.0} mm/min {}",
+            b.radius_m * 1e3,
+            b.feed_m_s * 60_000.0,
+            dir.to_uppercase()
+        ),
+        plane: plane.into(),
+        direction: dir.into(),
+        radius_mm: b.radius_m * 1e3,
+        feed_mm_min: b.feed_m_s * 60_000.0,
+        times_s: Vec::new(),
+        angle_deg: Vec::new(),
+        deviation_um: Vec::new(),
+    }
+}
+
+fn summary(machine: &Machine) -> MachineSummary {
+    MachineSummary {
+        name: machine.name.clone(),
+        topology: machine.volumetric.kinematics.topology.to_string(),
+        strokes_m: machine.axes.map(|a| [a.min_m, a.max_m]),
+        tool_length_m: -machine.volumetric.kinematics.tool_offset.z,
+    }
+}

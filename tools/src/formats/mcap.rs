@@ -1,0 +1,464 @@
+//! A run as an [MCAP](https://mcap.dev) file: JSON messages described by JSON Schemas.
+//!
+//! # Why JSON with `jsonschema` schemas
+//!
+//! - Foxglove decodes `json` messages with `jsonschema` schemas natively: it lists the fields of
+//!   every topic and plots any of them against time without a plugin.
+//! - The Python `mcap` package (and the C++, Go, Rust and TypeScript readers) reads them with a
+//!   JSON parser; no generated code, no `.proto` or `.msg` files to ship.
+//! - Rerun imports only ROS 2 and Foxglove-protobuf MCAP channels (JSON channels stay opaque
+//!   blobs there), so for Rerun the run is written natively as an `.rrd` by
+//!   [`write_rrd`](super::rerun::write_rrd) instead.
+//!
+//! The price is size (about 20–30 bytes per value) and decimal text; for bulk numeric work the
+//! Rerun or CSV outputs are the better fit. Chunks are **not compressed** (the `mcap` crate's
+//! zstd and lz4 features compile C libraries): every chunk says `compression = ""`, and any
+//! reader can read the file without a decompressor. `mcap compress` from the MCAP CLI recompresses
+//! a file when size matters.
+//!
+//! # Clock
+//!
+//! `log_time` and `publish_time` of every message are the **simulation time** of its sample in
+//! nanoseconds from the start of the job (`round(t_s · 1e9)`), never the wall clock. A file is a
+//! pure function of the run: the same run gives a byte-identical file. Messages are written in
+//! the order of their log time (ties: ground truth, then the streams in run order, then the
+//! ball-bar traces in run order), so the file plays back in time order without an index.
+//!
+//! # Topics
+//!
+//! | topic | schema (`jsonschema`) | messages | fields (unit) |
+//! |---|---|---|---|
+//! | `/ground_truth` | `vmt.GroundTruth` | one, at log time 0 | the run's ground-truth object as it is; its schema lists its fields |
+//! | `/<stream>`, e.g. `/servo` | `vmt.stream.<stream>` | one per sample of the stream | `time_s` (s) and one number per channel, named as the channel, in the channel's unit |
+//! | `/ballbar/<trace>` | `vmt.ballbar.Sample` | one per sample of the trace | `time_s` (s), `angle_deg` (deg, unwrapped, from the plane's first axis), `deviation_um` (µm, measured minus nominal bar length) |
+//!
+//! `<stream>` and `<trace>` are the stream name and the trace label made into lower-case names of
+//! ASCII letters, digits and `_` (`XY 150 mm 1000 mm/min CCW` -> `xy_150_mm_1000_mm_min_ccw`; a
+//! repeated label gets `_2`, `_3`, ...). The `/servo` stream has, for each axis `a` in `x`, `y`,
+//! `z`: `command_a`, `position_a`, `encoder_a`, `following_error_a` (m), `motor_force_a` (N),
+//! `motor_current_a` (A), `guide_friction_a`, `screw_friction_a` (N), and `tool_x`, `tool_y`,
+//! `tool_z` (m); see `vmt_sim::run`. The unit of each field is in its schema `description` and in
+//! the channel metadata `units` (a JSON object field -> unit). A value that is not finite (which
+//! the simulator never produces) is written as `null`.
+//!
+//! Channel metadata: streams carry `description` and `units`; ball-bar channels carry `label`,
+//! `plane` (`XY`, `ZX`, `YZ`), `direction` (`cw`, `ccw`), `radius_mm` and `feed_mm_min`.
+//!
+//! # Metadata records
+//!
+//! | name | keys |
+//! |---|---|
+//! | `run` | `format` (`vmt-mcap/1`), `scenario_name`, `seed`, `fidelity` (`reduced` or `multibody`), `clock` |
+//! | `machine` | `name`, `topology` (e.g. `WXYGZT`), `strokes_m` (JSON `[[min, max]; 3]`, m), `tool_length_m` (m) |
+//! | `scenario` | `name`, `toml` (the scenario file that made the run) |
+//! | `ground_truth` | `json` (the ground truth as compact JSON, as on `/ground_truth`) |
+
+use super::{check_stream, check_trace, time_ns, unique_slugs};
+use crate::error::CliError;
+use ::mcap::records::{MessageHeader, Metadata};
+use ::mcap::{WriteOptions, Writer};
+use serde::ser::{SerializeMap, Serializer};
+use serde_json::{Value, json};
+use std::collections::BTreeMap;
+use std::fs::File;
+use std::io::BufWriter;
+use std::path::Path;
+use vmt_sim::run::{BallbarTrace, Run, Stream};
+
+/// Name and version of the file layout, in the `run` metadata record.
+pub const FORMAT: &str = "vmt-mcap/1";
+
+/// The `library` string of the MCAP header.
+const LIBRARY: &str = concat!(
+    "vmt-tools/",
+    env!("CARGO_PKG_VERSION"),
+    " ",
+    "(mcap-rust/0.26)"
+);
+
+/// JSON Schema dialect of every schema.
+const DIALECT: &str = "https://json-schema.org/draft/2020-12/schema";
+
+type McapWriter = Writer<BufWriter<File>>;
+
+/// Writes `run` to the MCAP file `path` (created or truncated): the topics and metadata listed in
+/// the [module documentation](self), log and publish times in simulation nanoseconds.
+///
+/// Fails when a stream or trace is inconsistent (a channel with more or fewer values than sample
+/// times), when a sample time is negative or not finite, or when the file cannot be written.
+pub fn write_mcap(run: &Run, path: &Path) -> Result<(), CliError> {
+    validate(run, path)?;
+    let err = |e: ::mcap::McapError| CliError::output(path, e);
+    let file = File::create(path).map_err(|e| CliError::output(path, e))?;
+    let mut writer = WriteOptions::new()
+        .compression(None)
+        .profile("")
+        .library(LIBRARY)
+        .create(BufWriter::new(file))
+        .map_err(err)?;
+    let channels = add_channels(&mut writer, run).map_err(err)?;
+    let events = message_order(run, path)?;
+    write_messages(&mut writer, run, &channels, &events, path)?;
+    write_metadata(&mut writer, run).map_err(err)?;
+    writer.finish().map_err(err)?;
+    writer
+        .into_inner()
+        .into_inner()
+        .map_err(|e| CliError::output(path, e.error()))?;
+    Ok(())
+}
+
+/// Checks every stream and trace before the file is created.
+fn validate(run: &Run, path: &Path) -> Result<(), CliError> {
+    run.streams.iter().try_for_each(|s| check_stream(s, path))?;
+    run.ballbar.iter().try_for_each(|t| check_trace(t, path))
+}
+
+/// Channel ids of the topics, in message-source order.
+struct Channels {
+    ground_truth: u16,
+    streams: Vec<u16>,
+    ballbar: Vec<u16>,
+}
+
+/// Unique topic names for `names` under `prefix`: `/servo`, `/ballbar/xy_150_mm_ccw`, ...
+fn topics<'a>(prefix: &str, names: impl Iterator<Item = &'a str>) -> Vec<String> {
+    unique_slugs(names)
+        .into_iter()
+        .map(|n| format!("{prefix}/{n}"))
+        .collect()
+}
+
+fn add_channels(w: &mut McapWriter, run: &Run) -> Result<Channels, ::mcap::McapError> {
+    let schema = pretty(&ground_truth_schema(&run.ground_truth));
+    let id = w.add_schema("vmt.GroundTruth", "jsonschema", &schema)?;
+    let meta = BTreeMap::from([(
+        "description".to_string(),
+        "every injected parameter and derived figure of the run".to_string(),
+    )]);
+    let ground_truth = w.add_channel(id, "/ground_truth", "json", &meta)?;
+    let stream_topics = topics("", run.streams.iter().map(|s| s.name.as_str()));
+    let mut streams = Vec::with_capacity(run.streams.len());
+    for (stream, topic) in run.streams.iter().zip(&stream_topics) {
+        let name = format!("vmt.stream.{}", &topic[1..]);
+        let id = w.add_schema(&name, "jsonschema", &pretty(&stream_schema(stream)))?;
+        streams.push(w.add_channel(id, topic, "json", &stream_metadata(stream))?);
+    }
+    let id = w.add_schema(
+        "vmt.ballbar.Sample",
+        "jsonschema",
+        &pretty(&ballbar_schema()),
+    )?;
+    let trace_topics = topics("/ballbar", run.ballbar.iter().map(|t| t.label.as_str()));
+    let mut ballbar = Vec::with_capacity(run.ballbar.len());
+    for (trace, topic) in run.ballbar.iter().zip(&trace_topics) {
+        ballbar.push(w.add_channel(id, topic, "json", &trace_metadata(trace))?);
+    }
+    Ok(Channels {
+        ground_truth,
+        streams,
+        ballbar,
+    })
+}
+
+fn pretty(v: &Value) -> Vec<u8> {
+    // Serialising a `Value` cannot fail (its map keys are strings).
+    serde_json::to_vec_pretty(v).unwrap_or_default()
+}
+
+fn number(description: String) -> Value {
+    json!({ "type": "number", "description": description })
+}
+
+fn stream_schema(stream: &Stream) -> Value {
+    let mut props = serde_json::Map::new();
+    props.insert(
+        "time_s".into(),
+        number("simulation time from the start of the job, s".into()),
+    );
+    for c in &stream.channels {
+        props.insert(c.name.clone(), number(format!("{}, {}", c.name, c.unit)));
+    }
+    let required: Vec<&str> = std::iter::once("time_s")
+        .chain(stream.channels.iter().map(|c| c.name.as_str()))
+        .collect();
+    json!({
+        "$schema": DIALECT,
+        "title": format!("vmt stream {}", stream.name),
+        "description": stream.description,
+        "type": "object",
+        "properties": props,
+        "required": required,
+    })
+}
+
+fn stream_metadata(stream: &Stream) -> BTreeMap<String, String> {
+    let units: serde_json::Map<String, Value> = std::iter::once(("time_s".into(), json!("s")))
+        .chain(
+            stream
+                .channels
+                .iter()
+                .map(|c| (c.name.clone(), json!(c.unit))),
+        )
+        .collect();
+    BTreeMap::from([
+        ("description".into(), stream.description.clone()),
+        ("units".into(), Value::Object(units).to_string()),
+    ])
+}
+
+fn ballbar_schema() -> Value {
+    json!({
+        "$schema": DIALECT,
+        "title": "vmt ball-bar sample",
+        "description": "one sample of a ball-bar trace (one direction of one circular test)",
+        "type": "object",
+        "properties": {
+            "time_s": number("simulation time from the start of the job, s".into()),
+            "angle_deg": number(
+                "angle of the bar in its plane from the plane's first axis, deg (unwrapped, \
+                 increasing for CCW)".into()),
+            "deviation_um": number("measured minus nominal bar length, µm".into()),
+        },
+        "required": ["time_s", "angle_deg", "deviation_um"],
+    })
+}
+
+fn trace_metadata(t: &BallbarTrace) -> BTreeMap<String, String> {
+    BTreeMap::from([
+        ("label".into(), t.label.clone()),
+        ("plane".into(), t.plane.clone()),
+        ("direction".into(), t.direction.clone()),
+        ("radius_mm".into(), json!(t.radius_mm).to_string()),
+        ("feed_mm_min".into(), json!(t.feed_mm_min).to_string()),
+    ])
+}
+
+/// A JSON Schema describing `v` (its fields, recursively), so that viewers list the fields.
+fn ground_truth_schema(v: &Value) -> Value {
+    let mut schema = infer_schema(v);
+    if let Value::Object(m) = &mut schema {
+        m.insert("$schema".into(), json!(DIALECT));
+        m.insert("title".into(), json!("vmt ground truth"));
+        m.insert(
+            "description".into(),
+            json!("every injected parameter and derived figure of the run; units in the names"),
+        );
+    }
+    schema
+}
+
+/// The schema of one JSON value; `null` members are left out (viewers reject a `null` type).
+fn infer_schema(v: &Value) -> Value {
+    match v {
+        Value::Object(m) => {
+            let props: serde_json::Map<String, Value> = m
+                .iter()
+                .filter(|(_, x)| !x.is_null())
+                .map(|(k, x)| (k.clone(), infer_schema(x)))
+                .collect();
+            json!({ "type": "object", "properties": props })
+        }
+        Value::Array(a) => match a.iter().find(|x| !x.is_null()) {
+            Some(first) => json!({ "type": "array", "items": infer_schema(first) }),
+            None => json!({ "type": "array" }),
+        },
+        Value::Number(n) if n.is_i64() || n.is_u64() => json!({ "type": "integer" }),
+        Value::Number(_) => json!({ "type": "number" }),
+        Value::String(_) => json!({ "type": "string" }),
+        Value::Bool(_) => json!({ "type": "boolean" }),
+        Value::Null => json!({}),
+    }
+}
+
+/// Where a message comes from: the ground truth, sample `i` of stream `k`, or sample `i` of
+/// trace `k`. The derived order (time, source, index) is the order of the file.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
+enum Source {
+    GroundTruth,
+    Stream(usize, usize),
+    Ballbar(usize, usize),
+}
+
+/// Every message as (log time ns, source), sorted by time then source.
+fn message_order(run: &Run, path: &Path) -> Result<Vec<(u64, Source)>, CliError> {
+    let total = run.streams.iter().map(|s| s.times_s.len()).sum::<usize>()
+        + run.ballbar.iter().map(|t| t.times_s.len()).sum::<usize>();
+    let mut events = Vec::with_capacity(total + 1);
+    events.push((0, Source::GroundTruth));
+    for (k, s) in run.streams.iter().enumerate() {
+        for (i, &t) in s.times_s.iter().enumerate() {
+            let what = || format!("stream `{}`, sample {i}", s.name);
+            events.push((time_ns(t, &what, path)?, Source::Stream(k, i)));
+        }
+    }
+    for (k, tr) in run.ballbar.iter().enumerate() {
+        for (i, &t) in tr.times_s.iter().enumerate() {
+            let what = || format!("ball-bar trace `{}`, sample {i}", tr.label);
+            events.push((time_ns(t, &what, path)?, Source::Ballbar(k, i)));
+        }
+    }
+    events.sort_unstable();
+    Ok(events)
+}
+
+/// One sample as a JSON object: `time_s` then `(name, value)` pairs in order. Non-finite values
+/// become `null` (serde_json's rule for floats).
+struct Row<'a> {
+    time_s: f64,
+    fields: Vec<(&'a str, f64)>,
+}
+
+impl serde::Serialize for Row<'_> {
+    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        let mut m = s.serialize_map(Some(self.fields.len() + 1))?;
+        m.serialize_entry("time_s", &self.time_s)?;
+        for (k, v) in &self.fields {
+            m.serialize_entry(k, v)?;
+        }
+        m.end()
+    }
+}
+
+fn stream_row(s: &Stream, i: usize) -> Row<'_> {
+    Row {
+        time_s: s.times_s[i],
+        fields: s
+            .channels
+            .iter()
+            .map(|c| (c.name.as_str(), c.values[i]))
+            .collect(),
+    }
+}
+
+fn trace_row(t: &BallbarTrace, i: usize) -> Row<'_> {
+    Row {
+        time_s: t.times_s[i],
+        fields: vec![
+            ("angle_deg", t.angle_deg[i]),
+            ("deviation_um", t.deviation_um[i]),
+        ],
+    }
+}
+
+fn write_messages(
+    w: &mut McapWriter,
+    run: &Run,
+    ch: &Channels,
+    events: &[(u64, Source)],
+    path: &Path,
+) -> Result<(), CliError> {
+    let mut sequence: BTreeMap<u16, u32> = BTreeMap::new();
+    let mut data = Vec::with_capacity(4096);
+    for &(time, source) in events {
+        data.clear();
+        let (channel_id, written) = match source {
+            Source::GroundTruth => (
+                ch.ground_truth,
+                serde_json::to_writer(&mut data, &run.ground_truth),
+            ),
+            Source::Stream(k, i) => (
+                ch.streams[k],
+                serde_json::to_writer(&mut data, &stream_row(&run.streams[k], i)),
+            ),
+            Source::Ballbar(k, i) => (
+                ch.ballbar[k],
+                serde_json::to_writer(&mut data, &trace_row(&run.ballbar[k], i)),
+            ),
+        };
+        written.map_err(|e| CliError::output(path, e))?;
+        let seq = sequence.entry(channel_id).or_insert(0);
+        let header = MessageHeader {
+            channel_id,
+            sequence: *seq,
+            log_time: time,
+            publish_time: time,
+        };
+        *seq = seq.wrapping_add(1);
+        w.write_to_known_channel(&header, &data)
+            .map_err(|e| CliError::output(path, e))?;
+    }
+    Ok(())
+}
+
+fn metadata(name: &str, pairs: Vec<(&str, String)>) -> Metadata {
+    Metadata {
+        name: name.to_string(),
+        metadata: pairs.into_iter().map(|(k, v)| (k.to_string(), v)).collect(),
+    }
+}
+
+fn write_metadata(w: &mut McapWriter, run: &Run) -> Result<(), ::mcap::McapError> {
+    let m = &run.machine;
+    let records = [
+        metadata(
+            "run",
+            vec![
+                ("format", FORMAT.to_string()),
+                ("scenario_name", run.scenario_name.clone()),
+                ("seed", run.seed.to_string()),
+                ("fidelity", run.fidelity.clone()),
+                (
+                    "clock",
+                    "log_time = publish_time = simulation time in ns from the start of the job"
+                        .to_string(),
+                ),
+            ],
+        ),
+        metadata(
+            "machine",
+            vec![
+                ("name", m.name.clone()),
+                ("topology", m.topology.clone()),
+                ("strokes_m", json!(m.strokes_m).to_string()),
+                ("tool_length_m", json!(m.tool_length_m).to_string()),
+            ],
+        ),
+        metadata(
+            "scenario",
+            vec![
+                ("name", run.scenario_name.clone()),
+                ("toml", run.scenario_toml.clone()),
+            ],
+        ),
+        metadata("ground_truth", vec![("json", run.ground_truth.to_string())]),
+    ];
+    records.iter().try_for_each(|r| w.write_metadata(r))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn schema_of_ground_truth_lists_fields() {
+        let v = json!({"backlash_um": {"x": 2.0}, "seed": 3, "note": null, "list": [1.5]});
+        let s = ground_truth_schema(&v);
+        assert_eq!(
+            s["properties"]["backlash_um"]["properties"]["x"]["type"],
+            "number"
+        );
+        assert_eq!(s["properties"]["seed"]["type"], "integer");
+        assert!(s["properties"].get("note").is_none());
+        assert_eq!(s["properties"]["list"]["items"]["type"], "number");
+    }
+
+    #[test]
+    fn rows_write_null_for_non_finite() {
+        let row = Row {
+            time_s: 0.5,
+            fields: vec![("a", 1.0), ("b", f64::NAN)],
+        };
+        let text = serde_json::to_string(&row).unwrap_or_default();
+        assert_eq!(text, r#"{"time_s":0.5,"a":1.0,"b":null}"#);
+    }
+
+    #[test]
+    fn topic_names_are_unique() {
+        let t = topics("/ballbar", ["XY 150 CW", "xy 150 cw", "YZ"].into_iter());
+        assert_eq!(
+            t,
+            ["/ballbar/xy_150_cw", "/ballbar/xy_150_cw_2", "/ballbar/yz"]
+        );
+    }
+}

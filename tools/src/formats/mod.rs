@@ -1,0 +1,144 @@
+//! Run writers: a simulated [`Run`](vmt_sim::run::Run) as files that other tools open.
+//!
+//! - [`mcap`]: an MCAP file of JSON messages with JSON-Schema schemas, for Foxglove and the
+//!   `mcap` readers (Python, C++, Rust, Go, ...).
+//! - [`rerun`]: a Rerun recording (`.rrd`) with the machine in 3D, the tool path, ball-bar polar
+//!   traces, time series and a viewer layout, for the Rerun viewer 0.36.
+//!
+//! Both use the simulation time of the run as their clock; nothing in them comes from the wall
+//! clock of the computer that wrote them (see each module for what that means for its format).
+//! The topics and entity paths are documented in the modules and in `docs/formats.md`.
+
+pub mod mcap;
+pub mod rerun;
+
+use crate::error::CliError;
+use std::collections::BTreeSet;
+use std::path::Path;
+use vmt_sim::run::{BallbarTrace, Stream};
+
+pub use self::mcap::write_mcap;
+pub use self::rerun::write_rrd;
+
+/// `text` as a lower-case name of ASCII letters, digits and single underscores, e.g.
+/// `XY 150 mm 1000 mm/min CCW` -> `xy_150_mm_1000_mm_min_ccw`; `unnamed` if nothing is left.
+pub(crate) fn slug(text: &str) -> String {
+    let chars: Vec<char> = text.chars().collect();
+    let mut out = String::with_capacity(text.len());
+    for (i, &c) in chars.iter().enumerate() {
+        let digit_before = i > 0 && chars[i - 1].is_ascii_digit();
+        let digit_after = chars.get(i + 1).is_some_and(|n| n.is_ascii_digit());
+        if c.is_ascii_alphanumeric() {
+            out.push(c.to_ascii_lowercase());
+        } else if c == '.' && digit_before && digit_after {
+            // Keep decimal numbers readable: 0.5 mm -> 0p5_mm.
+            out.push('p');
+        } else if !out.is_empty() && !out.ends_with('_') {
+            out.push('_');
+        }
+    }
+    let out = out.trim_end_matches('_');
+    if out.is_empty() {
+        "unnamed".to_string()
+    } else {
+        out.to_string()
+    }
+}
+
+/// Unique slugs of `names`, in order: a name whose slug repeats gets `_2`, `_3`, ... appended.
+pub(crate) fn unique_slugs<'a>(names: impl Iterator<Item = &'a str>) -> Vec<String> {
+    let mut seen = BTreeSet::new();
+    names
+        .map(|n| {
+            let base = slug(n);
+            let mut name = base.clone();
+            let mut k = 2;
+            while !seen.insert(name.clone()) {
+                name = format!("{base}_{k}");
+                k += 1;
+            }
+            name
+        })
+        .collect()
+}
+
+/// Simulation time `t_s` (s) as integer nanoseconds, or an error naming `what` when the time is
+/// negative, not finite or beyond about 584 years.
+pub(crate) fn time_ns(t_s: f64, what: &dyn Fn() -> String, path: &Path) -> Result<u64, CliError> {
+    let ns = (t_s * 1e9).round();
+    if ns.is_finite() && ns >= 0.0 && ns < u64::MAX as f64 {
+        Ok(ns as u64)
+    } else {
+        Err(CliError::output(
+            path,
+            format!(
+                "{}: time {t_s} s is not a finite, non-negative simulation time",
+                what()
+            ),
+        ))
+    }
+}
+
+/// Checks that every channel of `stream` has one value per sample time.
+pub(crate) fn check_stream(stream: &Stream, path: &Path) -> Result<(), CliError> {
+    let n = stream.times_s.len();
+    match stream.channels.iter().find(|c| c.values.len() != n) {
+        Some(c) => Err(CliError::output(
+            path,
+            format!(
+                "stream `{}`: channel `{}` has {} values for {n} sample times",
+                stream.name,
+                c.name,
+                c.values.len()
+            ),
+        )),
+        None => Ok(()),
+    }
+}
+
+/// Checks that a ball-bar trace has as many angles and deviations as sample times.
+pub(crate) fn check_trace(trace: &BallbarTrace, path: &Path) -> Result<(), CliError> {
+    let n = trace.times_s.len();
+    if trace.angle_deg.len() == n && trace.deviation_um.len() == n {
+        Ok(())
+    } else {
+        Err(CliError::output(
+            path,
+            format!(
+                "ball-bar trace `{}`: {} times, {} angles and {} deviations (they must match)",
+                trace.label,
+                n,
+                trace.angle_deg.len(),
+                trace.deviation_um.len()
+            ),
+        ))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn slugs() {
+        assert_eq!(
+            slug("XY 150 mm 1000 mm/min CCW"),
+            "xy_150_mm_1000_mm_min_ccw"
+        );
+        assert_eq!(slug("  r = 0.5 mm "), "r_0p5_mm");
+        assert_eq!(slug("/// "), "unnamed");
+        assert_eq!(slug("µ"), "unnamed");
+        let u = unique_slugs(["XY 150 CW", "xy 150 cw", "YZ"].into_iter());
+        assert_eq!(u, ["xy_150_cw", "xy_150_cw_2", "yz"]);
+    }
+
+    #[test]
+    fn times() {
+        let p = Path::new("x");
+        let w = || "w".to_string();
+        assert_eq!(time_ns(1.5, &w, p).ok(), Some(1_500_000_000));
+        assert!(time_ns(-1.0, &w, p).is_err());
+        assert!(time_ns(f64::NAN, &w, p).is_err());
+        assert!(time_ns(1e30, &w, p).is_err());
+    }
+}

@@ -1,0 +1,816 @@
+//! A run as a [Rerun](https://rerun.io) recording (`.rrd`, Rerun 0.36): the machine's moving
+//! assemblies in 3D following the servo positions, the tool path, the ball-bar traces as
+//! magnified polar plots, following errors and friction forces as time series, and a viewer
+//! layout (blueprint).
+//!
+//! # Clock and determinism
+//!
+//! Everything temporal is on one timeline, **`sim_time`**, a duration timeline in nanoseconds
+//! from the start of the job (`round(t_s · 1e9)`). The SDK's automatic `log_time` (wall clock,
+//! on by default) and `log_tick` (off by default) timelines are switched off for the recording,
+//! and every temporal value is sent with `send_columns`, which never adds them. The recording id
+//! is derived from the run (scenario name, seed and a hash of the scenario text and fidelity),
+//! and no recording start time is sent. The *contents* are therefore a pure function of the run,
+//! but the file is **not byte-identical** between two writes: Rerun stamps every chunk and row
+//! with a time-ordered unique id (TUID: wall-clock nanoseconds plus a random part) and the
+//! blueprint store gets a random id, and the 0.36 SDK offers no way to set those. Use the MCAP
+//! writer when byte-identical files matter.
+//!
+//! # Entity paths
+//!
+//! Lengths in the 3D scene are in metres (SI), in a right-handed Z-up frame (`/machine` has
+//! `ViewCoordinates::RIGHT_HAND_Z_UP`). The assemblies follow the machine's topology
+//! (`run.machine.topology`, e.g. `WXYGZT`): the axes between W and G carry the workpiece and
+//! move it opposite to the commanded coordinate; the axes between G and T carry the tool and move
+//! it with the coordinate. Each assembly is an entity with a `Transform3D` translation over
+//! `sim_time` (relative to its parent) and a static `Boxes3D`; for `WXYGZT`:
+//!
+//! | entity | content |
+//! |---|---|
+//! | `/machine/base` | static box: the bed (ground) |
+//! | `/machine/y_axis` | saddle Y: `Transform3D` translation (0, −position_y, 0) per servo sample |
+//! | `/machine/y_axis/x_axis` | table X: translation (−position_x, 0, 0) relative to the saddle |
+//! | `/machine/y_axis/x_axis/workpiece` | static box: the workpiece; origin = workpiece zero |
+//! | `/machine/y_axis/x_axis/workpiece/tool_path` | static `LineStrips3D`: (`tool_x`, `tool_y`, `tool_z`), m, in workpiece coordinates |
+//! | `/machine/z_axis` | spindle head Z: translation (0, 0, +position_z) |
+//! | `/machine/z_axis/tool` | static box: the tool; origin = tool point |
+//!
+//! In general: `/machine/<ground-side axis>_axis/.../<workpiece-side axis>_axis/workpiece` and
+//! `/machine/<ground-side axis>_axis/.../tool`, e.g. `WGXYZT` (gantry) gives
+//! `/machine/workpiece` and `/machine/x_axis/y_axis/z_axis/tool`. Positions come from the
+//! `servo` stream's `position_a` channels (the carriages), or `command_a` when a run has no
+//! `position_a`; without a `servo` stream the machine stands at zero and there is no tool path.
+//!
+//! | entity | content |
+//! |---|---|
+//! | `/ballbar/<plane>_<radius>_mm/nominal` | static `LineStrips2D`: the nominal circle, mm |
+//! | `/ballbar/<plane>_<radius>_mm/grid` | static `LineStrips2D`: circles at ±1 and ±2 divisions about the nominal, label `<d> µm/div` |
+//! | `/ballbar/<plane>_<radius>_mm/<trace>` | static `LineStrips2D`: radius R + k·deviation at the bar angle, mm; label with the magnification ×(1000·k) |
+//! | `/series/following_error_um/{x,y,z}` | `Scalars` over `sim_time`: following error, µm |
+//! | `/series/friction_n/{guide,screw}_{x,y,z}` | `Scalars` over `sim_time`: guideway and screw friction force, N |
+//! | `/series/ballbar_deviation_um/<trace>` | `Scalars` over `sim_time`: measured − nominal bar length, µm |
+//! | `/info/run`, `/info/ground_truth`, `/info/scenario` | static `TextDocument` (Markdown): seed, fidelity, machine; the ground truth JSON; the scenario TOML |
+//!
+//! `<trace>` is the trace label as a lower-case name (`XY 150 mm 1000 mm/min CCW` ->
+//! `xy_150_mm_1000_mm_min_ccw`). The polar plots share one magnification k (mm per µm) per
+//! plane and radius, so that CW and CCW overlay; it is a round number chosen so that the largest
+//! deviation spans about a quarter of the radius. The plot's y is negated because Rerun's 2D
+//! views draw +y downwards (image convention): on screen the plane's second axis points up, as on
+//! a ball-bar report.
+//!
+//! # Blueprint
+//!
+//! The Rust SDK 0.36 sends blueprints (`rerun::blueprint`: containers, the 3D, 2D, time-series
+//! and text views, the time panel). The layout: left, the 3D machine above tabs with the run
+//! information, ground truth and scenario; right, the polar plots (one tab per plane and
+//! radius), following errors, friction forces and ball-bar deviations over time; the time panel
+//! on `sim_time`. What the Rust blueprint API of 0.36 lacks compared with Python's: view
+//! properties of the spatial and time-series views (background, line grid, eye controls, visual
+//! bounds, axis ranges, legend position) and visible time ranges; it has only per-view
+//! `defaults` and visualizer overrides. The entity paths are laid out so that the viewer's own
+//! heuristics give much the same views when the blueprint is reset.
+
+use super::{check_stream, check_trace, slug, unique_slugs};
+use crate::error::CliError;
+use rerun::blueprint::{
+    Blueprint, ContainerLike, Horizontal, Spatial2DView, Spatial3DView, Tabs, TextDocumentView,
+    TimePanel, TimeSeriesView, Vertical,
+};
+use rerun::components::FillMode;
+use rerun::{
+    Boxes3D, Color, LineStrips2D, LineStrips3D, RecordingStream, Scalars, SeriesLines,
+    TextDocument, TimeColumn, Transform3D, ViewCoordinates,
+};
+use std::hash::{DefaultHasher, Hash, Hasher};
+use std::path::Path;
+use vmt_model::Axis;
+use vmt_model::kinematics::{Element, Topology};
+use vmt_sim::run::{BallbarTrace, MachineSummary, Run, Stream};
+
+/// Name of the timeline of simulation time.
+pub const TIMELINE: &str = "sim_time";
+
+/// Application id of the recordings.
+pub const APPLICATION_ID: &str = "vmt";
+
+/// Writes `run` to the Rerun recording `path` (created or truncated) with the entities and the
+/// blueprint listed in the [module documentation](self); the timeline is `sim_time`.
+///
+/// Fails when the topology is not one of the 24, when a stream or trace is inconsistent, when a
+/// sample time is not finite or beyond ±292 years, or when the file cannot be written.
+pub fn write_rrd(run: &Run, path: &Path) -> Result<(), CliError> {
+    let err = |e: &dyn std::fmt::Display| CliError::output(path, e);
+    let topology: Topology = run.machine.topology.parse().map_err(|e| err(&e))?;
+    run.streams.iter().try_for_each(|s| check_stream(s, path))?;
+    run.ballbar.iter().try_for_each(|t| check_trace(t, path))?;
+    let groups = polar_groups(&run.ballbar);
+    let rec = rerun::RecordingStreamBuilder::new(APPLICATION_ID)
+        .recording_id(recording_id(run))
+        .enabled(true)
+        .with_blueprint(blueprint(&groups, !run.ballbar.is_empty()))
+        .save(path)
+        .map_err(|e| err(&e))?;
+    rec.set_log_time_enabled(false);
+    rec.set_log_tick_enabled(false);
+    let log = Logger { rec: &rec, path };
+    log.run(run, topology, &groups)?;
+    rec.flush_blocking().map_err(|e| err(&e))?;
+    // Completes the file (footer with the chunk manifest) before returning.
+    rec.finalize_deferred_sinks();
+    Ok(())
+}
+
+/// A recording id that depends only on the run: `vmt-<scenario>-<seed>-<hash>`.
+fn recording_id(run: &Run) -> String {
+    let mut h = DefaultHasher::new();
+    run.scenario_toml.hash(&mut h);
+    run.fidelity.hash(&mut h);
+    run.machine.topology.hash(&mut h);
+    format!(
+        "vmt-{}-{}-{:016x}",
+        slug(&run.scenario_name),
+        run.seed,
+        h.finish()
+    )
+}
+
+/// Ball-bar traces of one plane and radius: drawn in one polar plot with one magnification.
+struct PolarGroup {
+    /// Entity name, e.g. `xy_150_mm`.
+    name: String,
+    /// Title, e.g. `Ball bar XY 150 mm`.
+    title: String,
+    /// Nominal radius, mm.
+    radius_mm: f64,
+    /// Indices of the traces in `run.ballbar`.
+    traces: Vec<usize>,
+}
+
+fn polar_groups(traces: &[BallbarTrace]) -> Vec<PolarGroup> {
+    let mut groups: Vec<PolarGroup> = Vec::new();
+    for (i, t) in traces.iter().enumerate() {
+        let title = format!("Ball bar {} {} mm", t.plane.to_uppercase(), t.radius_mm);
+        match groups.iter_mut().find(|g| g.title == title) {
+            Some(g) => g.traces.push(i),
+            None => groups.push(PolarGroup {
+                name: slug(&format!("{} {} mm", t.plane, t.radius_mm)),
+                title,
+                radius_mm: t.radius_mm,
+                traces: vec![i],
+            }),
+        }
+    }
+    groups
+}
+
+fn blueprint(groups: &[PolarGroup], has_ballbar: bool) -> Blueprint {
+    let info = Tabs::new([
+        TextDocumentView::new("Run").with_origin("/info/run").into(),
+        TextDocumentView::new("Ground truth")
+            .with_origin("/info/ground_truth")
+            .into(),
+        TextDocumentView::new("Scenario")
+            .with_origin("/info/scenario")
+            .into(),
+    ]);
+    let left = Vertical::new([
+        Spatial3DView::new("Machine").with_origin("/machine").into(),
+        info.into(),
+    ])
+    .with_row_shares(vec![3.0_f32, 1.0]);
+    let mut right: Vec<ContainerLike> = Vec::new();
+    if !groups.is_empty() {
+        let polar = groups.iter().map(|g| {
+            Spatial2DView::new(g.title.clone())
+                .with_origin(format!("/ballbar/{}", g.name))
+                .into()
+        });
+        right.push(Tabs::new(polar).into());
+    }
+    right.push(
+        TimeSeriesView::new("Following error (µm)")
+            .with_origin("/series/following_error_um")
+            .into(),
+    );
+    right.push(
+        TimeSeriesView::new("Friction force (N)")
+            .with_origin("/series/friction_n")
+            .into(),
+    );
+    if has_ballbar {
+        right.push(
+            TimeSeriesView::new("Ball-bar deviation (µm)")
+                .with_origin("/series/ballbar_deviation_um")
+                .into(),
+        );
+    }
+    let shares: Vec<f32> = (0..right.len())
+        .map(|k| {
+            if k == 0 && !groups.is_empty() {
+                2.0
+            } else {
+                1.0
+            }
+        })
+        .collect();
+    let right = Vertical::new(right).with_row_shares(shares);
+    Blueprint::new(
+        Horizontal::new([left.into(), right.into()]).with_column_shares(vec![3.0_f32, 2.0]),
+    )
+    .with_time_panel(TimePanel::new().with_timeline(TIMELINE))
+}
+
+/// Logs the parts of a run to one recording stream.
+struct Logger<'a> {
+    rec: &'a RecordingStream,
+    path: &'a Path,
+}
+
+impl Logger<'_> {
+    fn err(&self, e: impl std::fmt::Display) -> CliError {
+        CliError::output(self.path, e)
+    }
+
+    fn run(&self, run: &Run, topology: Topology, groups: &[PolarGroup]) -> Result<(), CliError> {
+        let servo = run.streams.iter().find(|s| s.name == "servo");
+        self.info(run)?;
+        self.machine(&run.machine, topology, servo)?;
+        if let Some(servo) = servo {
+            self.servo_series(servo)?;
+        }
+        let slugs = unique_slugs(run.ballbar.iter().map(|t| t.label.as_str()));
+        for g in groups {
+            self.polar(g, &run.ballbar, &slugs)?;
+        }
+        for (t, s) in run.ballbar.iter().zip(&slugs) {
+            self.deviation_series(t, s)?;
+        }
+        Ok(())
+    }
+
+    fn log_static(
+        &self,
+        entity: impl Into<rerun::EntityPath>,
+        what: &dyn rerun::AsComponents,
+    ) -> Result<(), CliError> {
+        self.rec.log_static(entity, what).map_err(|e| self.err(e))
+    }
+
+    fn info(&self, run: &Run) -> Result<(), CliError> {
+        let m = &run.machine;
+        let text = format!(
+            "# {}\n\n| | |\n|---|---|\n| scenario | {} |\n| seed | {} |\n| fidelity | {} |\n\
+             | machine | {} |\n| topology | {} |\n| strokes X, Y, Z (m) | {:?} |\n\
+             | tool length (m) | {} |\n| timeline | `{TIMELINE}`: simulation time |\n",
+            run.scenario_name,
+            run.scenario_name,
+            run.seed,
+            run.fidelity,
+            m.name,
+            m.topology,
+            m.strokes_m,
+            m.tool_length_m
+        );
+        let truth = serde_json::to_string_pretty(&run.ground_truth).unwrap_or_default();
+        self.log_static("/info/run", &TextDocument::from_markdown(text))?;
+        self.log_static(
+            "/info/ground_truth",
+            &TextDocument::from_markdown(format!("# Ground truth\n\n```json\n{truth}\n```\n")),
+        )?;
+        self.log_static(
+            "/info/scenario",
+            &TextDocument::from_markdown(format!(
+                "# Scenario\n\n```toml\n{}\n```\n",
+                run.scenario_toml
+            )),
+        )
+    }
+
+    fn machine(
+        &self,
+        machine: &MachineSummary,
+        topology: Topology,
+        servo: Option<&Stream>,
+    ) -> Result<(), CliError> {
+        let layout = Layout::new(machine, topology);
+        self.log_static("/machine", &ViewCoordinates::RIGHT_HAND_Z_UP())?;
+        for part in &layout.parts {
+            let boxes = Boxes3D::from_centers_and_sizes([part.centre], [part.size])
+                .with_colors([part.colour])
+                .with_fill_mode(part.fill)
+                .with_labels([part.label.clone()]);
+            self.log_static(part.entity.clone(), &boxes)?;
+        }
+        let Some(servo) = servo else {
+            return Ok(());
+        };
+        for (entity, axis, sign) in &layout.carriages {
+            self.carriage_motion(entity, servo, *axis, *sign)?;
+        }
+        self.tool_path(&layout.workpiece, servo)
+    }
+
+    /// The translation of a carriage over time: `sign · position_a` along its axis.
+    fn carriage_motion(
+        &self,
+        entity: &str,
+        servo: &Stream,
+        axis: Axis,
+        sign: f64,
+    ) -> Result<(), CliError> {
+        let a = axis.letter().to_ascii_lowercase();
+        let Some(ch) = servo
+            .channel(&format!("position_{a}"))
+            .or_else(|| servo.channel(&format!("command_{a}")))
+        else {
+            return Ok(());
+        };
+        let k = axis.index();
+        let translations = ch.values.iter().map(|&p| {
+            let mut v = [0.0_f32; 3];
+            v[k] = (sign * p) as f32;
+            v
+        });
+        let columns = Transform3D::update_fields()
+            .with_many_translation(translations)
+            .columns_of_unit_batches()
+            .map_err(|e| self.err(e))?;
+        let time = self.time_column(&servo.times_s, &servo.name)?;
+        self.rec
+            .send_columns(entity, [time], columns)
+            .map_err(|e| self.err(e))
+    }
+
+    fn tool_path(&self, workpiece: &str, servo: &Stream) -> Result<(), CliError> {
+        let (Some(x), Some(y), Some(z)) = (
+            servo.channel("tool_x"),
+            servo.channel("tool_y"),
+            servo.channel("tool_z"),
+        ) else {
+            return Ok(());
+        };
+        let points: Vec<[f32; 3]> = (x.values.iter().zip(&y.values).zip(&z.values))
+            .filter(|((x, y), z)| x.is_finite() && y.is_finite() && z.is_finite())
+            .map(|((x, y), z)| [*x as f32, *y as f32, *z as f32])
+            .collect();
+        let strip = LineStrips3D::new([points])
+            .with_colors([Color::from_rgb(20, 20, 20)])
+            .with_radii([rerun::Radius::new_ui_points(1.0)])
+            .with_labels(["tool path (tool_x, tool_y, tool_z)"]);
+        self.log_static(format!("{workpiece}/tool_path"), &strip)
+    }
+
+    /// `times_s` as a `sim_time` column in integer nanoseconds.
+    fn time_column(&self, times_s: &[f64], what: &str) -> Result<TimeColumn, CliError> {
+        let mut nanos = Vec::with_capacity(times_s.len());
+        for (i, &t) in times_s.iter().enumerate() {
+            let ns = (t * 1e9).round();
+            // i64::MIN is reserved by Rerun; keep well inside the range.
+            if !(ns.is_finite() && ns.abs() < 9.2e18) {
+                return Err(self.err(format!(
+                    "`{what}`, sample {i}: time {t} s is not a finite simulation time"
+                )));
+            }
+            nanos.push(ns as i64);
+        }
+        Ok(TimeColumn::new_duration_nanos(TIMELINE, nanos))
+    }
+
+    /// One scalar series over time, with its name and colour.
+    fn series(
+        &self,
+        entity: &str,
+        name: &str,
+        colour: Color,
+        times_s: &[f64],
+        values: impl Iterator<Item = f64>,
+    ) -> Result<(), CliError> {
+        self.log_static(
+            entity,
+            &SeriesLines::new().with_names([name]).with_colors([colour]),
+        )?;
+        let columns = Scalars::new(values)
+            .columns_of_unit_batches()
+            .map_err(|e| self.err(e))?;
+        let time = self.time_column(times_s, entity)?;
+        self.rec
+            .send_columns(entity, [time], columns)
+            .map_err(|e| self.err(e))
+    }
+
+    fn servo_series(&self, servo: &Stream) -> Result<(), CliError> {
+        for axis in ["x", "y", "z"] {
+            let colour = axis_colour(axis);
+            if let Some(c) = servo.channel(&format!("following_error_{axis}")) {
+                let entity = format!("/series/following_error_um/{axis}");
+                let name = format!("following error {axis} (µm)");
+                let values = c.values.iter().map(|v| v * 1e6);
+                self.series(&entity, &name, colour, &servo.times_s, values)?;
+            }
+            for (kind, shade) in [("guide", 1.0), ("screw", 0.6)] {
+                if let Some(c) = servo.channel(&format!("{kind}_friction_{axis}")) {
+                    let entity = format!("/series/friction_n/{kind}_{axis}");
+                    let name = format!("{kind} friction {axis} (N)");
+                    let values = c.values.iter().copied();
+                    self.series(&entity, &name, scale(colour, shade), &servo.times_s, values)?;
+                }
+            }
+        }
+        Ok(())
+    }
+
+    fn deviation_series(&self, t: &BallbarTrace, slug: &str) -> Result<(), CliError> {
+        let entity = format!("/series/ballbar_deviation_um/{slug}");
+        let name = format!("{} (µm)", t.label);
+        let values = t.deviation_um.iter().copied();
+        self.series(&entity, &name, direction_colour(t), &t.times_s, values)
+    }
+
+    fn polar(
+        &self,
+        g: &PolarGroup,
+        traces: &[BallbarTrace],
+        slugs: &[String],
+    ) -> Result<(), CliError> {
+        let members: Vec<&BallbarTrace> = g.traces.iter().map(|&i| &traces[i]).collect();
+        let max_dev = members
+            .iter()
+            .flat_map(|t| t.deviation_um.iter())
+            .filter(|d| d.is_finite())
+            .fold(0.0_f64, |m, d| m.max(d.abs()));
+        let scale = PolarScale::new(g.radius_mm, max_dev);
+        let base = format!("/ballbar/{}", g.name);
+        let nominal = circle(g.radius_mm);
+        let label = format!(
+            "nominal R = {} mm; deviations ×{} ({} µm/div)",
+            g.radius_mm,
+            fmt_num(scale.k_mm_per_um * 1e3),
+            fmt_num(scale.div_um)
+        );
+        self.log_static(
+            format!("{base}/nominal"),
+            &LineStrips2D::new([nominal])
+                .with_colors([Color::from_rgb(90, 90, 90)])
+                .with_labels([label]),
+        )?;
+        let rings: Vec<Vec<[f32; 2]>> = [-2.0, -1.0, 1.0, 2.0]
+            .iter()
+            .map(|j| circle(g.radius_mm + j * scale.div_um * scale.k_mm_per_um))
+            .collect();
+        self.log_static(
+            format!("{base}/grid"),
+            &LineStrips2D::new(rings)
+                .with_colors([Color::from_rgb(200, 200, 200)])
+                .with_labels([format!("{} µm/div", fmt_num(scale.div_um))]),
+        )?;
+        for &i in &g.traces {
+            let t = &traces[i];
+            let strip = polar_strip(t, &scale);
+            let label = format!("{} ×{}", t.label, fmt_num(scale.k_mm_per_um * 1e3));
+            self.log_static(
+                format!("{base}/{}", slugs[i]),
+                &LineStrips2D::new([strip])
+                    .with_colors([direction_colour(t)])
+                    .with_labels([label]),
+            )?;
+        }
+        Ok(())
+    }
+}
+
+/// The magnification of a polar plot.
+struct PolarScale {
+    /// Nominal radius, mm.
+    radius_mm: f64,
+    /// Plotted millimetres per micrometre of deviation.
+    k_mm_per_um: f64,
+    /// One division of the grid, µm.
+    div_um: f64,
+}
+
+impl PolarScale {
+    /// A round magnification that draws `max_dev_um` at about a quarter of the radius, and a
+    /// round division of about half the largest deviation.
+    fn new(radius_mm: f64, max_dev_um: f64) -> Self {
+        let max_dev = if max_dev_um > 1e-6 { max_dev_um } else { 1.0 };
+        let r = if radius_mm.is_finite() && radius_mm > 0.0 {
+            radius_mm
+        } else {
+            1.0
+        };
+        PolarScale {
+            radius_mm: r,
+            k_mm_per_um: nice_floor(0.25 * r / max_dev),
+            div_um: nice_ceil(max_dev / 2.0),
+        }
+    }
+
+    /// The plotted point of a deviation at an angle, mm, with y negated for Rerun's 2D views.
+    fn point(&self, angle_deg: f64, deviation_um: f64) -> [f32; 2] {
+        let rho = self.radius_mm + self.k_mm_per_um * deviation_um;
+        let a = angle_deg.to_radians();
+        [(rho * a.cos()) as f32, (-rho * a.sin()) as f32]
+    }
+}
+
+/// The largest of 1, 2, 5 × 10ⁿ not above `x` (x > 0).
+pub(crate) fn nice_floor(x: f64) -> f64 {
+    let e = 10f64.powf(x.log10().floor());
+    [5.0, 2.0, 1.0]
+        .into_iter()
+        .map(|m| m * e)
+        .find(|v| *v <= x * (1.0 + 1e-9))
+        .unwrap_or(e)
+}
+
+/// The smallest of 1, 2, 5 × 10ⁿ not below `x` (x > 0).
+pub(crate) fn nice_ceil(x: f64) -> f64 {
+    let e = 10f64.powf(x.log10().floor());
+    [1.0, 2.0, 5.0, 10.0]
+        .into_iter()
+        .map(|m| m * e)
+        .find(|v| *v >= x * (1.0 - 1e-9))
+        .unwrap_or(10.0 * e)
+}
+
+/// A number without trailing zeros: 3000, 0.5, 2.5.
+fn fmt_num(x: f64) -> String {
+    let s = format!("{x:.3}");
+    s.trim_end_matches('0').trim_end_matches('.').to_string()
+}
+
+fn polar_strip(t: &BallbarTrace, scale: &PolarScale) -> Vec<[f32; 2]> {
+    t.angle_deg
+        .iter()
+        .zip(&t.deviation_um)
+        .filter(|(a, d)| a.is_finite() && d.is_finite())
+        .map(|(a, d)| scale.point(*a, *d))
+        .collect()
+}
+
+/// A circle of radius `r` (mm) in 1° steps, y negated like the traces.
+fn circle(r: f64) -> Vec<[f32; 2]> {
+    (0..=360)
+        .map(|d| {
+            let a = f64::from(d).to_radians();
+            [(r * a.cos()) as f32, (-r * a.sin()) as f32]
+        })
+        .collect()
+}
+
+fn axis_colour(axis: &str) -> Color {
+    match axis {
+        "x" => Color::from_rgb(214, 39, 40),
+        "y" => Color::from_rgb(44, 160, 44),
+        _ => Color::from_rgb(31, 119, 180),
+    }
+}
+
+fn scale(c: Color, s: f64) -> Color {
+    let [r, g, b, _] = c.to_array();
+    let f = |v: u8| (f64::from(v) * s).round().clamp(0.0, 255.0) as u8;
+    Color::from_rgb(f(r), f(g), f(b))
+}
+
+/// Blue for CCW, red for CW (as the PNG plot).
+fn direction_colour(t: &BallbarTrace) -> Color {
+    if t.direction.eq_ignore_ascii_case("cw") {
+        Color::from_rgb(200, 30, 30)
+    } else {
+        Color::from_rgb(30, 80, 200)
+    }
+}
+
+/// One static box of the machine picture.
+struct Part {
+    entity: String,
+    label: String,
+    centre: [f32; 3],
+    size: [f32; 3],
+    colour: Color,
+    fill: FillMode,
+}
+
+/// The machine picture: boxes, moving carriages and the workpiece entity.
+struct Layout {
+    parts: Vec<Part>,
+    /// (entity, axis, sign of its translation relative to the commanded coordinate).
+    carriages: Vec<(String, Axis, f64)>,
+    /// Entity of the workpiece.
+    workpiece: String,
+}
+
+/// Strokes of a machine: middle and length of each axis, m.
+struct Strokes {
+    mid: [f64; 3],
+    len: [f64; 3],
+    min: [f64; 3],
+}
+
+impl Strokes {
+    fn new(m: &MachineSummary) -> Self {
+        let ok = |v: f64| if v.is_finite() { v } else { 0.0 };
+        let min = m.strokes_m.map(|[a, b]| ok(a.min(b)));
+        let max = m.strokes_m.map(|[a, b]| ok(a.max(b)));
+        Strokes {
+            mid: std::array::from_fn(|k| 0.5 * (min[k] + max[k])),
+            len: std::array::from_fn(|k| (max[k] - min[k]).max(0.05)),
+            min,
+        }
+    }
+}
+
+impl Layout {
+    /// The assemblies of `topology` as nested entities, their boxes placed so that with every
+    /// axis at mid-stroke the stack under the workpiece and the head above the tool line up.
+    fn new(m: &MachineSummary, topology: Topology) -> Self {
+        let st = Strokes::new(m);
+        let tool_len = if m.tool_length_m.is_finite() && m.tool_length_m > 0.0 {
+            m.tool_length_m
+        } else {
+            0.1
+        };
+        let g = topology.ground_index();
+        let chain = topology.chain();
+        let axis_of = |e: &Element| match e {
+            Element::Axis(a) => Some(*a),
+            _ => None,
+        };
+        // Workpiece side from the ground outwards, tool side from the ground outwards.
+        let w_axes: Vec<Axis> = chain[1..g].iter().rev().filter_map(axis_of).collect();
+        let t_axes: Vec<Axis> = chain[g + 1..5].iter().filter_map(axis_of).collect();
+        // The tool point with every axis at mid-stroke (scene coordinates).
+        let mut c = [0.0; 3];
+        for a in &t_axes {
+            c[a.index()] = st.mid[a.index()];
+        }
+        let wp_top = c[2] - st.mid[2] + st.min[2];
+        let mut layout = Layout {
+            parts: Vec::new(),
+            carriages: Vec::new(),
+            workpiece: String::new(),
+        };
+        layout.workpiece_side(&w_axes, &st, c, wp_top);
+        layout.tool_side(&t_axes, &st, c, tool_len);
+        layout
+    }
+
+    fn workpiece_side(&mut self, w_axes: &[Axis], st: &Strokes, c: [f64; 3], wp_top: f64) {
+        let n = w_axes.len() as f64;
+        let slab = 0.05;
+        // Base under the whole stack, static in the scene.
+        self.parts.push(Part {
+            entity: "/machine/base".into(),
+            label: "bed (ground)".into(),
+            centre: to_f32([c[0], c[1], wp_top - 0.06 - slab * n - 0.05]),
+            size: to_f32([1.6 * st.len[0] + 0.3, 1.6 * st.len[1] + 0.3, 0.1]),
+            colour: Color::from_rgb(110, 110, 110),
+            fill: FillMode::TransparentFillMajorWireframe,
+        });
+        let mut entity = "/machine".to_string();
+        // Scene origin of the current entity with every axis at mid-stroke.
+        let mut origin = [0.0; 3];
+        for (level, a) in w_axes.iter().enumerate() {
+            let k = a.index();
+            entity = format!("{entity}/{}_axis", a.letter().to_ascii_lowercase());
+            origin[k] -= st.mid[k];
+            let grow = 0.05 * (n - level as f64);
+            // The carriage next to the workpiece is highest, right under it.
+            let z = wp_top - 0.06 - slab * (n - 1.0 - level as f64 + 0.5);
+            let centre = [c[0], c[1], z];
+            self.parts.push(Part {
+                entity: entity.clone(),
+                label: format!("{} carriage (moves the workpiece)", a.letter()),
+                centre: to_f32(sub(centre, origin)),
+                size: to_f32([
+                    0.7 * st.len[0] + 0.1 + grow,
+                    0.7 * st.len[1] + 0.1 + grow,
+                    slab,
+                ]),
+                colour: carriage_colour(*a),
+                fill: FillMode::TransparentFillMajorWireframe,
+            });
+            self.carriages.push((entity.clone(), *a, -1.0));
+        }
+        self.workpiece = format!("{entity}/workpiece");
+        self.parts.push(Part {
+            entity: self.workpiece.clone(),
+            label: "workpiece".into(),
+            centre: to_f32(sub([c[0], c[1], wp_top - 0.03], origin)),
+            size: to_f32([0.4 * st.len[0] + 0.05, 0.4 * st.len[1] + 0.05, 0.06]),
+            colour: Color::from_rgb(230, 150, 40),
+            fill: FillMode::Solid,
+        });
+    }
+
+    fn tool_side(&mut self, t_axes: &[Axis], st: &Strokes, c: [f64; 3], tool_len: f64) {
+        let mut entity = "/machine".to_string();
+        let mut origin = [0.0; 3];
+        let n = t_axes.len();
+        for (level, a) in t_axes.iter().enumerate() {
+            let k = a.index();
+            entity = format!("{entity}/{}_axis", a.letter().to_ascii_lowercase());
+            origin[k] += st.mid[k];
+            // Counted from the tool: the carriage next to the tool is lowest.
+            let from_tool = (n - 1 - level) as f64;
+            let mut size = [0.15, 0.15, 0.1];
+            for b in &t_axes[level + 1..] {
+                if b.index() < 2 {
+                    size[b.index()] = st.len[b.index()] + 0.15;
+                }
+            }
+            let centre = [c[0], c[1], c[2] + tool_len + 0.05 + 0.1 * from_tool];
+            self.parts.push(Part {
+                entity: entity.clone(),
+                label: format!("{} carriage (moves the tool)", a.letter()),
+                centre: to_f32(sub(centre, origin)),
+                size: to_f32(size),
+                colour: carriage_colour(*a),
+                fill: FillMode::TransparentFillMajorWireframe,
+            });
+            self.carriages.push((entity.clone(), *a, 1.0));
+        }
+        self.parts.push(Part {
+            entity: format!("{entity}/tool"),
+            label: "tool".into(),
+            centre: to_f32(sub([c[0], c[1], c[2] + 0.5 * tool_len], origin)),
+            size: to_f32([0.016, 0.016, tool_len]),
+            colour: Color::from_rgb(60, 60, 60),
+            fill: FillMode::Solid,
+        });
+    }
+}
+
+fn carriage_colour(a: Axis) -> Color {
+    axis_colour(&a.letter().to_ascii_lowercase().to_string())
+}
+
+fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+
+fn to_f32(a: [f64; 3]) -> [f32; 3] {
+    a.map(|v| v as f32)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn nice_numbers() {
+        assert_eq!(nice_floor(3.7), 2.0);
+        assert_eq!(nice_floor(7500.0), 5000.0);
+        assert_eq!(nice_floor(0.3), 0.2);
+        assert_eq!(nice_ceil(3.7), 5.0);
+        assert_eq!(nice_ceil(0.9), 1.0);
+        assert_eq!(nice_ceil(2.0), 2.0);
+        assert_eq!(fmt_num(3000.0), "3000");
+        assert_eq!(fmt_num(2.5), "2.5");
+    }
+
+    #[test]
+    fn vmc_layout_nests_workpiece_under_y_and_x() {
+        let m = MachineSummary {
+            name: "m".into(),
+            topology: "WXYGZT".into(),
+            strokes_m: [[0.0, 0.5], [0.0, 0.4], [0.0, 0.4]],
+            tool_length_m: 0.1,
+        };
+        let t: Topology = "WXYGZT".parse().expect("topology");
+        let l = Layout::new(&m, t);
+        assert_eq!(l.workpiece, "/machine/y_axis/x_axis/workpiece");
+        let carriages: Vec<(&str, f64)> = l
+            .carriages
+            .iter()
+            .map(|(e, _, s)| (e.as_str(), *s))
+            .collect();
+        assert_eq!(
+            carriages,
+            [
+                ("/machine/y_axis", -1.0),
+                ("/machine/y_axis/x_axis", -1.0),
+                ("/machine/z_axis", 1.0)
+            ]
+        );
+        assert!(l.parts.iter().any(|p| p.entity == "/machine/z_axis/tool"));
+    }
+
+    #[test]
+    fn gantry_layout_has_fixed_workpiece() {
+        let m = MachineSummary {
+            name: "g".into(),
+            topology: "WGXYZT".into(),
+            strokes_m: [[0.0, 2.0], [0.0, 1.0], [0.0, 0.5]],
+            tool_length_m: 0.1,
+        };
+        let t: Topology = "WGXYZT".parse().expect("topology");
+        let l = Layout::new(&m, t);
+        assert_eq!(l.workpiece, "/machine/workpiece");
+        assert!(
+            l.parts
+                .iter()
+                .any(|p| p.entity == "/machine/x_axis/y_axis/z_axis/tool")
+        );
+    }
+}

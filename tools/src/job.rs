@@ -1,0 +1,117 @@
+//! `vmt run` and `vmt demo`: execute a scenario's job and write its files.
+//!
+//! Writes into the output folder: `run.mcap` (Foxglove, Python `mcap`), `run.rrd` (Rerun
+//! viewer 0.36), `ballbar_polar.png` (one polar plot of all ball-bar traces) and
+//! `ground_truth.json`.
+
+use crate::error::CliError;
+use crate::formats::{mcap::write_mcap, rerun::write_rrd};
+use crate::plot::{self, Format};
+use indicatif::{ProgressBar, ProgressStyle};
+use std::path::{Path, PathBuf};
+use vmt_scenario::Scenario;
+use vmt_sim::plant::Fidelity;
+use vmt_sim::run::Run;
+use vmt_sim::simulate::simulate;
+
+/// The files a run wrote.
+#[derive(Clone, Debug)]
+pub struct Written {
+    /// Every file written.
+    pub files: Vec<PathBuf>,
+}
+
+/// Simulates the scenario's job (optionally at another fidelity) with a progress bar.
+pub fn execute(
+    scenario: &Scenario,
+    text: &str,
+    fidelity: Option<Fidelity>,
+    quiet: bool,
+) -> Result<Run, CliError> {
+    let Some(exec) = &scenario.execution else {
+        return Err(CliError::Argument(
+            "the scenario has no job to run: it needs [machine.axes.<axis>.drive] and .servo for X, Y and Z, [controller] and [job]".into(),
+        ));
+    };
+    let mut settings = exec.settings;
+    if let Some(f) = fidelity {
+        settings.fidelity = f;
+    }
+    let bar = if quiet {
+        ProgressBar::hidden()
+    } else {
+        ProgressBar::new(1000)
+    };
+    bar.set_style(
+        ProgressStyle::with_template(
+            "{msg} [{bar:40}] {percent:>3}% {elapsed_precise} (eta {eta})",
+        )
+        .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    bar.set_message(format!("simulating ({})", settings.fidelity.name()));
+    let run = simulate(
+        &scenario.machine,
+        &exec.axes,
+        &exec.controller,
+        &exec.job,
+        &settings,
+        text,
+        &mut |f| bar.set_position((f * 1000.0) as u64),
+    )
+    .map_err(|e| CliError::Model(e.to_string()))?;
+    bar.finish_and_clear();
+    Ok(run)
+}
+
+/// Writes the run's files into `dir`.
+pub fn write(run: &Run, dir: &Path) -> Result<Written, CliError> {
+    std::fs::create_dir_all(dir).map_err(|e| CliError::output(dir, e))?;
+    let mut files = Vec::new();
+    let mcap = dir.join("run.mcap");
+    write_mcap(run, &mcap)?;
+    files.push(mcap);
+    let rrd = dir.join("run.rrd");
+    write_rrd(run, &rrd)?;
+    files.push(rrd);
+    if !run.ballbar.is_empty() {
+        let polar = dir.join("ballbar_polar.png");
+        plot::draw_polar(
+            &run.ballbar,
+            &polar,
+            Format::Png,
+            Some(&summary_figures(run)),
+        )?;
+        files.push(polar);
+    }
+    let truth = dir.join("ground_truth.json");
+    let text =
+        serde_json::to_string_pretty(&run.ground_truth).map_err(|e| CliError::output(&truth, e))?;
+    std::fs::write(&truth, text).map_err(|e| CliError::output(&truth, e))?;
+    files.push(truth);
+    Ok(Written { files })
+}
+
+/// One line per ball-bar trace: radial span (max - min of the deviation, the ISO 230-4 radial
+/// deviation F about the nominal centre) and the mean.
+pub fn summary_figures(run: &Run) -> String {
+    run.ballbar
+        .iter()
+        .map(|t| {
+            let (lo, hi) = t
+                .deviation_um
+                .iter()
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
+                    (a.min(*v), b.max(*v))
+                });
+            let mean = t.deviation_um.iter().sum::<f64>() / t.deviation_um.len().max(1) as f64;
+            format!(
+                "{}: span {:.2} um, mean {:+.2} um, {} samples",
+                t.label,
+                hi - lo,
+                mean,
+                t.deviation_um.len()
+            )
+        })
+        .collect::<Vec<_>>()
+        .join("\n")
+}

@@ -1,0 +1,143 @@
+//! `vmt program`: NC programs generated from test descriptions (ball-bar circles, ISO 230-4).
+
+use crate::CliError;
+use clap::Args;
+use nalgebra::Vector3;
+use std::path::{Path, PathBuf};
+use vmt_sim::nc::ballbar::{CircularTest, TestParameter};
+use vmt_sim::nc::{ArcDirection, Plane};
+
+/// Arguments of `vmt program ballbar`. Lengths in mm, feed in mm/min, angles in degrees.
+#[derive(Args, Debug, Clone)]
+pub struct BallbarArgs {
+    /// Plane of the circle: XY (G17), ZX or XZ (G18), YZ (G19).
+    #[arg(long, value_parser = parse_plane)]
+    pub plane: Plane,
+    /// Radius of the circle (the ball-bar length), mm: 50 to 600.
+    #[arg(long)]
+    pub radius_mm: f64,
+    /// Path speed, mm/min (> 0).
+    #[arg(long)]
+    pub feed_mm_min: f64,
+    /// Data arc, degrees: 360 for a full circle, or a partial arc such as 220 or 180.
+    #[arg(long, default_value_t = 360.0)]
+    pub arc_deg: f64,
+    /// The runs in order, comma-separated: cw, ccw (or g2, g3).
+    #[arg(long, value_delimiter = ',', default_value = "cw,ccw", value_parser = parse_direction)]
+    pub directions: Vec<ArcDirection>,
+    /// Centre of the circle, mm, as x,y,z (default: the middle of the built-in machine's
+    /// strokes).
+    #[arg(
+        long,
+        value_delimiter = ',',
+        num_args = 3,
+        allow_negative_numbers = true
+    )]
+    pub center_mm: Option<Vec<f64>>,
+    /// Angle where the data arc starts, degrees, from the plane's first axis (+X in XY, +Z in
+    /// ZX, +Y in YZ) towards its second.
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    pub start_deg: f64,
+    /// Run-in and run-out arcs before and after the data arc, degrees.
+    #[arg(long, default_value_t = vmt_sim::nc::ballbar::DEFAULT_OVERSHOOT_DEG)]
+    pub overshoot_deg: f64,
+    /// Radial feed-in onto and feed-out off the circle, mm.
+    #[arg(long, default_value_t = vmt_sim::nc::ballbar::DEFAULT_FEED_IN_M * 1e3)]
+    pub feed_in_mm: f64,
+    /// Write the program to this file (default: stdout).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+}
+
+fn parse_plane(s: &str) -> Result<Plane, String> {
+    match s.to_ascii_uppercase().as_str() {
+        "XY" | "YX" | "G17" => Ok(Plane::Xy),
+        "ZX" | "XZ" | "G18" => Ok(Plane::Zx),
+        "YZ" | "ZY" | "G19" => Ok(Plane::Yz),
+        _ => Err(format!("`{s}`: the plane is XY, ZX (or XZ) or YZ")),
+    }
+}
+
+fn parse_direction(s: &str) -> Result<ArcDirection, String> {
+    match s.trim().to_ascii_lowercase().as_str() {
+        "cw" | "g2" => Ok(ArcDirection::Cw),
+        "ccw" | "g3" => Ok(ArcDirection::Ccw),
+        _ => Err(format!("`{s}`: a direction is cw or ccw")),
+    }
+}
+
+/// The command-line option that sets `parameter`.
+fn flag(parameter: TestParameter) -> &'static str {
+    match parameter {
+        TestParameter::Center => "--center-mm",
+        TestParameter::Radius => "--radius-mm",
+        TestParameter::Feed => "--feed-mm-min",
+        TestParameter::Arc => "--arc-deg",
+        TestParameter::Start => "--start-deg",
+        TestParameter::Overshoot => "--overshoot-deg",
+        TestParameter::Directions => "--directions",
+        TestParameter::FeedIn => "--feed-in-mm",
+    }
+}
+
+/// The circle's centre, m: `--center-mm`, or the middle of the built-in machine's strokes.
+fn center(args: &BallbarArgs) -> Result<Vector3<f64>, CliError> {
+    match &args.center_mm {
+        Some(c) if c.len() == 3 => Ok(Vector3::new(c[0], c[1], c[2]) * 1e-3),
+        Some(_) => Err(CliError::Argument(
+            "--center-mm takes three numbers, x,y,z in mm".into(),
+        )),
+        None => {
+            let machine = vmt_scenario::builtin()?.machine;
+            Ok(Vector3::from_fn(|k, _| {
+                (machine.axes[k].min_m + machine.axes[k].max_m) / 2.0
+            }))
+        }
+    }
+}
+
+/// The circular test the arguments describe, validated.
+pub fn ballbar_test(args: &BallbarArgs) -> Result<CircularTest, CliError> {
+    let test = CircularTest {
+        plane: args.plane,
+        center: center(args)?,
+        radius_m: args.radius_mm * 1e-3,
+        feed_m_s: args.feed_mm_min / 6e4,
+        arc_deg: args.arc_deg,
+        start_deg: args.start_deg,
+        directions: args.directions.clone(),
+        feed_in_m: args.feed_in_mm * 1e-3,
+        overshoot_deg: args.overshoot_deg,
+    };
+    test.validate()
+        .map_err(|e| CliError::Argument(format!("{} ({})", e, flag(e.parameter))))?;
+    Ok(test)
+}
+
+/// The G-code of the ball-bar test the arguments describe (see `vmt_sim::nc::ballbar` for the
+/// program layout), or what is wrong with the arguments.
+pub fn ballbar_program(args: &BallbarArgs) -> Result<String, CliError> {
+    Ok(ballbar_test(args)?.gcode())
+}
+
+/// `vmt program ballbar`: writes the program to `--out` (and says so) or to stdout.
+pub fn ballbar(args: &BallbarArgs) -> Result<(), CliError> {
+    let text = ballbar_program(args)?;
+    match &args.out {
+        Some(path) => {
+            if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
+                std::fs::create_dir_all(dir).map_err(|e| CliError::output(dir, e))?;
+            }
+            std::fs::write(path, text).map_err(|e| CliError::output(path, e))?;
+            println!("wrote {}", path.display());
+        }
+        None => {
+            use std::io::Write;
+            std::io::stdout()
+                .lock()
+                .write_all(text.as_bytes())
+                .map_err(|e| CliError::output(Path::new("<stdout>"), e))?;
+        }
+    }
+    Ok(())
+}

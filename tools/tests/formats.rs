@@ -1,0 +1,442 @@
+//! The run writers: MCAP read back with the Python `mcap` package, `.rrd` read back with the
+//! Python `rerun-sdk` 0.36.3, byte-identical MCAP for the same run, and the ball-bar polar plot.
+//!
+//! The Python tests need `python3 -m pip install -r tools/tests/requirements.txt`; without the
+//! packages they fail and say so.
+
+use serde_json::{Value, json};
+use std::f64::consts::PI;
+use std::path::Path;
+use std::process::Command;
+use vmt_sim::run::{BallbarTrace, Channel, MachineSummary, Run, Stream};
+use vmt_tools::formats::{write_mcap, write_rrd};
+use vmt_tools::plot::{Format, POLAR_SIZE, draw_polar};
+
+/// Log rate of the servo stream, Hz.
+const RATE_HZ: f64 = 1000.0;
+/// Ball-bar length, mm.
+const RADIUS_MM: f64 = 150.0;
+/// Feed of the test circles, mm/min.
+const FEED_MM_MIN: f64 = 6000.0;
+/// Centre of the circle relative to the workpiece, m.
+const CENTRE_M: [f64; 3] = [0.25, 0.2, 0.15];
+
+/// The deviation of the test pattern at angle `theta` (rad) in direction `dir` (+1 CCW, -1 CW),
+/// µm: eccentricity, squareness (same for both directions), servo mismatch (flips) and backlash
+/// in X (a half-circle step).
+fn deviation_um(theta: f64, dir: f64) -> f64 {
+    let eccentricity = 2.0 * theta.cos() - 1.0 * theta.sin();
+    let squareness = 3.0 * (2.0 * theta).sin();
+    let mismatch = dir * 1.5 * (2.0 * theta).sin();
+    let backlash = 1.0 * theta.sin().signum() * dir * 0.5;
+    eccentricity + squareness + mismatch + backlash
+}
+
+/// One circle per direction, CCW then CW, one sample per servo period: (time s, angle deg
+/// unwrapped, direction).
+fn circle_samples() -> Vec<(f64, f64, f64)> {
+    let period_s = 2.0 * PI * RADIUS_MM / (FEED_MM_MIN / 60.0);
+    let n = (period_s * RATE_HZ).round() as usize;
+    let mut out = Vec::with_capacity(2 * n);
+    for (k, dir) in [1.0, -1.0].into_iter().enumerate() {
+        for i in 0..n {
+            let t = (k * n + i) as f64 / RATE_HZ;
+            out.push((t, dir * 360.0 * i as f64 / n as f64, dir));
+        }
+    }
+    out
+}
+
+fn channel(name: &str, unit: &str, values: Vec<f64>) -> Channel {
+    Channel {
+        name: name.into(),
+        unit: unit.into(),
+        values,
+    }
+}
+
+/// The `servo` stream of the two circles, with every channel documented in `vmt_sim::run`.
+fn servo_stream(samples: &[(f64, f64, f64)]) -> Stream {
+    let r_m = RADIUS_MM * 1e-3;
+    let speed = FEED_MM_MIN / 60.0 * 1e-3;
+    let mut channels = Vec::new();
+    let mut tool: [Vec<f64>; 3] = Default::default();
+    for (k, a) in ["x", "y", "z"].into_iter().enumerate() {
+        let mut cols: [Vec<f64>; 8] = Default::default();
+        for &(_, deg, dir) in samples {
+            let th = deg.to_radians();
+            let (unit_pos, unit_vel) = match k {
+                0 => (th.cos(), -th.sin() * dir),
+                1 => (th.sin(), th.cos() * dir),
+                _ => (0.0, 0.0),
+            };
+            let command = CENTRE_M[k] + r_m * unit_pos;
+            let fe = unit_vel * speed / 30.0; // Kv = 30 1/s
+            let position = command - fe;
+            let radial = deviation_um(th, dir) * 1e-6 * unit_pos;
+            let v = unit_vel * speed;
+            let values = [
+                command,
+                position,
+                (position / 1e-7).round() * 1e-7,
+                fe,
+                200.0 * v.signum() + 5000.0 * fe,
+                0.05 * (200.0 * v.signum() + 5000.0 * fe),
+                40.0 * v.signum(),
+                25.0 * v.signum() + 100.0 * v,
+            ];
+            for (col, value) in cols.iter_mut().zip(values) {
+                col.push(value);
+            }
+            tool[k].push(position + radial);
+        }
+        let names = [
+            ("command", "m"),
+            ("position", "m"),
+            ("encoder", "m"),
+            ("following_error", "m"),
+            ("motor_force", "N"),
+            ("motor_current", "A"),
+            ("guide_friction", "N"),
+            ("screw_friction", "N"),
+        ];
+        for ((name, unit), values) in names.into_iter().zip(cols) {
+            channels.push(channel(&format!("{name}_{a}"), unit, values));
+        }
+    }
+    for (a, values) in ["x", "y", "z"].into_iter().zip(tool) {
+        channels.push(channel(&format!("tool_{a}"), "m", values));
+    }
+    Stream {
+        name: "servo".into(),
+        description: "servo loop signals at the log rate".into(),
+        times_s: samples.iter().map(|s| s.0).collect(),
+        channels,
+    }
+}
+
+fn traces(samples: &[(f64, f64, f64)]) -> Vec<BallbarTrace> {
+    [(1.0, "ccw"), (-1.0, "cw")]
+        .into_iter()
+        .map(|(dir, name)| {
+            let mine: Vec<&(f64, f64, f64)> = samples.iter().filter(|s| s.2 == dir).collect();
+            BallbarTrace {
+                label: format!(
+                    "XY {RADIUS_MM} mm {FEED_MM_MIN} mm/min {}",
+                    name.to_uppercase()
+                ),
+                plane: "XY".into(),
+                direction: name.into(),
+                radius_mm: RADIUS_MM,
+                feed_mm_min: FEED_MM_MIN,
+                times_s: mine.iter().map(|s| s.0).collect(),
+                angle_deg: mine.iter().map(|s| s.1).collect(),
+                deviation_um: mine
+                    .iter()
+                    .map(|s| deviation_um(s.1.to_radians(), dir))
+                    .collect(),
+            }
+        })
+        .collect()
+}
+
+/// A run of two 150 mm ball-bar circles (CCW, CW) at 6000 mm/min logged at 1 kHz.
+fn test_run() -> Run {
+    let samples = circle_samples();
+    Run {
+        scenario_name: "vmc500 ball bar".into(),
+        scenario_toml: "[machine]\nname = \"vmc500\"\ntopology = \"WXYGZT\"\n".into(),
+        seed: 42,
+        fidelity: "reduced".into(),
+        machine: MachineSummary {
+            name: "vmc500".into(),
+            topology: "WXYGZT".into(),
+            strokes_m: [[0.0, 0.5], [0.0, 0.4], [0.0, 0.4]],
+            tool_length_m: 0.1,
+        },
+        streams: vec![servo_stream(&samples)],
+        ballbar: traces(&samples),
+        ground_truth: json!({
+            "squareness_xy_urad": 40.0,
+            "backlash_um": {"x": 1.0, "y": 0.0},
+            "servo_mismatch_ms": 0.54,
+            "eccentricity_um": [2.0, -1.0],
+        }),
+    }
+}
+
+/// Runs a reader script of tools/tests and parses its JSON output; fails with the script's
+/// message (e.g. a missing Python package) otherwise.
+fn python(script: &str, file: &Path) -> Value {
+    let script = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("tests")
+        .join(script);
+    let out = Command::new("python3")
+        .arg(&script)
+        .arg(file)
+        .output()
+        .unwrap_or_else(|e| {
+            panic!(
+                "cannot run python3 ({e}): the format tests need Python 3 with \
+                 `python3 -m pip install -r tools/tests/requirements.txt`"
+            )
+        });
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        out.status.success(),
+        "{} failed ({}):\n{stderr}\nThe format tests need the Python packages of \
+         tools/tests/requirements.txt: python3 -m pip install -r tools/tests/requirements.txt",
+        script.display(),
+        out.status
+    );
+    serde_json::from_slice(&out.stdout).unwrap_or_else(|e| {
+        panic!(
+            "{} printed no JSON ({e}): {}",
+            script.display(),
+            String::from_utf8_lossy(&out.stdout)
+        )
+    })
+}
+
+fn ns(t_s: f64) -> u64 {
+    (t_s * 1e9).round() as u64
+}
+
+#[test]
+fn mcap_reads_back_with_python_mcap() {
+    let run = test_run();
+    let dir = tempfile::tempdir().expect("temp dir");
+    let path = dir.path().join("run.mcap");
+    write_mcap(&run, &path).expect("write mcap");
+    let s = python("read_mcap.py", &path);
+
+    let servo = &run.streams[0];
+    let n = servo.times_s.len() as u64;
+    let ccw = "/ballbar/xy_150_mm_6000_mm_min_ccw";
+    let cw = "/ballbar/xy_150_mm_6000_mm_min_cw";
+    let topics = s["topics"].as_object().expect("topics");
+    let mut names: Vec<&str> = topics.keys().map(String::as_str).collect();
+    names.sort_unstable();
+    assert_eq!(names, [ccw, cw, "/ground_truth", "/servo"]);
+    assert_eq!(s["topics"]["/servo"]["count"], n);
+    assert_eq!(s["topics"]["/servo"]["statistics_count"], n);
+    assert_eq!(s["topics"][ccw]["count"], run.ballbar[0].times_s.len());
+    assert_eq!(s["topics"][cw]["count"], run.ballbar[1].times_s.len());
+    assert_eq!(s["topics"]["/ground_truth"]["count"], 1);
+    for t in names {
+        assert_eq!(s["topics"][t]["schema_encoding"], "jsonschema", "{t}");
+        assert_eq!(s["topics"][t]["message_encoding"], "json", "{t}");
+    }
+    assert_eq!(s["topics"]["/servo"]["schema_name"], "vmt.stream.servo");
+    let props = &s["topics"]["/servo"]["schema"]["properties"];
+    assert_eq!(props.as_object().map(|p| p.len()), Some(27 + 1));
+    assert_eq!(props["following_error_x"]["type"], "number");
+
+    // The first servo message has every channel's first value.
+    let first = &s["topics"]["/servo"]["first"];
+    for c in &servo.channels {
+        assert_eq!(first[&c.name].as_f64(), Some(c.values[0]), "{}", c.name);
+    }
+    let units: Value = serde_json::from_str(
+        s["topics"]["/servo"]["metadata"]["units"]
+            .as_str()
+            .expect("units"),
+    )
+    .expect("units JSON");
+    assert_eq!(units["motor_current_x"], "A");
+    assert_eq!(s["topics"][ccw]["metadata"]["direction"], "ccw");
+    assert_eq!(
+        s["topics"][ccw]["first"]["deviation_um"].as_f64(),
+        Some(run.ballbar[0].deviation_um[0])
+    );
+
+    // Clock: simulation time in ns, messages in time order, no compression.
+    assert_eq!(s["first_log_time_ns"], 0);
+    assert_eq!(
+        s["last_log_time_ns"],
+        ns(*servo.times_s.last().expect("times"))
+    );
+    assert_eq!(s["statistics"]["message_end_time"], s["last_log_time_ns"]);
+    assert_eq!(s["file_order_is_time_order"], true);
+    assert_eq!(s["chunk_compressions"], json!([""]));
+
+    // Metadata and ground truth.
+    assert_eq!(
+        s["metadata_names"],
+        json!(["ground_truth", "machine", "run", "scenario"])
+    );
+    assert_eq!(s["metadata"]["run"]["seed"], "42");
+    assert_eq!(s["metadata"]["run"]["fidelity"], "reduced");
+    assert_eq!(s["metadata"]["machine"]["topology"], "WXYGZT");
+    assert_eq!(s["metadata"]["scenario"]["toml"], run.scenario_toml);
+    let truth: Value = serde_json::from_str(
+        s["metadata"]["ground_truth"]["json"]
+            .as_str()
+            .expect("ground truth json"),
+    )
+    .expect("ground truth JSON");
+    assert_eq!(truth, run.ground_truth);
+    assert_eq!(s["ground_truth"]["squareness_xy_urad"].as_f64(), Some(40.0));
+    assert_eq!(s["ground_truth"]["backlash_um"]["x"].as_f64(), Some(1.0));
+    eprintln!(
+        "mcap: {} bytes for {n} servo samples and {} ball-bar samples (python mcap {})",
+        std::fs::metadata(&path).map(|m| m.len()).unwrap_or(0),
+        run.ballbar.iter().map(|t| t.times_s.len()).sum::<usize>(),
+        s["mcap_version"]
+    );
+}
+
+#[test]
+fn mcap_is_byte_identical_for_the_same_run() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let (a, b) = (dir.path().join("a.mcap"), dir.path().join("b.mcap"));
+    write_mcap(&test_run(), &a).expect("write a");
+    write_mcap(&test_run().clone(), &b).expect("write b");
+    let (a, b) = (std::fs::read(a).expect("a"), std::fs::read(b).expect("b"));
+    assert!(a.len() > 1000);
+    assert!(a == b, "two writes of the same run differ");
+}
+
+#[test]
+fn writers_refuse_inconsistent_runs_without_panicking() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let mut run = test_run();
+    run.streams[0].channels[3].values.pop();
+    let e = write_mcap(&run, &dir.path().join("x.mcap")).expect_err("short channel");
+    assert!(e.to_string().contains("encoder_x"), "{e}");
+    let e = write_rrd(&run, &dir.path().join("x.rrd")).expect_err("short channel");
+    assert!(e.to_string().contains("encoder_x"), "{e}");
+
+    let mut run = test_run();
+    run.ballbar[0].times_s[5] = f64::NAN;
+    let e = write_mcap(&run, &dir.path().join("y.mcap")).expect_err("NaN time");
+    assert!(e.to_string().contains("sample 5"), "{e}");
+
+    let mut run = test_run();
+    run.machine.topology = "WXXGZT".into();
+    let e = write_rrd(&run, &dir.path().join("z.rrd")).expect_err("bad topology");
+    assert!(e.to_string().contains("WXXGZT"), "{e}");
+}
+
+#[test]
+fn rrd_reads_back_with_python_rerun() {
+    let run = test_run();
+    let dir = tempfile::tempdir().expect("temp dir");
+    let path = dir.path().join("run.rrd");
+    write_rrd(&run, &path).expect("write rrd");
+    let s = python("read_rrd.py", &path);
+    assert_eq!(s["rerun_version"], "0.36.3");
+    assert_eq!(s["recordings"].as_array().map(Vec::len), Some(1));
+    assert_eq!(s["recordings"][0]["application_id"], "vmt");
+    assert_eq!(s["blueprints"], 1);
+    // Only simulation time: no wall-clock `log_time`, no `log_tick`.
+    assert_eq!(s["timelines"], json!(["sim_time"]));
+
+    let n = run.streams[0].times_s.len();
+    let e = &s["entities"];
+    for moving in [
+        "/machine/y_axis",
+        "/machine/y_axis/x_axis",
+        "/machine/z_axis",
+    ] {
+        assert_eq!(e[moving]["rows"], n, "{moving}");
+        assert!(
+            e[moving]["components"]
+                .as_array()
+                .is_some_and(|c| c.contains(&json!("Transform3D:translation"))),
+            "{moving}: {}",
+            e[moving]
+        );
+        assert_eq!(e[moving]["static"], true, "{moving} has its box");
+    }
+    for fixed in [
+        "/machine/base",
+        "/machine/y_axis/x_axis/workpiece",
+        "/machine/z_axis/tool",
+    ] {
+        assert!(
+            e[fixed]["components"]
+                .to_string()
+                .contains("Boxes3D:half_sizes"),
+            "{fixed}"
+        );
+    }
+    assert!(
+        e["/machine/y_axis/x_axis/workpiece/tool_path"]["components"]
+            .to_string()
+            .contains("LineStrips3D:strips")
+    );
+    for a in ["x", "y", "z"] {
+        let fe = &e[format!("/series/following_error_um/{a}").as_str()];
+        assert_eq!(fe["rows"], n, "following error {a}");
+        for kind in ["guide", "screw"] {
+            assert_eq!(
+                e[format!("/series/friction_n/{kind}_{a}").as_str()]["rows"],
+                n
+            );
+        }
+    }
+    let fe_x = &e["/series/following_error_um/x"];
+    let first = run.streams[0]
+        .channel("following_error_x")
+        .expect("fe")
+        .values[0]
+        * 1e6;
+    assert!((fe_x["first_scalar"]["value"].as_f64().unwrap_or(f64::NAN) - first).abs() < 1e-9);
+    assert_eq!(
+        fe_x["last_scalar"]["time_ns"],
+        ns(*run.streams[0].times_s.last().expect("times"))
+    );
+    for (t, slug) in run
+        .ballbar
+        .iter()
+        .zip(["xy_150_mm_6000_mm_min_ccw", "xy_150_mm_6000_mm_min_cw"])
+    {
+        let series = &e[format!("/series/ballbar_deviation_um/{slug}").as_str()];
+        assert_eq!(series["rows"], t.times_s.len(), "{slug}");
+        let polar = &e[format!("/ballbar/xy_150_mm/{slug}").as_str()];
+        assert!(
+            polar["components"]
+                .to_string()
+                .contains("LineStrips2D:strips"),
+            "{slug}"
+        );
+    }
+    for info in [
+        "/ballbar/xy_150_mm/nominal",
+        "/ballbar/xy_150_mm/grid",
+        "/info/run",
+        "/info/ground_truth",
+        "/info/scenario",
+    ] {
+        assert_eq!(e[info]["static"], true, "{info}");
+    }
+    eprintln!(
+        "rrd: {} bytes for {n} servo samples and {} ball-bar samples",
+        std::fs::metadata(&path).map(|m| m.len()).unwrap_or(0),
+        run.ballbar.iter().map(|t| t.times_s.len()).sum::<usize>()
+    );
+}
+
+#[test]
+fn polar_plot_png_is_written_with_its_size() {
+    let run = test_run();
+    let dir = tempfile::tempdir().expect("temp dir");
+    let path = dir.path().join("polar.png");
+    let figures = "ISO 230-4 (XY, 150 mm, 6000 mm/min)\n\
+                   circular deviation G  CCW  8.9 µm\n\
+                   circular deviation G  CW   9.6 µm\n\
+                   circular hysteresis H      3.1 µm";
+    draw_polar(&run.ballbar, &path, Format::Png, Some(figures)).expect("draw");
+    let bytes = std::fs::read(&path).expect("png");
+    assert_eq!(&bytes[..8], b"\x89PNG\r\n\x1a\n");
+    let be = |i: usize| u32::from_be_bytes([bytes[i], bytes[i + 1], bytes[i + 2], bytes[i + 3]]);
+    assert_eq!((be(16), be(20)), POLAR_SIZE);
+    if let Ok(keep) = std::env::var("VMT_KEEP_PLOT") {
+        let _ = std::fs::copy(&path, keep);
+    }
+    let svg = dir.path().join("polar.svg");
+    draw_polar(&run.ballbar, &svg, Format::Svg, None).expect("svg");
+    assert!(std::fs::read_to_string(&svg).is_ok_and(|s| s.contains("µm/div")));
+    assert!(draw_polar(&[], &dir.path().join("none.png"), Format::Png, None).is_err());
+}
