@@ -212,7 +212,16 @@ fn times_beyond_the_evaluated_range_are_refused_not_run_forever() {
     let dir = tempfile::tempdir().unwrap();
     let csv = write(dir.path(), "p.csv", "x_mm,y_mm,z_mm,time_s\n1,2,3,1e300\n");
     let e = stderr(&vmt(&["volumetric", "--points", &csv]));
-    assert!(e.contains("p.csv:2: time_s = 1e300; a time from 0 to 1e7 s"), "{e}");
-    let e = stderr(&vmt(&["thermal", "--every-s", "1e-12", "--out", dir.path().to_str().unwrap()]));
+    assert!(
+        e.contains("p.csv:2: time_s = 1e300; a time from 0 to 1e7 s"),
+        "{e}"
+    );
+    let e = stderr(&vmt(&[
+        "thermal",
+        "--every-s",
+        "1e-12",
+        "--out",
+        dir.path().to_str().unwrap(),
+    ]));
     assert!(e.contains("up to 1 000 000 are accepted"), "{e}");
 }
