@@ -1202,7 +1202,7 @@ mod tests {
             ),
             (
                 CircularTest {
-                    feed_in_m: -1.0 * MM,
+                    feed_in_m: -MM,
                     ..ok.clone()
                 },
                 TestParameter::FeedIn,
