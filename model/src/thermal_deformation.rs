@@ -98,13 +98,6 @@ pub struct ThermalDeformation {
     pub joints: [JointDeformation; 3],
 }
 
-impl ThermalDeformation {
-    /// Whether every term is zero (the machine at 20 °C, or no thermal model).
-    pub fn is_zero(&self) -> bool {
-        *self == ThermalDeformation::default()
-    }
-}
-
 /// Temperatures that do not fit the model.
 #[derive(Debug, Error, Clone, PartialEq)]
 pub enum DeformationError {

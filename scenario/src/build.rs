@@ -18,8 +18,8 @@ use vmt_model::geometric::{
 use vmt_model::kinematics::{Kinematics, Topology, VolumetricModel};
 use vmt_model::machine::{AxisSpec, Machine, ThermalMachine};
 use vmt_model::thermal::{
-    Ambient, Conductance, HeatSource, Operating, Segment, ThermalNetwork, ThermalNode,
-    ThermalSchedule,
+    Ambient, Conductance, HeatSource, NODE_TEMPERATURE_RANGE_C, Operating, Segment, ThermalNetwork,
+    ThermalNode, ThermalSchedule,
 };
 use vmt_model::thermal_deformation::{
     AxisExpansion, JointThermalModel, LinkThermalModel, NodeSensitivity, ThermalDeformationModel,
@@ -416,7 +416,8 @@ fn direction_errors(
             return Err(Invalid::new(path.key("table"), msg).into());
         };
         let stroke = (spec.min_m, spec.max_m);
-        return table::read(&dir.join(file), axis, interpolation, stroke)
+        let key = path.key("table").to_string();
+        return table::read(&dir.join(file), &key, axis, interpolation, stroke)
             .map_err(BuildError::External);
     }
     if raw.interpolation.is_some() {
@@ -588,8 +589,8 @@ fn thermal(t: &ThermalToml, link_names: &[String; 5], path: &KeyPath) -> Result<
             initial_c: match n.initial_c {
                 Some(c) => Some(in_range(
                     c,
-                    -50.0,
-                    150.0,
+                    NODE_TEMPERATURE_RANGE_C.0,
+                    NODE_TEMPERATURE_RANGE_C.1,
                     &p.key("initial_c"),
                     "a temperature in °C",
                 )?),
@@ -691,7 +692,7 @@ fn ambient(a: &AmbientToml, p: &KeyPath) -> std::result::Result<Ambient, Invalid
             }
             let mut times_s = Vec::new();
             let mut celsius = Vec::new();
-            for (i, [t, c]) in points_h_c.iter().enumerate() {
+            for (i, Numbers([t, c])) in points_h_c.iter().enumerate() {
                 let t = finite(*t, &pp.index(i).index(0), "a time in h")?;
                 if let Some(last) = times_s.last()
                     && t * H <= *last
@@ -710,7 +711,7 @@ fn ambient(a: &AmbientToml, p: &KeyPath) -> std::result::Result<Ambient, Invalid
 }
 
 fn sensitivities(
-    map: &BTreeMap<String, [f64; 3]>,
+    map: &BTreeMap<String, Numbers<3>>,
     names: &BTreeMap<&str, usize>,
     limit: f64,
     path: &KeyPath,
@@ -808,7 +809,7 @@ fn thermal_run(run: &ThermalRunToml) -> std::result::Result<ThermalRunSpec, Inva
             "a spindle speed in rpm",
         )?;
         let mut v = [0.0; 3];
-        for (k, (slot, mm_min)) in v.iter_mut().zip(s.axis_speed_mm_min).enumerate() {
+        for (k, (slot, mm_min)) in v.iter_mut().zip(s.axis_speed_mm_min.0).enumerate() {
             let pk = p.key("axis_speed_mm_min").index(k);
             *slot = in_range(mm_min, 0.0, 1e6, &pk, "a mean axis speed in mm/min")? / 60_000.0;
         }

@@ -43,12 +43,7 @@ pub fn builtin() -> Result<Scenario, ScenarioError> {
 /// Parses scenario `text` named `file` in error messages; `base_dir` resolves table files
 /// (`None` refuses them).
 pub fn parse(text: &str, file: &str, base_dir: Option<&Path>) -> Result<Scenario, ScenarioError> {
-    let raw: schema::ScenarioFile = toml::from_str(text).map_err(|e| ScenarioError {
-        file: file.to_string(),
-        position: e.span().map(|s| error::line_col(text, s.start)),
-        key: None,
-        message: e.message().trim().to_string(),
-    })?;
+    let raw = read_toml(text, file)?;
     build::scenario(raw, base_dir).map_err(|e| match e {
         BuildError::External(e) => e,
         BuildError::Invalid(inv) => ScenarioError {
@@ -57,5 +52,22 @@ pub fn parse(text: &str, file: &str, base_dir: Option<&Path>) -> Result<Scenario
             key: Some(inv.path.to_string()),
             message: inv.message,
         },
+    })
+}
+
+/// Deserialises the document, naming the key of a wrong or unknown value
+/// (serde_path_to_error tracks the path the deserializer had reached).
+fn read_toml(text: &str, file: &str) -> Result<schema::ScenarioFile, ScenarioError> {
+    let toml_error = |e: toml::de::Error, key: Option<String>| ScenarioError {
+        file: file.to_string(),
+        position: e.span().map(|s| error::line_col(text, s.start)),
+        key,
+        message: e.message().trim().to_string(),
+    };
+    let de = toml::Deserializer::parse(text).map_err(|e| toml_error(e, None))?;
+    serde_path_to_error::deserialize(de).map_err(|e| {
+        let path = e.path().to_string();
+        let key = (path != "." && !path.is_empty()).then_some(path);
+        toml_error(e.into_inner(), key)
     })
 }

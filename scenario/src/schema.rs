@@ -4,8 +4,38 @@
 //! (°C), `_k` (kelvin difference), `_h`, `_s`, `_w_per_k`, `_j_per_k`. Unknown keys are refused,
 //! so a key in a wrong unit (`stroke_in`) is an error that lists the accepted keys.
 
-use serde::Deserialize;
+use serde::{Deserialize, Deserializer, de::Error as _};
 use std::collections::BTreeMap;
+use std::ops::Deref;
+
+/// Exactly `N` numbers. toml's deserializer lets a fixed-size array ignore extra elements, so
+/// `stroke_mm = [0, 500, 9]` would load silently; this type refuses any other length.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Numbers<const N: usize>(pub [f64; N]);
+
+impl<'de, const N: usize> Deserialize<'de> for Numbers<N> {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        let v = Vec::<f64>::deserialize(d)?;
+        let len = v.len();
+        let expected = format!("an array of {N} numbers");
+        v.try_into()
+            .map(Numbers)
+            .map_err(|_| D::Error::invalid_length(len, &expected.as_str()))
+    }
+}
+
+impl<const N: usize> Default for Numbers<N> {
+    fn default() -> Self {
+        Numbers([0.0; N])
+    }
+}
+
+impl<const N: usize> Deref for Numbers<N> {
+    type Target = [f64; N];
+    fn deref(&self) -> &[f64; N] {
+        &self.0
+    }
+}
 
 /// A whole scenario file.
 #[derive(Debug, Deserialize)]
@@ -33,7 +63,7 @@ pub struct MachineToml {
     pub thermal: Option<ThermalToml>,
     /// Pivots of the structural links' thermal rotations, by link name (e.g. `G-Z`).
     #[serde(default)]
-    pub link_pivots_mm: BTreeMap<String, [f64; 3]>,
+    pub link_pivots_mm: BTreeMap<String, Numbers<3>>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -41,7 +71,7 @@ pub struct MachineToml {
 pub struct ToolToml {
     pub length_mm: f64,
     #[serde(default)]
-    pub tcp_offset_mm: [f64; 2],
+    pub tcp_offset_mm: Numbers<2>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -55,7 +85,7 @@ pub struct AxesToml {
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct AxisToml {
-    pub stroke_mm: [f64; 2],
+    pub stroke_mm: Numbers<2>,
     pub moving_mass_kg: f64,
     pub drive: Option<crate::dynamics::DriveToml>,
     pub servo: Option<crate::dynamics::ServoToml>,
@@ -157,7 +187,7 @@ pub enum AmbientToml {
     },
     Table {
         /// `[[time_h, temperature_c], ...]`
-        points_h_c: Vec<[f64; 2]>,
+        points_h_c: Vec<Numbers<2>>,
     },
 }
 
@@ -175,9 +205,9 @@ pub struct ExpansionToml {
 #[serde(deny_unknown_fields)]
 pub struct SensitivityToml {
     #[serde(default)]
-    pub translation_um_per_k: BTreeMap<String, [f64; 3]>,
+    pub translation_um_per_k: BTreeMap<String, Numbers<3>>,
     #[serde(default)]
-    pub rotation_urad_per_k: BTreeMap<String, [f64; 3]>,
+    pub rotation_urad_per_k: BTreeMap<String, Numbers<3>>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -194,5 +224,5 @@ pub struct SegmentToml {
     #[serde(default)]
     pub spindle_rpm: f64,
     #[serde(default)]
-    pub axis_speed_mm_min: [f64; 3],
+    pub axis_speed_mm_min: Numbers<3>,
 }

@@ -4,15 +4,18 @@
 //! `X, EXX, EYX, EZX, EAX, EBX, ECX` with the position in mm, translations in µm and rotations in
 //! µrad. Columns may come in any order; every one is required.
 
+use crate::build::{MAX_ANGLE_URAD, MAX_TRANSLATION_UM};
 use crate::error::ScenarioError;
 use std::path::Path;
 use vmt_model::Axis;
 use vmt_model::geometric::{Component, ErrorFunction, ErrorTable, Interpolation};
 
 /// The six error functions (SI units) of `axis` read from the table at `path`, which must cover
-/// the stroke `[lo, hi]` (m).
+/// the stroke `[lo, hi]` (m); `key` is the scenario key that names the file, reported with every
+/// error so that the user knows which reference to fix.
 pub fn read(
     path: &Path,
+    key: &str,
     axis: Axis,
     interpolation: Interpolation,
     stroke: (f64, f64),
@@ -21,7 +24,7 @@ pub fn read(
     let fail = |position: Option<(usize, usize)>, message: String| ScenarioError {
         file: file.clone(),
         position,
-        key: None,
+        key: Some(key.to_string()),
         message,
     };
     let names: Vec<String> = std::iter::once(axis.letter().to_string())
@@ -64,6 +67,21 @@ pub fn read(
                         format!("column {name}: `{text}` is not a finite number"),
                     )
                 })?;
+            // Column 0 is the position; 1-3 translations, 4-6 rotations.
+            let (limit, unit) = match k {
+                0 => (f64::INFINITY, "mm"),
+                1..=3 => (MAX_TRANSLATION_UM, "µm"),
+                _ => (MAX_ANGLE_URAD, "µrad"),
+            };
+            if row[k].abs() > limit {
+                return Err(fail(
+                    Some((line, c + 1)),
+                    format!(
+                        "column {name}: {} {unit} is beyond the accepted ±{limit} {unit}",
+                        row[k]
+                    ),
+                ));
+            }
         }
         if let Some(prev) = rows.last()
             && row[0] <= prev[0]

@@ -178,6 +178,15 @@ fn table_positions_that_do_not_increase_are_refused_with_file_and_line() {
     let rows = "X,EXX,EYX,EZX,EAX,EBX,ECX\n0,0,0,0,0,0,0\n400,0,0,0,0,0,0\n";
     let e = load(&write_scenario_with_table(dir.path(), rows)).unwrap_err();
     assert!(e.message.contains("must cover the stroke"), "{e}");
+    assert_eq!(e.key.as_deref(), Some("machine.errors.x.forward.table"));
+    let rows = "X,EXX,EYX,EZX,EAX,EBX,ECX\n0,0,0,0,0,0,0\n500,0,0,0,0,0,2e4\n";
+    let e = load(&write_scenario_with_table(dir.path(), rows)).unwrap_err();
+    assert_eq!(e.position, Some((3, 7)));
+    assert!(
+        e.message
+            .contains("ECX: 20000 µrad is beyond the accepted ±10000 µrad"),
+        "{e}"
+    );
 }
 
 #[test]
@@ -190,5 +199,27 @@ fn the_display_names_file_line_column_and_key() {
         format!(
             "machine.toml:{line}:18: key `machine.axes.y.moving_mass_kg`: -450 is out of range; a mass in kg from 0 to 100000 is accepted"
         )
+    );
+}
+
+#[test]
+fn a_value_of_the_wrong_type_or_length_names_its_key() {
+    let text = with("moving_mass_kg = 250.0", "moving_mass_kg = \"heavy\"");
+    let e = error_of(&text);
+    assert_eq!(
+        e.key.as_deref(),
+        Some("machine.axes.x.moving_mass_kg"),
+        "{e}"
+    );
+    assert_eq!(e.position.unwrap().0, line_of(&text, "\"heavy\""));
+    assert!(e.message.contains("expected f64"), "{e}");
+    let text = with("stroke_mm = [0.0, 500.0]", "stroke_mm = [0.0, 500.0, 9.0]");
+    let e = error_of(&text);
+    assert_eq!(e.key.as_deref(), Some("machine.axes.x.stroke_mm"), "{e}");
+    assert_eq!(e.position.unwrap().0, line_of(&text, "9.0]"));
+    assert!(
+        e.message
+            .contains("invalid length 3, expected an array of 2 numbers"),
+        "{e}"
     );
 }

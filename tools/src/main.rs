@@ -282,9 +282,10 @@ fn map_temperatures(scenario: &Scenario, time_h: Option<f64>) -> Result<Vec<f64>
     let Some(h) = time_h else {
         return Ok(vec![REFERENCE_TEMPERATURE_C; n]);
     };
-    if !(h.is_finite() && h >= 0.0) {
+    if !(0.0..=points::MAX_TIME_S / 3600.0).contains(&h) {
         return Err(CliError::Argument(format!(
-            "--time-h {h}: a time >= 0 h is accepted"
+            "--time-h {h}: a time from 0 to {:.0} h is accepted",
+            points::MAX_TIME_S / 3600.0
         )));
     }
     let (Some(t), Some(run)) = (&scenario.machine.thermal, &scenario.thermal_run) else {

@@ -14,9 +14,9 @@ use nalgebra::Vector3;
 use std::io::Write;
 use std::path::Path;
 use vmt_model::Direction;
-use vmt_model::kinematics::AxisState;
+use vmt_model::kinematics::{AxisState, VolumetricEvaluator};
 use vmt_model::machine::Machine;
-use vmt_model::thermal::temperatures_at;
+use vmt_model::thermal::{NODE_TEMPERATURE_RANGE_C, temperatures_at};
 use vmt_model::thermal_deformation::REFERENCE_TEMPERATURE_C;
 use vmt_scenario::Scenario;
 
@@ -106,11 +106,14 @@ pub fn read(path: &Path, machine: &Machine) -> Result<Points, CliError> {
         }
         if let Some(c) = layout.time {
             let t = cell(c)?;
-            if t < 0.0 {
+            if !(0.0..=MAX_TIME_S).contains(&t) {
                 return Err(CliError::input(
                     &file,
                     Some(line),
-                    format!("time_s = {t}; a time >= 0 s in the thermal run is accepted"),
+                    format!(
+                        "time_s = {}; a time from 0 to {MAX_TIME_S:e} s is accepted",
+                        record.get(c).unwrap_or_default()
+                    ),
                 ));
             }
             times.push(t);
@@ -120,7 +123,7 @@ pub fn read(path: &Path, machine: &Machine) -> Result<Points, CliError> {
                 layout
                     .temps
                     .iter()
-                    .map(|c| cell(*c))
+                    .map(|c| temperature(cell(*c)?, &header[*c], &file, line))
                     .collect::<Result<Vec<_>, _>>()?,
             );
         }
@@ -172,6 +175,16 @@ impl Layout {
                 nodes.join(", ")
             }
         );
+        for (i, h) in header.iter().enumerate() {
+            if let Some(first) = header[..i].iter().position(|x| x == h) {
+                let msg = format!(
+                    "column `{h}` is given twice (columns {} and {})",
+                    first + 1,
+                    i + 1
+                );
+                return Err(CliError::input(file, Some(1), msg));
+            }
+        }
         let find = |name: &str| header.iter().position(|h| h == name);
         let mut position = [0; 3];
         for (slot, name) in position.iter_mut().zip(POSITION) {
@@ -242,6 +255,16 @@ fn number(
         })
 }
 
+/// A node temperature cell, refused outside [`NODE_TEMPERATURE_RANGE_C`].
+fn temperature(t: f64, column: &str, file: &str, line: usize) -> Result<f64, CliError> {
+    let (lo, hi) = NODE_TEMPERATURE_RANGE_C;
+    if (lo..=hi).contains(&t) {
+        return Ok(t);
+    }
+    let msg = format!("{column} = {t} °C; a temperature from {lo} to {hi} °C is accepted");
+    Err(CliError::input(file, Some(line), msg))
+}
+
 /// The volumetric error (m) of every point.
 pub fn evaluate(scenario: &Scenario, points: &Points) -> Result<Vec<Vector3<f64>>, CliError> {
     let machine = &scenario.machine;
@@ -264,16 +287,24 @@ pub fn evaluate(scenario: &Scenario, points: &Points) -> Result<Vec<Vector3<f64>
                 .map_err(|e| CliError::Model(e.to_string()))?
         }
     };
-    points
-        .states
-        .iter()
-        .zip(&temps)
-        .map(|(s, t)| {
-            machine
-                .volumetric_error(s, t)
-                .map_err(|e| CliError::Model(e.to_string()))
-        })
-        .collect()
+    // One evaluator per thermal state: rows at the same temperatures (all of them at 20 °C)
+    // share it instead of recompiling the chain per point.
+    let mut errors = Vec::with_capacity(points.states.len());
+    let mut cached: Option<(&[f64], VolumetricEvaluator)> = None;
+    for (state, t) in points.states.iter().zip(&temps) {
+        let evaluator = match cached.take() {
+            Some((at, e)) if at == t.as_slice() => e,
+            _ => {
+                let d = machine
+                    .thermal_deformation(t)
+                    .map_err(|e| CliError::Model(e.to_string()))?;
+                machine.volumetric.evaluator(&d)
+            }
+        };
+        errors.push(evaluator.volumetric_error(state));
+        cached = Some((t, evaluator));
+    }
+    Ok(errors)
 }
 
 /// Writes `dx_um,dy_um,dz_um` rows (CSV) or objects (JSON).

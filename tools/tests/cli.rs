@@ -4,7 +4,9 @@ use std::path::Path;
 use std::process::{Command, Output};
 
 fn vmt(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_vmt"))
+    // coreutils `timeout`: a command that hangs fails its test instead of stalling the suite.
+    Command::new("timeout")
+        .args(["300", env!("CARGO_BIN_EXE_vmt")])
         .args(args)
         .output()
         .unwrap()
@@ -114,6 +116,25 @@ fn a_missing_column_is_refused_naming_it() {
     let e = stderr(&o);
     assert!(e.contains("p.csv:1: missing column z_mm"), "{e}");
     assert!(e.contains("accepted columns"), "{e}");
+    let csv = write(dir.path(), "d.csv", "x_mm,y_mm,z_mm,y_mm\n1,2,3,4\n");
+    let e = stderr(&vmt(&["volumetric", "--points", &csv]));
+    assert!(
+        e.contains("d.csv:1: column `y_mm` is given twice (columns 2 and 4)"),
+        "{e}"
+    );
+    let header = "x_mm,y_mm,z_mm,temp_spindle_c,temp_column_c,temp_bed_c,temp_x_screw_c,temp_y_screw_c,temp_z_screw_c";
+    let csv = write(
+        dir.path(),
+        "t.csv",
+        &format!("{header}\n1,2,3,20,20,20,20,20,900\n"),
+    );
+    let e = stderr(&vmt(&["volumetric", "--points", &csv]));
+    assert!(
+        e.contains(
+            "t.csv:2: temp_z_screw_c = 900 °C; a temperature from -50 to 150 °C is accepted"
+        ),
+        "{e}"
+    );
 }
 
 #[test]

@@ -6,7 +6,9 @@ use std::process::{Command, Output};
 use vmt_sim::nc::{ArcDirection, Motion, Plane, ballbar::CircularTest, parse};
 
 fn vmt(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_vmt"))
+    // coreutils `timeout`: a command that hangs fails its test instead of stalling the suite.
+    Command::new("timeout")
+        .args(["300", env!("CARGO_BIN_EXE_vmt")])
         .args(args)
         .output()
         .unwrap()

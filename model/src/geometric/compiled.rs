@@ -191,6 +191,7 @@ fn segment(positions: &[f64], uniform: Option<f64>, q: f64) -> usize {
             }
             i
         }
-        None => positions.partition_point(|&p| p <= q) - 1,
+        // saturating: a NaN `q` gives the first segment instead of a panic.
+        None => positions.partition_point(|&p| p <= q).saturating_sub(1),
     }
 }

@@ -38,15 +38,6 @@ impl ErrorFunction {
             ErrorFunction::Table(t) => t.values.iter().all(|v| *v == 0.0),
         }
     }
-
-    /// The interval `[lo, hi]` (m) on which the function is defined, if it is bounded.
-    pub fn domain(&self) -> Option<(f64, f64)> {
-        match self {
-            ErrorFunction::Zero => None,
-            ErrorFunction::Legendre(s) => Some((s.q_min, s.q_max)),
-            ErrorFunction::Table(t) => Some((t.positions[0], t.positions[t.positions.len() - 1])),
-        }
-    }
 }
 
 /// What is wrong with the data of an error function.
@@ -230,7 +221,8 @@ impl ErrorTable {
         if q >= self.positions[n - 1] {
             return self.values[n - 1];
         }
-        let i = self.positions.partition_point(|&p| p <= q) - 1;
+        // saturating: a NaN `q` gives the first segment instead of a panic.
+        let i = self.positions.partition_point(|&p| p <= q).saturating_sub(1);
         let (q0, q1) = (self.positions[i], self.positions[i + 1]);
         let (v0, v1) = (self.values[i], self.values[i + 1]);
         let weights = SegmentWeights::new(q, q0, q1, self.interpolation);

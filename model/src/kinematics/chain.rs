@@ -43,7 +43,9 @@ pub struct Kinematics {
     pub topology: Topology,
     /// Tool centre point in the spindle frame, m: (TCP x, TCP y, -tool length).
     pub tool_offset: Vector3<f64>,
-    /// Pivot of each structural link's thermal rotation, m, in machine coordinates.
+    /// Pivot of each structural link's thermal rotation, m, in the link's own frame: the
+    /// machine frame as it is with every axis at zero (nominal links are identities, so the two
+    /// coincide there); the pivot moves with the carriages that precede the link in the chain.
     pub link_pivots: [Vector3<f64>; 5],
 }
 

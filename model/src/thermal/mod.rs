@@ -102,6 +102,11 @@ pub use network::{
 };
 pub use schedule::{Segment, ThermalRun, ThermalSchedule, temperatures_at};
 
+/// Range of structure temperatures the model accepts as input, °C: a machine in a shop or a
+/// climate chamber, with a spindle housing that may run hot; outside it the linear expansion
+/// coefficients of the deformation model no longer hold.
+pub const NODE_TEMPERATURE_RANGE_C: (f64, f64) = (-50.0, 150.0);
+
 /// Everything that can go wrong when building or running a thermal model.
 ///
 /// Each variant names the offending node, conductance, heat source,
