@@ -3,13 +3,16 @@
 
 use crate::build::BuildError;
 use crate::error::{Invalid, KeyPath};
+use crate::schema::Numbers;
 use nalgebra::Vector3;
 use serde::Deserialize;
 use std::path::Path;
+use vmt_model::Axis;
 use vmt_model::drive::{DriveParams, Feedback, LuGreParams, ScrewParams, ServoParams};
 use vmt_sim::ballbar::BallbarSpec;
 use vmt_sim::interpolator::{InterpolatorConfig, Limits};
-use vmt_sim::nc::{ArcDirection, CircularTest, Plane, parse};
+use vmt_sim::laser::{LaserSetup, LaserSpec, PositioningTest};
+use vmt_sim::nc::{ArcDirection, CircularTest, Plane, kwon_steps, parse};
 use vmt_sim::plant::Fidelity;
 use vmt_sim::simulate::{AxisDynamics, BallbarSetup, Job, SimSettings};
 
@@ -75,7 +78,7 @@ pub struct ControllerToml {
     pub max_feed_mm_min: f64,
     pub path_accel_m_s2: f64,
     pub path_jerk_m_s3: f64,
-    pub axis_accel_m_s2: [f64; 3],
+    pub axis_accel_m_s2: Numbers<3>,
     pub corner_tolerance_um: f64,
     #[serde(default)]
     pub exact_stop: bool,
@@ -105,7 +108,7 @@ fn khz() -> f64 {
 pub enum JobToml {
     Ballbar {
         plane: String,
-        center_mm: [f64; 3],
+        center_mm: Numbers<3>,
         radius_mm: f64,
         feed_mm_min: f64,
         #[serde(default = "full")]
@@ -116,6 +119,45 @@ pub enum JobToml {
     Program {
         program: String,
     },
+    /// ISO 230-2 linear positioning test with a laser interferometer.
+    #[serde(rename = "iso230_2")]
+    Iso230_2(PositioningToml),
+    /// Kwon's seven-step ball-bar procedure, the steps in a row.
+    #[serde(rename = "kwon_seven_step")]
+    KwonSevenStep {
+        #[serde(default = "kwon_pivot")]
+        pivot_mm: Numbers<3>,
+        #[serde(default = "all_steps")]
+        steps: Vec<u8>,
+    },
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PositioningToml {
+    axis: String,
+    targets_mm: Option<Vec<f64>>,
+    range_mm: Option<Numbers<2>>,
+    count: Option<usize>,
+    #[serde(default = "five")]
+    runs: usize,
+    #[serde(default = "two")]
+    dwell_s: f64,
+    feed_mm_min: f64,
+    overrun_mm: f64,
+    beam_line_mm: Numbers<2>,
+}
+
+fn five() -> usize {
+    5
+}
+
+fn kwon_pivot() -> Numbers<3> {
+    Numbers(vmt_sim::nc::ballbar::KWON_SCENARIO_PIVOT_MM)
+}
+
+fn all_steps() -> Vec<u8> {
+    (1..=7).collect()
 }
 
 fn full() -> f64 {
@@ -130,6 +172,38 @@ fn both() -> Vec<String> {
 #[serde(deny_unknown_fields)]
 pub struct InstrumentsToml {
     pub ballbar: Option<BallbarToml>,
+    pub laser: Option<LaserToml>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LaserToml {
+    #[serde(default = "one")]
+    pub resolution_nm: f64,
+    #[serde(default)]
+    pub noise_nm: f64,
+    #[serde(default = "khz")]
+    pub sample_rate_hz: f64,
+    #[serde(default = "one")]
+    pub averaging_s: f64,
+    #[serde(default)]
+    pub air_temperature_error_k: f64,
+    #[serde(default)]
+    pub air_pressure_error_hpa: f64,
+    #[serde(default)]
+    pub humidity_error_percent: f64,
+    #[serde(default)]
+    pub material_temperature_error_k: f64,
+    #[serde(default = "steel")]
+    pub material_alpha_per_k: f64,
+    #[serde(default)]
+    pub dead_path_mm: f64,
+    #[serde(default)]
+    pub air_drift_k_per_h: f64,
+}
+
+fn one() -> f64 {
+    1.0
 }
 
 #[derive(Debug, Deserialize)]
@@ -142,7 +216,7 @@ pub struct BallbarToml {
     #[serde(default = "khz")]
     pub sample_rate_hz: f64,
     #[serde(default)]
-    pub setup_eccentricity_um: [f64; 3],
+    pub setup_eccentricity_um: Numbers<3>,
     #[serde(default = "twenty")]
     pub bar_temperature_c: f64,
     #[serde(default = "steel")]
@@ -320,7 +394,7 @@ pub fn controller(c: &ControllerToml) -> R<(InterpolatorConfig, usize)> {
     let p = KeyPath::of(&["controller"]);
     let mm_min = 1.0 / 60_000.0;
     let mut axis_accel = [0.0; 3];
-    for (i, (slot, v)) in axis_accel.iter_mut().zip(c.axis_accel_m_s2).enumerate() {
+    for (i, (slot, v)) in axis_accel.iter_mut().zip(c.axis_accel_m_s2.0).enumerate() {
         *slot = pos(v, &p.key("axis_accel_m_s2").index(i), "an acceleration")?;
     }
     let rapid = pos(c.rapid_mm_min, &p.key("rapid_mm_min"), "a rapid rate")? * mm_min;
@@ -392,13 +466,62 @@ fn ballbar_spec(b: Option<&BallbarToml>) -> R<BallbarSpec> {
         resolution_m: nonneg(b.resolution_um, &p.key("resolution_um"), "a resolution")? * 1e-6,
         noise_m: nonneg(b.noise_um, &p.key("noise_um"), "a noise")? * 1e-6,
         sample_rate_hz: pos(b.sample_rate_hz, &p.key("sample_rate_hz"), "a sample rate")?,
-        setup_eccentricity_m: Vector3::from(b.setup_eccentricity_um) * 1e-6,
+        setup_eccentricity_m: Vector3::from(b.setup_eccentricity_um.0) * 1e-6,
         bar_temperature_c: b.bar_temperature_c,
         bar_alpha_per_k: b.bar_alpha_per_k,
     })
 }
 
-/// The job, its program and ball bar; `base_dir` resolves program files.
+fn laser_spec(l: Option<&LaserToml>) -> R<LaserSpec> {
+    let Some(l) = l else {
+        return Ok(LaserSpec::default());
+    };
+    let p = KeyPath::of(&["instruments", "laser"]);
+    let finite = |v: f64, k: &str| -> R<f64> {
+        if v.is_finite() {
+            Ok(v)
+        } else {
+            Err(Invalid::new(
+                p.key(k),
+                format!("{v} is not accepted; a finite number"),
+            ))
+        }
+    };
+    Ok(LaserSpec {
+        resolution_m: nonneg(l.resolution_nm, &p.key("resolution_nm"), "a resolution")? * 1e-9,
+        noise_m: nonneg(l.noise_nm, &p.key("noise_nm"), "a noise")? * 1e-9,
+        sample_rate_hz: pos(l.sample_rate_hz, &p.key("sample_rate_hz"), "a sample rate")?,
+        averaging_s: pos(l.averaging_s, &p.key("averaging_s"), "an averaging time")?,
+        air_temperature_error_k: finite(l.air_temperature_error_k, "air_temperature_error_k")?,
+        air_pressure_error_hpa: finite(l.air_pressure_error_hpa, "air_pressure_error_hpa")?,
+        humidity_error_percent: finite(l.humidity_error_percent, "humidity_error_percent")?,
+        material_temperature_error_k: finite(
+            l.material_temperature_error_k,
+            "material_temperature_error_k",
+        )?,
+        material_alpha_per_k: nonneg(
+            l.material_alpha_per_k,
+            &p.key("material_alpha_per_k"),
+            "an expansion coefficient",
+        )?,
+        dead_path_m: nonneg(l.dead_path_mm, &p.key("dead_path_mm"), "a dead path")? * 1e-3,
+        air_drift_k_per_s: finite(l.air_drift_k_per_h, "air_drift_k_per_h")? / 3600.0,
+    })
+}
+
+fn plane_of(name: &str, path: KeyPath) -> R<Plane> {
+    match name.to_ascii_uppercase().as_str() {
+        "XY" => Ok(Plane::Xy),
+        "ZX" | "XZ" => Ok(Plane::Zx),
+        "YZ" => Ok(Plane::Yz),
+        other => Err(Invalid::new(
+            path,
+            format!("`{other}` is not accepted; XY, ZX or YZ"),
+        )),
+    }
+}
+
+/// The job, its program and instruments; `base_dir` resolves program files.
 pub fn job(
     j: &JobToml,
     instruments: &InstrumentsToml,
@@ -415,18 +538,7 @@ pub fn job(
             arc_deg,
             directions,
         } => {
-            let plane = match plane.to_ascii_uppercase().as_str() {
-                "XY" => Plane::Xy,
-                "ZX" | "XZ" => Plane::Zx,
-                "YZ" => Plane::Yz,
-                other => {
-                    return Err(Invalid::new(
-                        p.key("plane"),
-                        format!("`{other}` is not accepted; XY, ZX or YZ"),
-                    )
-                    .into());
-                }
-            };
+            let plane = plane_of(plane, p.key("plane"))?;
             let dirs = directions
                 .iter()
                 .enumerate()
@@ -439,7 +551,7 @@ pub fn job(
                     )),
                 })
                 .collect::<R<Vec<_>>>()?;
-            let center = Vector3::from(*center_mm) * 1e-3;
+            let center = Vector3::from(center_mm.0) * 1e-3;
             let mut test =
                 CircularTest::iso230_4(plane, center, radius_mm * 1e-3, feed_mm_min / 60_000.0);
             test.arc_deg = *arc_deg;
@@ -450,15 +562,20 @@ pub fn job(
                 .map_err(|e| Invalid::new(p.clone(), e.to_string()))?;
             let data = test.data_blocks(&program).unwrap_or_default();
             let spec = ballbar_spec(instruments.ballbar.as_ref())?;
-            let ballbar = Some(BallbarSetup {
+            let ballbar = vec![BallbarSetup {
+                name: None,
                 spec,
                 center,
                 radius_m: test.radius_m,
                 plane,
                 feed_m_s: test.feed_m_s,
                 data,
-            });
-            Ok(Job { program, ballbar })
+            }];
+            Ok(Job {
+                program,
+                ballbar,
+                laser: None,
+            })
         }
         JobToml::Program { program } => {
             let Some(dir) = base_dir else {
@@ -477,10 +594,213 @@ pub fn job(
             })?;
             Ok(Job {
                 program,
-                ballbar: None,
+                ballbar: Vec::new(),
+                laser: None,
             })
         }
+        JobToml::Iso230_2(t) => Ok(positioning_job(t, instruments)?),
+        JobToml::KwonSevenStep { pivot_mm, steps } => Ok(kwon_job(pivot_mm, steps, instruments)?),
     }
+}
+
+/// The ISO 230-2 targets: `targets_mm`, or `count` evenly spaced over `range_mm`, m.
+fn targets(
+    list: &Option<Vec<f64>>,
+    range: &Option<[f64; 2]>,
+    count: &Option<usize>,
+    p: &KeyPath,
+) -> R<Vec<f64>> {
+    let mm = match (list, range, count) {
+        (Some(t), None, None) => t.clone(),
+        (None, Some([a, b]), Some(n)) => {
+            if !(a.is_finite() && b.is_finite() && b > a) {
+                return Err(Invalid::new(
+                    p.key("range_mm"),
+                    format!("[{a}, {b}] is not accepted; an increasing pair of finite numbers"),
+                ));
+            }
+            if *n < 2 {
+                return Err(Invalid::new(
+                    p.key("count"),
+                    format!(
+                        "{n} is not accepted; at least 2 targets (ISO 230-2 asks for 5 per metre, at least 5)"
+                    ),
+                ));
+            }
+            (0..*n)
+                .map(|i| a + (b - a) * i as f64 / (*n - 1) as f64)
+                .collect()
+        }
+        _ => {
+            return Err(Invalid::new(
+                p.clone(),
+                "give the targets as targets_mm = [..] or as range_mm = [first, last] with count = n",
+            ));
+        }
+    };
+    if mm.len() < 2 || mm.iter().any(|v| !v.is_finite()) || mm.windows(2).any(|w| w[1] <= w[0]) {
+        return Err(Invalid::new(
+            p.key("targets_mm"),
+            "at least two finite target positions in increasing order (mm)",
+        ));
+    }
+    Ok(mm.into_iter().map(|v| v * 1e-3).collect())
+}
+
+fn positioning_job(j: &PositioningToml, instruments: &InstrumentsToml) -> R<Job> {
+    let PositioningToml {
+        axis,
+        targets_mm,
+        range_mm,
+        count,
+        runs,
+        dwell_s,
+        feed_mm_min,
+        overrun_mm,
+        beam_line_mm,
+    } = j;
+    let p = KeyPath::of(&["job"]);
+    let axis = match axis.to_ascii_uppercase().as_str() {
+        "X" => Axis::X,
+        "Y" => Axis::Y,
+        "Z" => Axis::Z,
+        other => {
+            return Err(Invalid::new(
+                p.key("axis"),
+                format!("`{other}` is not accepted; X, Y or Z"),
+            ));
+        }
+    };
+    if *runs < 2 {
+        return Err(Invalid::new(
+            p.key("runs"),
+            format!("{runs} is not accepted; at least 2 runs (ISO 230-2 asks for 5)"),
+        ));
+    }
+    let mut line = Vector3::zeros();
+    let others: Vec<usize> = (0..3).filter(|&i| i != axis.index()).collect();
+    for (k, (&i, v)) in others.iter().zip(beam_line_mm.0).enumerate() {
+        if !v.is_finite() {
+            return Err(Invalid::new(
+                p.key("beam_line_mm").index(k),
+                format!("{v} is not accepted; a finite coordinate (mm)"),
+            ));
+        }
+        line[i] = v * 1e-3;
+    }
+    let dwell = pos(*dwell_s, &p.key("dwell_s"), "a dwell")?;
+    let spec = laser_spec(instruments.laser.as_ref())?;
+    if spec.averaging_s > dwell {
+        return Err(Invalid::new(
+            KeyPath::of(&["instruments", "laser", "averaging_s"]),
+            format!(
+                "{} s is not accepted; the averaging must fit in the dwell (job.dwell_s = {dwell} s)",
+                spec.averaging_s
+            ),
+        ));
+    }
+    let test = PositioningTest {
+        axis,
+        targets_m: targets(targets_mm, &range_mm.map(|r| r.0), count, &p)?,
+        line_m: line,
+        runs: *runs,
+        dwell_s: dwell,
+        feed_m_s: pos(*feed_mm_min, &p.key("feed_mm_min"), "a feed")? / 60_000.0,
+        overrun_m: pos(*overrun_mm, &p.key("overrun_mm"), "an overrun")? * 1e-3,
+    };
+    test.validate().map_err(|m| Invalid::new(p.clone(), m))?;
+    let (text, datum_block, measurements) = test.gcode();
+    let program =
+        parse(&text, test.start_point()).map_err(|e| Invalid::new(p.clone(), e.to_string()))?;
+    test.check_program(&program, datum_block, &measurements)
+        .map_err(|e| Invalid::new(p.clone(), e.to_string()))?;
+    Ok(Job {
+        program,
+        ballbar: Vec::new(),
+        laser: Some(LaserSetup {
+            spec,
+            test,
+            datum_block,
+            measurements,
+        }),
+    })
+}
+
+/// Kwon's steps in a row as one program (each step's program without its M30, the bar
+/// remounted at the next step's start point), one ball-bar set-up per step.
+fn kwon_job(pivot_mm: &[f64; 3], steps: &[u8], instruments: &InstrumentsToml) -> R<Job> {
+    let p = KeyPath::of(&["job"]);
+    if pivot_mm.iter().any(|v| !v.is_finite()) {
+        return Err(Invalid::new(
+            p.key("pivot_mm"),
+            "every coordinate of the centre ball must be a finite number (mm)",
+        ));
+    }
+    let all = kwon_steps(Vector3::from(*pivot_mm) * 1e-3);
+    if steps.is_empty() {
+        return Err(Invalid::new(
+            p.key("steps"),
+            "give at least one step, 1 to 7",
+        ));
+    }
+    let spec = ballbar_spec(instruments.ballbar.as_ref())?;
+    let mut text = String::new();
+    let mut ballbar = Vec::new();
+    let mut blocks = 0;
+    for (k, &n) in steps.iter().enumerate() {
+        let Some(step) = all.iter().find(|s| s.number == n) else {
+            return Err(Invalid::new(
+                p.key("steps").index(k),
+                format!("{n} is not accepted; Kwon's steps are 1 to 7"),
+            ));
+        };
+        let t = &step.test;
+        let gcode: String = t
+            .gcode_with_header(&[&format!("Kwon's seven-step procedure, step {n}")])
+            .lines()
+            .filter(|l| l.trim() != "M30")
+            .map(|l| format!("{l}\n"))
+            .collect();
+        let own =
+            parse(&gcode, t.start_point()).map_err(|e| Invalid::new(p.clone(), e.to_string()))?;
+        let data = t.data_blocks(&own).ok_or_else(|| {
+            Invalid::new(
+                p.clone(),
+                format!("step {n}: its program lost its data arcs"),
+            )
+        })?;
+        ballbar.push(BallbarSetup {
+            name: Some(format!("step {n}")),
+            spec,
+            center: step.pivot,
+            radius_m: step.link_length_m,
+            plane: t.plane,
+            feed_m_s: t.feed_m_s,
+            data: data
+                .into_iter()
+                .map(|(d, r)| (d, r.start + blocks..r.end + blocks))
+                .collect(),
+        });
+        blocks += own.blocks.len();
+        text.push_str(&gcode);
+    }
+    text.push_str("M30\n");
+    let start = all
+        .iter()
+        .find(|s| s.number == steps[0])
+        .map_or(Vector3::zeros(), |s| s.test.start_point());
+    let program = parse(&text, start).map_err(|e| Invalid::new(p.clone(), e.to_string()))?;
+    if program.blocks.len() != blocks {
+        return Err(Invalid::new(
+            p.clone(),
+            "the joined program of the steps does not parse as its parts",
+        ));
+    }
+    Ok(Job {
+        program,
+        ballbar,
+        laser: None,
+    })
 }
 
 /// All axes' dynamics, if every axis has both a drive and a servo section.

@@ -7,11 +7,13 @@
 //!   interpolation period and fine interpolation down to the servo rate.
 //! - [`plant`]: the moving assemblies and their drives, reduced or rapier3d multibody.
 //! - [`simulate`]: runs a job through interpolator, controllers, plant, error chain and
-//!   instruments ([`ballbar`]); [`truth`] writes its ground truth.
+//!   instruments ([`ballbar`], [`laser`]: the ISO 230-2 positioning test); [`truth`] writes its
+//!   ground truth.
 //! - [`run`]: what a simulation produces: time-stamped streams, ball-bar traces, ground truth.
 
 pub mod ballbar;
 pub mod interpolator;
+pub mod laser;
 pub mod nc;
 pub mod plant;
 pub mod run;

@@ -8,11 +8,14 @@
 //! `command_a` (m), `position_a` (m, the carriage), `encoder_a` (m, quantised motor encoder),
 //! `following_error_a` (m), `motor_force_a` (N), `motor_current_a` (A), `guide_friction_a` (N),
 //! `screw_friction_a` (N), and `tool_x`, `tool_y`, `tool_z` (m, the actual tool point relative to
-//! the workpiece through the error chain). Ball-bar traces are kept as [`BallbarTrace`]s.
+//! the workpiece through the error chain). Ball-bar traces are kept as [`BallbarTrace`]s, the
+//! laser readings of a positioning test as a [`LaserRun`].
 //! Times are simulation time in seconds from the start of the job; there is no wall clock in a
 //! run, so the same scenario and seed give the same run.
 
 use serde::Serialize;
+
+pub use crate::laser::{LaserReading, LaserRun};
 
 /// One recorded quantity.
 #[derive(Clone, Debug, PartialEq, Serialize)]
@@ -97,6 +100,8 @@ pub struct Run {
     pub streams: Vec<Stream>,
     /// Ball-bar traces, one per direction of each circular test.
     pub ballbar: Vec<BallbarTrace>,
+    /// Laser readings of an ISO 230-2 positioning test, if the job is one.
+    pub laser: Option<LaserRun>,
     /// Every injected parameter and derived figure, as a JSON object (the truth a diagnosis is
     /// scored against).
     pub ground_truth: serde_json::Value,

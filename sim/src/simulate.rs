@@ -17,6 +17,7 @@
 
 use crate::ballbar::{Ballbar, BallbarSpec};
 use crate::interpolator::{Interpolator, InterpolatorConfig, InterpolatorError, Setpoint};
+use crate::laser::{Laser, LaserSetup};
 use crate::nc::program::{ArcDirection, Plane, Program, Spindle};
 use crate::plant::{Fidelity, MultibodyPlant, Plant, PlantError, ReducedPlant, layout};
 use crate::run::{BallbarTrace, Channel, MachineSummary, Run, Stream};
@@ -24,7 +25,7 @@ use nalgebra::Vector3;
 use std::ops::Range;
 use thiserror::Error;
 use vmt_model::drive::{AxisCommand, Drive, DriveParams, ServoParams};
-use vmt_model::kinematics::AxisState;
+use vmt_model::kinematics::{AxisState, VolumetricEvaluator};
 use vmt_model::machine::Machine;
 use vmt_model::thermal::{Operating, ThermalStepper};
 use vmt_model::{Axis, Direction, DirectionTracker};
@@ -54,6 +55,8 @@ pub struct SimSettings {
 /// A ball bar mounted for a circular test, and which blocks are its data arcs.
 #[derive(Clone, Debug)]
 pub struct BallbarSetup {
+    /// Name of the test, prefixed to its trace labels (e.g. `step 1`), if any.
+    pub name: Option<String>,
     /// The instrument.
     pub spec: BallbarSpec,
     /// Nominal centre of the circle, m.
@@ -73,8 +76,21 @@ pub struct BallbarSetup {
 pub struct Job {
     /// The NC program.
     pub program: Program,
-    /// The ball bar, for circular tests.
-    pub ballbar: Option<BallbarSetup>,
+    /// The ball bar, one set-up per circular test (the bar is remounted between tests).
+    pub ballbar: Vec<BallbarSetup>,
+    /// The laser interferometer, for a positioning test.
+    pub laser: Option<LaserSetup>,
+}
+
+impl Job {
+    /// Feed of the job's test, m/s: the first circular test's, else the positioning test's, else 0.
+    pub fn test_feed_m_s(&self) -> f64 {
+        match (self.ballbar.first(), &self.laser) {
+            (Some(b), _) => b.feed_m_s,
+            (None, Some(l)) => l.test.feed_m_s,
+            (None, None) => 0.0,
+        }
+    }
 }
 
 /// Why a job cannot run.
@@ -154,8 +170,10 @@ pub fn simulate(
     }
     let start = job.program.start - tcp;
     let mut plant = build_plant(machine, axes, &start, settings.fidelity, h)?;
-    let mut recorder = Recorder::new(job, settings, period);
+    let mut recorder = Recorder::new(job, settings, period, &interpolator.block_times());
     let mut heat = HeatTracker::new(machine)?;
+    // Link and joint matrices of the current thermal state, rebuilt only when it changes.
+    let mut evaluator = machine.volumetric.evaluator(&heat.deformation);
     let ticks = interpolator.servo_ticks();
     let mut trackers =
         Axis::ALL.map(|a| DirectionTracker::new(start[a.index()], Direction::Forward, 0.05e-6));
@@ -175,7 +193,9 @@ pub fn simulate(
         let carriages = plant.carriages();
         let q = Vector3::from_fn(|i, _| carriages[i].position_m);
         let direction = std::array::from_fn(|i| trackers[i].update(q[i]));
-        heat.accumulate(&sp, &carriages.map(|c| c.velocity_m_s), period, machine)?;
+        if heat.accumulate(&sp, &carriages.map(|c| c.velocity_m_s), period, machine)? {
+            evaluator = machine.volumetric.evaluator(&heat.deformation);
+        }
         recorder.record(
             k,
             &sp,
@@ -185,7 +205,7 @@ pub fn simulate(
                 direction,
             },
             machine,
-            &heat,
+            &evaluator,
         )?;
         if k.is_multiple_of((ticks / 100).max(1)) {
             progress(k as f64 / ticks as f64);
@@ -295,16 +315,16 @@ impl HeatTracker {
     }
 
     /// Adds one servo period of motion; every thermal period, steps the network with the mean
-    /// heat of that period.
+    /// heat of that period. Returns whether the deformation changed.
     fn accumulate(
         &mut self,
         sp: &Setpoint,
         v: &[f64; 3],
         dt: f64,
         machine: &Machine,
-    ) -> Result<(), SimError> {
+    ) -> Result<bool, SimError> {
         let (Some(stepper), Some(thermal)) = (&self.stepper, &machine.thermal) else {
-            return Ok(());
+            return Ok(false);
         };
         self.elapsed_s += dt;
         for (d, v) in self.distance_m.iter_mut().zip(v) {
@@ -315,7 +335,7 @@ impl HeatTracker {
             Spindle::Stopped => 0.0,
         };
         if self.elapsed_s + 1e-12 < THERMAL_PERIOD_S {
-            return Ok(());
+            return Ok(false);
         }
         let op = Operating {
             spindle_rpm: self.spindle_rev / self.elapsed_s,
@@ -334,7 +354,7 @@ impl HeatTracker {
         self.deformation = machine
             .thermal_deformation(&self.temps_c)
             .map_err(|e| SimError::Thermal(e.to_string()))?;
-        Ok(())
+        Ok(true)
     }
 }
 
@@ -356,29 +376,54 @@ struct Recorder {
     times: Vec<f64>,
     servo: Vec<Vec<f64>>,
     tool: [Vec<f64>; 3],
-    ballbar: Option<Ballbar>,
-    /// Program blocks of each trace's data arc.
-    data: Vec<Range<usize>>,
+    /// One bar per circular test.
+    ballbar: Vec<Ballbar>,
+    /// Test (index in `ballbar`) and program blocks of each trace's data arc.
+    data: Vec<(usize, Range<usize>)>,
     traces: Vec<BallbarTrace>,
+    laser: Option<Laser>,
 }
 
 impl Recorder {
-    fn new(job: &Job, settings: &SimSettings, period: f64) -> Self {
-        let log_every = ((1.0 / settings.log_rate_hz) / period).round().max(1.0) as usize;
-        let (ballbar, traces, bar_every) = match &job.ballbar {
-            Some(b) => {
-                let every = ((1.0 / b.spec.sample_rate_hz) / period).round().max(1.0) as usize;
-                let bar = Ballbar::new(b.spec, b.center, b.radius_m, b.plane, settings.seed);
-                let traces = b.data.iter().map(|(d, _)| new_trace(b, *d)).collect();
-                (Some(bar), traces, every)
-            }
-            None => (None, Vec::new(), usize::MAX),
-        };
+    /// `block_times` as [`Interpolator::block_times`] gives them.
+    fn new(
+        job: &Job,
+        settings: &SimSettings,
+        period: f64,
+        block_times: &[(usize, f64, f64)],
+    ) -> Self {
+        let every = |rate_hz: f64| ((1.0 / rate_hz) / period).round().max(1.0) as usize;
+        let log_every = every(settings.log_rate_hz);
+        let bar_every = job
+            .ballbar
+            .first()
+            .map_or(usize::MAX, |b| every(b.spec.sample_rate_hz));
+        // Test i's bar draws from seed + i: the first (or only) test keeps the run's seed.
+        let ballbar = job
+            .ballbar
+            .iter()
+            .enumerate()
+            .map(|(i, b)| {
+                let seed = settings.seed.wrapping_add(i as u64);
+                Ballbar::new(b.spec, b.center, b.radius_m, b.plane, seed)
+            })
+            .collect();
+        let traces = job
+            .ballbar
+            .iter()
+            .flat_map(|b| b.data.iter().map(|(d, _)| new_trace(b, *d)))
+            .collect();
         let data = job
             .ballbar
             .iter()
-            .flat_map(|b| b.data.iter().map(|(_, r)| r.clone()))
+            .enumerate()
+            .flat_map(|(i, b)| b.data.iter().map(move |(_, r)| (i, r.clone())))
             .collect();
+        // The laser's noise has its own stream ("laser" in ASCII added to the seed).
+        let laser = job.laser.as_ref().map(|l| {
+            let seed = settings.seed.wrapping_add(0x006c_6173_6572);
+            Laser::new(l, block_times, period, seed)
+        });
         Self {
             log_every,
             bar_every,
@@ -388,6 +433,7 @@ impl Recorder {
             ballbar,
             data,
             traces,
+            laser,
         }
     }
 
@@ -398,17 +444,26 @@ impl Recorder {
         plant: &dyn Plant,
         state: &AxisState,
         machine: &Machine,
-        heat: &HeatTracker,
+        evaluator: &VolumetricEvaluator,
     ) -> Result<(), SimError> {
         let log = k.is_multiple_of(self.log_every);
-        let bar = self.ballbar.is_some() && k.is_multiple_of(self.bar_every);
-        if !log && !bar {
+        let bar = !self.ballbar.is_empty() && k.is_multiple_of(self.bar_every);
+        let laser = self
+            .laser
+            .as_ref()
+            .and_then(|l| l.window_at(k, sp.time_s, sp.block));
+        if !log && !bar && laser.is_none() {
             return Ok(());
         }
-        let tool = machine
-            .volumetric
-            .evaluator(&heat.deformation)
-            .tool_point(state);
+        let tool = evaluator.tool_point(state);
+        if let (Some(l), Some(i)) = (&mut self.laser, laser) {
+            // The error chain alone: the tool point at the commanded axis positions.
+            let commanded = AxisState {
+                position: sp.position - machine.volumetric.kinematics.tool_offset,
+                direction: state.direction,
+            };
+            l.sample(i, sp.time_s, &tool, &evaluator.tool_point(&commanded));
+        }
         if log {
             self.times.push(sp.time_s);
             let carriages = plant.carriages();
@@ -432,10 +487,10 @@ impl Recorder {
             }
         }
         if bar
-            && let (Some(b), Some(block)) = (&mut self.ballbar, sp.block)
-            && let Some(j) = self.data.iter().position(|r| r.contains(&block))
+            && let Some(block) = sp.block
+            && let Some(j) = self.data.iter().position(|(_, r)| r.contains(&block))
         {
-            let (reading, angle) = b.read(&tool);
+            let (reading, angle) = self.ballbar[self.data[j].0].read(&tool);
             let t = &mut self.traces[j];
             let mut deg = angle.to_degrees();
             if let Some(last) = t.angle_deg.last() {
@@ -481,6 +536,7 @@ impl Recorder {
             times_s: self.times,
             channels,
         };
+        let laser = self.laser.map(Laser::finish);
         Run {
             scenario_name: machine.name.clone(),
             scenario_toml: scenario_toml.to_string(),
@@ -489,7 +545,8 @@ impl Recorder {
             machine: summary(machine),
             streams: vec![stream],
             ballbar: self.traces,
-            ground_truth: crate::truth::ground_truth(machine, axes, job),
+            ground_truth: crate::truth::ground_truth(machine, axes, job, laser.as_ref()),
+            laser: laser.map(|(run, _)| run),
         }
     }
 }
@@ -504,9 +561,10 @@ fn new_trace(b: &BallbarSetup, d: ArcDirection) -> BallbarTrace {
         ArcDirection::Cw => "cw",
         ArcDirection::Ccw => "ccw",
     };
+    let prefix = b.name.as_ref().map_or(String::new(), |n| format!("{n}: "));
     BallbarTrace {
         label: format!(
-            "{plane} {:.0} mm {:.0} mm/min {}",
+            "{prefix}{plane} {:.0} mm {:.0} mm/min {}",
             b.radius_m * 1e3,
             b.feed_m_s * 60_000.0,
             dir.to_uppercase()

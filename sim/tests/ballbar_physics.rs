@@ -28,14 +28,16 @@ fn circle_run(axes: [AxisDynamics; 3], feed_mm_min: f64, fidelity: Fidelity) -> 
     let data = test.data_blocks(&program).unwrap();
     let job = Job {
         program,
-        ballbar: Some(BallbarSetup {
+        ballbar: vec![BallbarSetup {
+            name: None,
             spec: BallbarSpec::default(),
             center,
             radius_m: 0.15,
             plane: Plane::Xy,
             feed_m_s: test.feed_m_s,
             data,
-        }),
+        }],
+        laser: None,
     };
     let settings = SimSettings {
         fidelity,

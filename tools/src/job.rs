@@ -1,7 +1,8 @@
 //! `vmt run` and `vmt demo`: execute a scenario's job and write its files.
 //!
 //! Writes into the output folder: `run.mcap` (Foxglove, Python `mcap`), `run.rrd` (Rerun
-//! viewer 0.36), `ballbar_polar.png` (one polar plot of all ball-bar traces) and
+//! viewer 0.36), `ballbar_polar.png` (one polar plot of all ball-bar traces), for a positioning
+//! test `laser_iso230_2.json` (the ISO 230-2 figures of the laser readings), and
 //! `ground_truth.json`.
 
 use crate::error::CliError;
@@ -10,6 +11,7 @@ use crate::plot::{self, Format};
 use indicatif::{ProgressBar, ProgressStyle};
 use std::path::{Path, PathBuf};
 use vmt_scenario::Scenario;
+use vmt_sim::laser::Iso230_2;
 use vmt_sim::plant::Fidelity;
 use vmt_sim::run::Run;
 use vmt_sim::simulate::simulate;
@@ -83,6 +85,13 @@ pub fn write(run: &Run, dir: &Path) -> Result<Written, CliError> {
         )?;
         files.push(polar);
     }
+    if let Some(l) = &run.laser {
+        let path = dir.join("laser_iso230_2.json");
+        let text = serde_json::to_string_pretty(&Iso230_2::of_run(l))
+            .map_err(|e| CliError::output(&path, e))?;
+        std::fs::write(&path, text).map_err(|e| CliError::output(&path, e))?;
+        files.push(path);
+    }
     let truth = dir.join("ground_truth.json");
     let text =
         serde_json::to_string_pretty(&run.ground_truth).map_err(|e| CliError::output(&truth, e))?;
@@ -92,8 +101,23 @@ pub fn write(run: &Run, dir: &Path) -> Result<Written, CliError> {
 }
 
 /// One line per ball-bar trace: radial span (max - min of the deviation, the ISO 230-4 radial
-/// deviation F about the nominal centre) and the mean.
+/// deviation F about the nominal centre) and the mean; for a positioning test, the ISO 230-2
+/// figures of the laser readings.
 pub fn summary_figures(run: &Run) -> String {
+    let laser = run.laser.as_ref().map(|l| {
+        let f = Iso230_2::of_run(l);
+        format!(
+            "ISO 230-2 {} ({} targets, {} runs): A {:.2} um, B {:.2} um, E {:.2} um, M {:.2} um, R {:.2} um",
+            l.axis,
+            l.targets_mm.len(),
+            l.runs,
+            f.a_um,
+            f.b_um,
+            f.e_um,
+            f.m_um,
+            f.r_um
+        )
+    });
     run.ballbar
         .iter()
         .map(|t| {
@@ -112,6 +136,7 @@ pub fn summary_figures(run: &Run) -> String {
                 t.deviation_um.len()
             )
         })
+        .chain(laser)
         .collect::<Vec<_>>()
         .join("\n")
 }

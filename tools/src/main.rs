@@ -109,7 +109,7 @@ struct ThermalArgs {
     /// Scenario file (TOML); the built-in default machine when omitted.
     scenario: Option<PathBuf>,
     /// Tool position whose drift is reported, mm, as x,y,z.
-    #[arg(long, value_delimiter = ',', num_args = 3, default_values_t = [250.0, 200.0, 200.0], allow_negative_numbers = true)]
+    #[arg(long, value_delimiter = ',', default_values_t = [250.0, 200.0, 200.0], allow_negative_numbers = true)]
     probe_mm: Vec<f64>,
     /// Sampling interval of the report, s.
     #[arg(long, default_value_t = 60.0)]
@@ -300,7 +300,13 @@ fn map_temperatures(scenario: &Scenario, time_h: Option<f64>) -> Result<Vec<f64>
 
 fn thermal_run(args: ThermalArgs) -> Result<(), CliError> {
     let scenario = load(args.scenario.as_deref())?;
-    let probe = Vector3::new(args.probe_mm[0], args.probe_mm[1], args.probe_mm[2]) * 1e-3;
+    let [x, y, z] = args.probe_mm[..] else {
+        return Err(CliError::Argument(format!(
+            "--probe-mm {:?}: three numbers x,y,z in mm are accepted",
+            args.probe_mm
+        )));
+    };
+    let probe = Vector3::new(x, y, z) * 1e-3;
     let h = thermal::run(&scenario, probe, args.every_s)?;
     let csv_path = args.out.join("thermal_run.csv");
     let mut w = create(&csv_path)?;

@@ -27,12 +27,9 @@ pub struct BallbarArgs {
     pub directions: Vec<ArcDirection>,
     /// Centre of the circle, mm, as x,y,z (default: the middle of the built-in machine's
     /// strokes).
-    #[arg(
-        long,
-        value_delimiter = ',',
-        num_args = 3,
-        allow_negative_numbers = true
-    )]
+    // No `num_args = 3`: clap counts `250,200,100` as one argument; the length is checked in
+    // `center`.
+    #[arg(long, value_delimiter = ',', allow_negative_numbers = true)]
     pub center_mm: Option<Vec<f64>>,
     /// Angle where the data arc starts, degrees, from the plane's first axis (+X in XY, +Z in
     /// ZX, +Y in YZ) towards its second.

@@ -156,6 +156,7 @@ fn test_run() -> Run {
         },
         streams: vec![servo_stream(&samples)],
         ballbar: traces(&samples),
+        laser: None,
         ground_truth: json!({
             "squareness_xy_urad": 40.0,
             "backlash_um": {"x": 1.0, "y": 0.0},
@@ -301,7 +302,7 @@ fn mcap_is_byte_identical_for_the_same_run() {
 fn writers_refuse_inconsistent_runs_without_panicking() {
     let dir = tempfile::tempdir().expect("temp dir");
     let mut run = test_run();
-    run.streams[0].channels[3].values.pop();
+    run.streams[0].channels[2].values.pop(); // encoder_x
     let e = write_mcap(&run, &dir.path().join("x.mcap")).expect_err("short channel");
     assert!(e.to_string().contains("encoder_x"), "{e}");
     let e = write_rrd(&run, &dir.path().join("x.rrd")).expect_err("short channel");
@@ -439,4 +440,68 @@ fn polar_plot_png_is_written_with_its_size() {
     draw_polar(&run.ballbar, &svg, Format::Svg, None).expect("svg");
     assert!(std::fs::read_to_string(&svg).is_ok_and(|s| s.contains("µm/div")));
     assert!(draw_polar(&[], &dir.path().join("none.png"), Format::Png, None).is_err());
+}
+
+/// The test run with an ISO 230-2 laser record: two targets, two runs, both directions.
+fn laser_run() -> Run {
+    use vmt_sim::run::{LaserReading, LaserRun};
+    let mut run = test_run();
+    let mut readings = Vec::new();
+    let mut t = 0.5;
+    for j in 1..=2 {
+        for (dir, targets) in [("forward", [1, 2]), ("backward", [2, 1])] {
+            for i in targets {
+                let target_mm = 100.0 * i as f64;
+                let deviation_um = 0.5 * i as f64 + if dir == "forward" { 0.0 } else { -2.0 };
+                readings.push(LaserReading {
+                    time_s: t,
+                    target: i,
+                    target_mm,
+                    direction: dir.into(),
+                    run: j,
+                    reading_mm: target_mm + deviation_um * 1e-3,
+                    deviation_um,
+                });
+                t += 1.0;
+            }
+        }
+    }
+    run.laser = Some(LaserRun {
+        axis: "X".into(),
+        targets_mm: vec![100.0, 200.0],
+        runs: 2,
+        line_mm: [0.0, 200.0, 200.0],
+        readings,
+    });
+    run
+}
+
+#[test]
+fn laser_readings_are_written_to_mcap_and_rrd() {
+    let run = laser_run();
+    let laser = run.laser.as_ref().expect("laser");
+    let dir = tempfile::tempdir().expect("temp dir");
+    let path = dir.path().join("laser.mcap");
+    write_mcap(&run, &path).expect("write mcap");
+    let s = python("read_mcap.py", &path);
+    let topic = &s["topics"]["/laser"];
+    assert_eq!(topic["schema_name"], "vmt.laser.Reading");
+    assert_eq!(topic["count"], laser.readings.len());
+    assert_eq!(topic["metadata"]["axis"], "X");
+    let first = &topic["first"];
+    assert_eq!(first["direction"], "forward");
+    assert_eq!(first["target"], 1);
+    assert_eq!(
+        first["deviation_um"].as_f64(),
+        Some(laser.readings[0].deviation_um)
+    );
+    assert_eq!(s["file_order_is_time_order"], true);
+
+    let rrd = dir.path().join("laser.rrd");
+    write_rrd(&run, &rrd).expect("write rrd");
+    let r = python("read_rrd.py", &rrd);
+    for d in ["forward", "backward"] {
+        let e = &r["entities"][format!("/series/laser_deviation_um/{d}").as_str()];
+        assert_eq!(e["rows"], 4, "{d}");
+    }
 }

@@ -222,7 +222,10 @@ impl ErrorTable {
             return self.values[n - 1];
         }
         // saturating: a NaN `q` gives the first segment instead of a panic.
-        let i = self.positions.partition_point(|&p| p <= q).saturating_sub(1);
+        let i = self
+            .positions
+            .partition_point(|&p| p <= q)
+            .saturating_sub(1);
         let (q0, q1) = (self.positions[i], self.positions[i + 1]);
         let (v0, v1) = (self.values[i], self.values[i + 1]);
         let weights = SegmentWeights::new(q, q0, q1, self.interpolation);

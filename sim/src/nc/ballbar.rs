@@ -56,9 +56,10 @@ pub const MAX_FEED_IN_M: f64 = 10e-3;
 /// Run-in and run-out overshoot of [`CircularTest::iso230_4`], degrees.
 pub const DEFAULT_OVERSHOOT_DEG: f64 = 45.0;
 /// Centre-ball position of the programs in `scenarios/kwon_seven_step/`, mm: the middle of the
-/// built-in machine's X and Y strokes (500 x 400 mm), 100 mm above Z = 0, which leaves room for
-/// the raised and inclined steps within its 400 mm Z stroke.
-pub const KWON_SCENARIO_PIVOT_MM: [f64; 3] = [250.0, 200.0, 100.0];
+/// built-in machine's X and Y strokes (500 x 400 mm), 60 mm above Z = 0: with the 100 mm tool
+/// the Z carriage stands 100 mm above the tool point, so the raised and inclined steps (up to
+/// 269 mm) stay within its 400 mm Z stroke.
+pub const KWON_SCENARIO_PIVOT_MM: [f64; 3] = [250.0, 200.0, 60.0];
 
 /// A circular test (ISO 230-4): the machine runs a circle at a constant feed, one or more
 /// times, while a ball bar between the tool and a centre ball records the radius.
@@ -1350,7 +1351,8 @@ mod tests {
 
     #[test]
     fn kwon_programs_fit_the_built_in_machine() {
-        // vmc500: X 0..500, Y 0..400, Z 0..400 mm.
+        // vmc500: carriages X 0..500, Y 0..400, Z 0..400 mm; the programmed tool point is the
+        // carriage position minus the 100 mm tool length, so its Z range is -100..300 mm.
         let pivot = Vector3::from(KWON_SCENARIO_PIVOT_MM) * MM;
         for s in kwon_steps(pivot) {
             let p = parsed(&s.test);
@@ -1359,7 +1361,7 @@ mod tests {
                 assert!(
                     (0.0..=500.0).contains(&q.x)
                         && (0.0..=400.0).contains(&q.y)
-                        && (0.0..=400.0).contains(&q.z),
+                        && (-100.0..=300.0).contains(&q.z),
                     "step {}: {q:?}",
                     s.number
                 );

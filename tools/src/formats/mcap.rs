@@ -22,7 +22,7 @@
 //! nanoseconds from the start of the job (`round(t_s · 1e9)`), never the wall clock. A file is a
 //! pure function of the run: the same run gives a byte-identical file. Messages are written in
 //! the order of their log time (ties: ground truth, then the streams in run order, then the
-//! ball-bar traces in run order), so the file plays back in time order without an index.
+//! ball-bar traces in run order, then the laser), so the file plays back in time order without an index.
 //!
 //! # Topics
 //!
@@ -31,6 +31,7 @@
 //! | `/ground_truth` | `vmt.GroundTruth` | one, at log time 0 | the run's ground-truth object as it is; its schema lists its fields |
 //! | `/<stream>`, e.g. `/servo` | `vmt.stream.<stream>` | one per sample of the stream | `time_s` (s) and one number per channel, named as the channel, in the channel's unit |
 //! | `/ballbar/<trace>` | `vmt.ballbar.Sample` | one per sample of the trace | `time_s` (s), `angle_deg` (deg, unwrapped, from the plane's first axis), `deviation_um` (µm, measured minus nominal bar length) |
+//! | `/laser` | `vmt.laser.Reading` | one per laser reading of an ISO 230-2 test, at the end of its averaging window | `time_s` (s), `target` (i, 1-based), `target_mm` (P_i, mm), `direction` (`forward`, `backward`), `run` (j, 1-based), `reading_mm` (P_ij, mm), `deviation_um` (x_ij = P_ij − P_i, µm) |
 //!
 //! `<stream>` and `<trace>` are the stream name and the trace label made into lower-case names of
 //! ASCII letters, digits and `_` (`XY 150 mm 1000 mm/min CCW` -> `xy_150_mm_1000_mm_min_ccw`; a
@@ -42,7 +43,9 @@
 //! the simulator never produces) is written as `null`.
 //!
 //! Channel metadata: streams carry `description` and `units`; ball-bar channels carry `label`,
-//! `plane` (`XY`, `ZX`, `YZ`), `direction` (`cw`, `ccw`), `radius_mm` and `feed_mm_min`.
+//! `plane` (`XY`, `ZX`, `YZ`), `direction` (`cw`, `ccw`), `radius_mm` and `feed_mm_min`; the
+//! laser channel carries `axis`, `targets_mm` (JSON list), `runs` and `line_mm` (JSON, the
+//! beam line's coordinates, the axis' own entry 0).
 //!
 //! # Metadata records
 //!
@@ -63,7 +66,7 @@ use std::collections::BTreeMap;
 use std::fs::File;
 use std::io::BufWriter;
 use std::path::Path;
-use vmt_sim::run::{BallbarTrace, Run, Stream};
+use vmt_sim::run::{BallbarTrace, LaserRun, Run, Stream};
 
 /// Name and version of the file layout, in the `run` metadata record.
 pub const FORMAT: &str = "vmt-mcap/1";
@@ -119,6 +122,7 @@ struct Channels {
     ground_truth: u16,
     streams: Vec<u16>,
     ballbar: Vec<u16>,
+    laser: Option<u16>,
 }
 
 /// Unique topic names for `names` under `prefix`: `/servo`, `/ballbar/xy_150_mm_ccw`, ...
@@ -154,10 +158,18 @@ fn add_channels(w: &mut McapWriter, run: &Run) -> Result<Channels, ::mcap::McapE
     for (trace, topic) in run.ballbar.iter().zip(&trace_topics) {
         ballbar.push(w.add_channel(id, topic, "json", &trace_metadata(trace))?);
     }
+    let laser = match &run.laser {
+        Some(l) => {
+            let id = w.add_schema("vmt.laser.Reading", "jsonschema", &pretty(&laser_schema()))?;
+            Some(w.add_channel(id, "/laser", "json", &laser_metadata(l))?)
+        }
+        None => None,
+    };
     Ok(Channels {
         ground_truth,
         streams,
         ballbar,
+        laser,
     })
 }
 
@@ -224,6 +236,39 @@ fn ballbar_schema() -> Value {
     })
 }
 
+fn laser_schema() -> Value {
+    let integer = |d: &str| json!({ "type": "integer", "description": d });
+    json!({
+        "$schema": DIALECT,
+        "title": "vmt laser reading",
+        "description": "one averaged laser interferometer reading of an ISO 230-2 positioning test",
+        "type": "object",
+        "properties": {
+            "time_s": number("end of the averaging window, simulation time, s".into()),
+            "target": integer("target index i, 1-based"),
+            "target_mm": number("target position P_i, mm".into()),
+            "direction": {
+                "type": "string",
+                "enum": ["forward", "backward"],
+                "description": "direction of approach (ISO 230-2 up / down)",
+            },
+            "run": integer("run j, 1-based"),
+            "reading_mm": number("laser reading P_ij, mm".into()),
+            "deviation_um": number("deviation x_ij = P_ij - P_i, µm".into()),
+        },
+        "required": ["time_s", "target", "target_mm", "direction", "run", "reading_mm", "deviation_um"],
+    })
+}
+
+fn laser_metadata(l: &LaserRun) -> BTreeMap<String, String> {
+    BTreeMap::from([
+        ("axis".into(), l.axis.clone()),
+        ("targets_mm".into(), json!(l.targets_mm).to_string()),
+        ("runs".into(), l.runs.to_string()),
+        ("line_mm".into(), json!(l.line_mm).to_string()),
+    ])
+}
+
 fn trace_metadata(t: &BallbarTrace) -> BTreeMap<String, String> {
     BTreeMap::from([
         ("label".into(), t.label.clone()),
@@ -278,6 +323,7 @@ enum Source {
     GroundTruth,
     Stream(usize, usize),
     Ballbar(usize, usize),
+    Laser(usize),
 }
 
 /// Every message as (log time ns, source), sorted by time then source.
@@ -297,6 +343,11 @@ fn message_order(run: &Run, path: &Path) -> Result<Vec<(u64, Source)>, CliError>
             let what = || format!("ball-bar trace `{}`, sample {i}", tr.label);
             events.push((time_ns(t, &what, path)?, Source::Ballbar(k, i)));
         }
+    }
+    let readings = run.laser.iter().flat_map(|l| l.readings.iter());
+    for (i, r) in readings.enumerate() {
+        let what = || format!("laser reading {i}");
+        events.push((time_ns(r.time_s, &what, path)?, Source::Laser(i)));
     }
     events.sort_unstable();
     Ok(events)
@@ -365,6 +416,10 @@ fn write_messages(
                 ch.ballbar[k],
                 serde_json::to_writer(&mut data, &trace_row(&run.ballbar[k], i)),
             ),
+            Source::Laser(i) => match (ch.laser, &run.laser) {
+                (Some(id), Some(l)) => (id, serde_json::to_writer(&mut data, &l.readings[i])),
+                _ => continue,
+            },
         };
         written.map_err(|e| CliError::output(path, e))?;
         let seq = sequence.entry(channel_id).or_insert(0);

@@ -49,6 +49,7 @@
 //! | `/series/following_error_um/{x,y,z}` | `Scalars` over `sim_time`: following error, µm |
 //! | `/series/friction_n/{guide,screw}_{x,y,z}` | `Scalars` over `sim_time`: guideway and screw friction force, N |
 //! | `/series/ballbar_deviation_um/<trace>` | `Scalars` over `sim_time`: measured − nominal bar length, µm |
+//! | `/series/laser_deviation_um/{forward,backward}` | `Scalars` over `sim_time`: laser deviations x_ij of an ISO 230-2 test, µm, one row per reading (at the end of its averaging window) |
 //! | `/info/run`, `/info/ground_truth`, `/info/scenario` | static `TextDocument` (Markdown): seed, fidelity, machine; the ground truth JSON; the scenario TOML |
 //!
 //! `<trace>` is the trace label as a lower-case name (`XY 150 mm 1000 mm/min CCW` ->
@@ -85,7 +86,7 @@ use std::hash::{DefaultHasher, Hash, Hasher};
 use std::path::Path;
 use vmt_model::Axis;
 use vmt_model::kinematics::{Element, Topology};
-use vmt_sim::run::{BallbarTrace, MachineSummary, Run, Stream};
+use vmt_sim::run::{BallbarTrace, LaserReading, LaserRun, MachineSummary, Run, Stream};
 
 /// Name of the timeline of simulation time.
 pub const TIMELINE: &str = "sim_time";
@@ -107,7 +108,11 @@ pub fn write_rrd(run: &Run, path: &Path) -> Result<(), CliError> {
     let rec = rerun::RecordingStreamBuilder::new(APPLICATION_ID)
         .recording_id(recording_id(run))
         .enabled(true)
-        .with_blueprint(blueprint(&groups, !run.ballbar.is_empty()))
+        .with_blueprint(blueprint(
+            &groups,
+            !run.ballbar.is_empty(),
+            run.laser.is_some(),
+        ))
         .save(path)
         .map_err(|e| err(&e))?;
     rec.set_log_time_enabled(false);
@@ -163,7 +168,7 @@ fn polar_groups(traces: &[BallbarTrace]) -> Vec<PolarGroup> {
     groups
 }
 
-fn blueprint(groups: &[PolarGroup], has_ballbar: bool) -> Blueprint {
+fn blueprint(groups: &[PolarGroup], has_ballbar: bool, has_laser: bool) -> Blueprint {
     let info = Tabs::new([
         TextDocumentView::new("Run").with_origin("/info/run").into(),
         TextDocumentView::new("Ground truth")
@@ -201,6 +206,13 @@ fn blueprint(groups: &[PolarGroup], has_ballbar: bool) -> Blueprint {
         right.push(
             TimeSeriesView::new("Ball-bar deviation (µm)")
                 .with_origin("/series/ballbar_deviation_um")
+                .into(),
+        );
+    }
+    if has_laser {
+        right.push(
+            TimeSeriesView::new("Laser deviation (µm)")
+                .with_origin("/series/laser_deviation_um")
                 .into(),
         );
     }
@@ -244,6 +256,9 @@ impl Logger<'_> {
         }
         for (t, s) in run.ballbar.iter().zip(&slugs) {
             self.deviation_series(t, s)?;
+        }
+        if let Some(l) = &run.laser {
+            self.laser_series(l)?;
         }
         Ok(())
     }
@@ -424,6 +439,26 @@ impl Logger<'_> {
         let name = format!("{} (µm)", t.label);
         let values = t.deviation_um.iter().copied();
         self.series(&entity, &name, direction_colour(t), &t.times_s, values)
+    }
+
+    /// The laser deviations over time, one series per direction of approach.
+    fn laser_series(&self, l: &LaserRun) -> Result<(), CliError> {
+        for (dir, colour) in [
+            ("forward", Color::from_rgb(30, 80, 200)),
+            ("backward", Color::from_rgb(200, 30, 30)),
+        ] {
+            let mine: Vec<&LaserReading> =
+                l.readings.iter().filter(|r| r.direction == dir).collect();
+            if mine.is_empty() {
+                continue;
+            }
+            let entity = format!("/series/laser_deviation_um/{dir}");
+            let name = format!("{} {dir} deviation (µm)", l.axis);
+            let times: Vec<f64> = mine.iter().map(|r| r.time_s).collect();
+            let values = mine.iter().map(|r| r.deviation_um);
+            self.series(&entity, &name, colour, &times, values)?;
+        }
+        Ok(())
     }
 
     fn polar(

@@ -1,0 +1,771 @@
+//! The laser interferometer and the ISO 230-2 linear positioning test.
+//!
+//! # The test (ISO 230-2:2014, standard test cycle)
+//!
+//! [`PositioningTest::gcode`] writes the linear test cycle: from `first target - overrun` the
+//! axis moves to the *datum* half the overrun before the first target (approached in the
+//! positive direction, where the laser is zeroed with its reading preset to the datum
+//! coordinate), then, `runs` times, forward through every target (`G1`, then `G4` dwell), on to
+//! `last + overrun`, back through every target in reverse order, on to `first - overrun`. Every
+//! target is therefore approached from the same side in each direction, and every reversal lies
+//! outside the measured range, as the standard requires. The other two coordinates stay on the
+//! beam line.
+//!
+//! # The instrument
+//!
+//! The reflector is on the tool, the interferometer on the workpiece side. The laser samples at
+//! its rate and, at the end of each measuring dwell, averages the last `averaging_s` (a real
+//! system triggers on position stability). Per sample, with `p = P_tool · e_a` the tool point's
+//! coordinate along the axis (m, relative to the workpiece, through the model's error chain):
+//!
+//! ```text
+//! ε    = 0.925e-6 e_T − 0.2675e-6 e_p + 0.0085e-6 e_RH − α_m e_m    compensation scale error
+//! r(t) = q · round(((1 + ε) p(t) − 0.925e-6 D ΔT(t) + σ n) / q),  n ~ N(0, 1)
+//! L    = x_d + mean_window r − mean_datum r                          reading, m
+//! x_ij = L_ij − P_i                                                  deviation (ISO 230-2)
+//! ```
+//!
+//! `e_T`, `e_p`, `e_RH` are the weather station's errors (reading minus true air temperature K,
+//! pressure hPa, humidity %RH) and `e_m` the material sensor's (K). The sensitivities are those
+//! of the refractivity of standard air at 633 nm, 20 °C, 1013.25 hPa (Edlén 1966; Birch & Downs
+//! 1993: `n − 1 = 2.71e-4`, `∂n/∂T = −(n − 1)/T`, `∂n/∂p = (n − 1)/p`, water vapour `−3.63e-10`
+//! per Pa, 23.4 Pa per %RH at 20 °C): a station reading the air 1 K too warm assumes a lower
+//! refractive index and reads 0.925 ppm long. The material compensation normalises to 20 °C
+//! with `α_m`; a sensor reading `e_m` too warm over-corrects by `α_m e_m`. The dead path `D`
+//! (interferometer to reflector at the datum) is not in the compensated length: when the air
+//! warms by `ΔT(t) = drift · (t − t_datum)` after zeroing, its optical path shrinks by
+//! `0.925e-6 D ΔT`. `q` is the resolution, `σ` the noise of one sample.
+
+use crate::nc::parse::NcError;
+use crate::nc::program::{Motion, Program};
+use nalgebra::Vector3;
+use rand::SeedableRng;
+use rand::rngs::StdRng;
+use rand_distr::{Distribution, StandardNormal};
+use serde::Serialize;
+use vmt_model::Axis;
+
+/// Refractivity change of air per kelvin at 20 °C, 1013.25 hPa, 633 nm (magnitude), 1/K.
+pub const DN_DT_PER_K: f64 = 0.925e-6;
+/// Refractivity change of air per hPa, 1/hPa.
+pub const DN_DP_PER_HPA: f64 = 0.2675e-6;
+/// Refractivity change of air per %RH at 20 °C (magnitude), 1/%RH.
+pub const DN_DRH_PER_PERCENT: f64 = 0.0085e-6;
+
+/// Laser interferometer settings, SI units.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LaserSpec {
+    /// Resolution of one sample, m (1 nm).
+    pub resolution_m: f64,
+    /// Standard deviation of the noise of one sample, m.
+    pub noise_m: f64,
+    /// Sample rate, Hz.
+    pub sample_rate_hz: f64,
+    /// Averaging time at the end of each dwell, s.
+    pub averaging_s: f64,
+    /// Air temperature sensor error (reading minus true), K.
+    pub air_temperature_error_k: f64,
+    /// Air pressure sensor error, hPa.
+    pub air_pressure_error_hpa: f64,
+    /// Humidity sensor error, %RH.
+    pub humidity_error_percent: f64,
+    /// Material temperature sensor error, K.
+    pub material_temperature_error_k: f64,
+    /// Expansion coefficient used by the material compensation, 1/K.
+    pub material_alpha_per_k: f64,
+    /// Dead path: interferometer to reflector at the datum, m.
+    pub dead_path_m: f64,
+    /// Drift of the true air temperature after zeroing, K/s.
+    pub air_drift_k_per_s: f64,
+}
+
+impl Default for LaserSpec {
+    fn default() -> Self {
+        Self {
+            resolution_m: 1e-9,
+            noise_m: 0.0,
+            sample_rate_hz: 1000.0,
+            averaging_s: 1.0,
+            air_temperature_error_k: 0.0,
+            air_pressure_error_hpa: 0.0,
+            humidity_error_percent: 0.0,
+            material_temperature_error_k: 0.0,
+            material_alpha_per_k: 11.5e-6,
+            dead_path_m: 0.0,
+            air_drift_k_per_s: 0.0,
+        }
+    }
+}
+
+impl LaserSpec {
+    /// The compensation scale error ε (dimensionless; ppm × 1e-6), see the module docs.
+    pub fn scale_error(&self) -> f64 {
+        DN_DT_PER_K * self.air_temperature_error_k - DN_DP_PER_HPA * self.air_pressure_error_hpa
+            + DN_DRH_PER_PERCENT * self.humidity_error_percent
+            - self.material_alpha_per_k * self.material_temperature_error_k
+    }
+}
+
+/// Direction of approach to a target.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Approach {
+    /// Positive direction (ISO ↑).
+    Forward,
+    /// Negative direction (ISO ↓).
+    Backward,
+}
+
+impl Approach {
+    /// `forward` or `backward`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Approach::Forward => "forward",
+            Approach::Backward => "backward",
+        }
+    }
+}
+
+/// One measuring dwell of the program.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Measurement {
+    /// Index of the dwell block in `program.blocks`.
+    pub block: usize,
+    /// Index of the target (0-based).
+    pub target: usize,
+    /// Direction of approach.
+    pub approach: Approach,
+    /// Run, 0-based.
+    pub run: usize,
+}
+
+/// An ISO 230-2 linear positioning test of one axis (not validated: see
+/// [`PositioningTest::validate`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct PositioningTest {
+    /// The axis.
+    pub axis: Axis,
+    /// Target positions on the axis, m, increasing.
+    pub targets_m: Vec<f64>,
+    /// The beam line: the tool point's other coordinates (the axis' own entry is ignored), m.
+    pub line_m: Vector3<f64>,
+    /// Number of bidirectional runs (ISO: 5).
+    pub runs: usize,
+    /// Dwell at every target, s.
+    pub dwell_s: f64,
+    /// Feed of the moves, m/s.
+    pub feed_m_s: f64,
+    /// Overrun past the end targets, m.
+    pub overrun_m: f64,
+}
+
+impl PositioningTest {
+    /// Checks the test: at least two strictly increasing finite targets, at least two runs, a
+    /// finite dwell > 0, a feed > 0 and an overrun > 0. The message names what is wrong.
+    pub fn validate(&self) -> Result<(), String> {
+        let t = &self.targets_m;
+        if t.len() < 2 || t.iter().any(|v| !v.is_finite()) || t.windows(2).any(|w| w[1] <= w[0]) {
+            return Err("at least two finite target positions in increasing order".into());
+        }
+        if self.runs < 2 {
+            return Err(format!(
+                "{} runs: at least 2 (ISO 230-2 asks for 5)",
+                self.runs
+            ));
+        }
+        for (v, what) in [
+            (self.dwell_s, "the dwell"),
+            (self.feed_m_s, "the feed"),
+            (self.overrun_m, "the overrun"),
+        ] {
+            if !(v.is_finite() && v > 0.0) {
+                return Err(format!("{what} {v} must be a finite number > 0"));
+            }
+        }
+        Ok(())
+    }
+
+    /// The tool point at axis coordinate `a` on the beam line, m.
+    pub fn point(&self, a: f64) -> Vector3<f64> {
+        let mut p = self.line_m;
+        p[self.axis.index()] = a;
+        p
+    }
+
+    fn first(&self) -> f64 {
+        self.targets_m.first().copied().unwrap_or(0.0)
+    }
+
+    fn last(&self) -> f64 {
+        self.targets_m.last().copied().unwrap_or(0.0)
+    }
+
+    /// Where the program starts: the first target minus the overrun, m.
+    pub fn start_point(&self) -> Vector3<f64> {
+        self.point(self.first() - self.overrun_m)
+    }
+
+    /// The datum coordinate, where the laser is zeroed: half the overrun before the first
+    /// target, m.
+    pub fn datum_m(&self) -> f64 {
+        self.first() - 0.5 * self.overrun_m
+    }
+
+    /// The program (see the module docs) and its dwell blocks: the datum's, then every
+    /// measurement's.
+    pub fn gcode(&self) -> (String, usize, Vec<Measurement>) {
+        let mut w = Writer {
+            text: String::new(),
+            axis: self.axis.letter(),
+            blocks: 0,
+        };
+        let mm = |v: f64| format!("{:.4}", v * 1e3);
+        w.line(&format!(
+            "(vmt ISO 230-2 linear positioning test of {}: {} targets, {} runs)",
+            self.axis,
+            self.targets_m.len(),
+            self.runs
+        ));
+        w.line("G21 G90 G94 G17");
+        w.line(&format!("F{:.1}", self.feed_m_s * 6e4));
+        w.line("(to the datum, approached in the positive direction: zero the laser)");
+        w.motion(&mm(self.datum_m()));
+        let datum = w.dwell(self.dwell_s);
+        let mut measurements = Vec::new();
+        for run in 0..self.runs {
+            for approach in [Approach::Forward, Approach::Backward] {
+                w.line(&format!("(run {} {})", run + 1, approach.name()));
+                let order: Vec<usize> = match approach {
+                    Approach::Forward => (0..self.targets_m.len()).collect(),
+                    Approach::Backward => (0..self.targets_m.len()).rev().collect(),
+                };
+                for target in order {
+                    w.motion(&mm(self.targets_m[target]));
+                    let block = w.dwell(self.dwell_s);
+                    measurements.push(Measurement {
+                        block,
+                        target,
+                        approach,
+                        run,
+                    });
+                }
+                let over = match approach {
+                    Approach::Forward => self.last() + self.overrun_m,
+                    Approach::Backward => self.first() - self.overrun_m,
+                };
+                w.line("(overrun)");
+                w.motion(&mm(over));
+            }
+        }
+        w.line("M30");
+        (w.text, datum, measurements)
+    }
+
+    /// Checks that `program` (parsed from [`PositioningTest::gcode`]) has a dwell at every
+    /// block the generator named.
+    pub fn check_program(
+        &self,
+        program: &Program,
+        datum: usize,
+        measurements: &[Measurement],
+    ) -> Result<(), NcError> {
+        let dwell = |b: usize| {
+            matches!(
+                program.blocks.get(b).map(|b| &b.motion),
+                Some(Motion::Dwell { .. })
+            )
+        };
+        match std::iter::once(datum)
+            .chain(measurements.iter().map(|m| m.block))
+            .find(|&b| !dwell(b))
+        {
+            Some(b) => Err(NcError {
+                line: program.blocks.get(b).map_or(0, |b| b.span.line),
+                column: 1,
+                message: format!("block {b} of the positioning program is not its dwell"),
+            }),
+            None => Ok(()),
+        }
+    }
+}
+
+/// Writes G-code and counts motion blocks.
+struct Writer {
+    text: String,
+    axis: char,
+    blocks: usize,
+}
+
+impl Writer {
+    fn line(&mut self, s: &str) {
+        self.text.push_str(s);
+        self.text.push('\n');
+    }
+
+    fn motion(&mut self, coordinate_mm: &str) {
+        self.line(&format!("G1 {}{coordinate_mm}", self.axis));
+        self.blocks += 1;
+    }
+
+    fn dwell(&mut self, seconds: f64) -> usize {
+        self.line(&format!("G4 P{seconds}"));
+        self.blocks += 1;
+        self.blocks - 1
+    }
+}
+
+/// A laser set up for a positioning test.
+#[derive(Clone, Debug)]
+pub struct LaserSetup {
+    /// The instrument.
+    pub spec: LaserSpec,
+    /// The test.
+    pub test: PositioningTest,
+    /// The dwell block where the laser is zeroed.
+    pub datum_block: usize,
+    /// The measuring dwells.
+    pub measurements: Vec<Measurement>,
+}
+
+/// One averaged laser reading.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct LaserReading {
+    /// End of the averaging window, s.
+    pub time_s: f64,
+    /// Target index i, 1-based.
+    pub target: usize,
+    /// Target position P_i, mm.
+    pub target_mm: f64,
+    /// `forward` or `backward`.
+    pub direction: String,
+    /// Run j, 1-based.
+    pub run: usize,
+    /// Laser reading P_ij, mm.
+    pub reading_mm: f64,
+    /// Deviation x_ij = P_ij − P_i, µm.
+    pub deviation_um: f64,
+}
+
+/// The laser record of a positioning test.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct LaserRun {
+    /// `X`, `Y` or `Z`.
+    pub axis: String,
+    /// Target positions, mm.
+    pub targets_mm: Vec<f64>,
+    /// Number of runs.
+    pub runs: usize,
+    /// The beam line (the tool point's coordinates, the axis' own entry 0), mm.
+    pub line_mm: [f64; 3],
+    /// Every reading, in time order.
+    pub readings: Vec<LaserReading>,
+}
+
+/// Sums over one averaging window: measured samples, noise-free samples, error-chain samples.
+#[derive(Clone, Copy, Debug, Default)]
+struct Window {
+    n: usize,
+    measured: f64,
+    exact: f64,
+    chain: f64,
+}
+
+/// The laser during a run: samples the tool point in the averaging windows of the dwells.
+#[derive(Debug)]
+pub struct Laser {
+    setup: LaserSetup,
+    rng: StdRng,
+    every: usize,
+    /// Averaging window `[start, end)` of each measurement, s; index `measurements.len()` is the
+    /// datum.
+    windows: Vec<(f64, f64)>,
+    sums: Vec<Window>,
+    datum_time_s: f64,
+}
+
+/// Noise-free deviations and error-chain deviations of every measurement, µm.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LaserTruth {
+    /// What a perfect laser would read: x_ij of the tool point, µm, per measurement.
+    pub exact_um: Vec<f64>,
+    /// The geometric/thermal error chain alone at the commanded axis positions, µm.
+    pub chain_um: Vec<f64>,
+}
+
+impl Laser {
+    /// A laser for `setup`; `block_times` are the interpolator's (block, enter s, leave s);
+    /// `period_s` the servo period; `seed` drives the noise.
+    pub fn new(
+        setup: &LaserSetup,
+        block_times: &[(usize, f64, f64)],
+        period_s: f64,
+        seed: u64,
+    ) -> Self {
+        let end_of = |b: usize| {
+            block_times
+                .iter()
+                .find(|t| t.0 == b)
+                .map_or(f64::INFINITY, |t| t.2)
+        };
+        let avg = setup.spec.averaging_s;
+        let windows = setup
+            .measurements
+            .iter()
+            .map(|m| m.block)
+            .chain([setup.datum_block])
+            .map(|b| (end_of(b) - avg, end_of(b)))
+            .collect::<Vec<_>>();
+        let every = ((1.0 / setup.spec.sample_rate_hz) / period_s)
+            .round()
+            .max(1.0) as usize;
+        Self {
+            rng: StdRng::seed_from_u64(seed),
+            every,
+            sums: vec![Window::default(); windows.len()],
+            datum_time_s: windows.last().map_or(0.0, |w| w.1),
+            windows,
+            setup: setup.clone(),
+        }
+    }
+
+    /// The window being sampled at servo tick `k`, time `t_s`, block `block`, if any.
+    pub fn window_at(&self, k: usize, t_s: f64, block: Option<usize>) -> Option<usize> {
+        let block = block?;
+        if !k.is_multiple_of(self.every) {
+            return None;
+        }
+        let n = self.setup.measurements.len();
+        let i = if block == self.setup.datum_block {
+            n
+        } else {
+            self.setup
+                .measurements
+                .iter()
+                .position(|m| m.block == block)?
+        };
+        let (a, b) = self.windows[i];
+        (t_s >= a - 1e-9 && t_s < b).then_some(i)
+    }
+
+    /// Adds a sample to window `i` at `t_s`: `tool` the tool point, `chain` the error chain's
+    /// tool point at the commanded axis positions (m, relative to the workpiece).
+    pub fn sample(&mut self, i: usize, t_s: f64, tool: &Vector3<f64>, chain: &Vector3<f64>) {
+        let s = &self.setup.spec;
+        let a = self.setup.test.axis.index();
+        let drift = s.air_drift_k_per_s * (t_s - self.datum_time_s).max(0.0);
+        let n: f64 = StandardNormal.sample(&mut self.rng);
+        let raw =
+            (1.0 + s.scale_error()) * tool[a] - DN_DT_PER_K * s.dead_path_m * drift + s.noise_m * n;
+        let q = s.resolution_m;
+        let w = &mut self.sums[i];
+        w.n += 1;
+        w.measured += if q > 0.0 { (raw / q).round() * q } else { raw };
+        w.exact += tool[a];
+        w.chain += chain[a];
+    }
+
+    fn mean(&self, i: usize, f: impl Fn(&Window) -> f64) -> f64 {
+        let w = &self.sums[i];
+        f(w) / w.n.max(1) as f64
+    }
+
+    /// The readings and the truth of every measurement.
+    pub fn finish(self) -> (LaserRun, LaserTruth) {
+        let test = &self.setup.test;
+        let d = self.sums.len() - 1;
+        let datum = test.datum_m();
+        let relative =
+            |i: usize, f: &dyn Fn(&Window) -> f64| datum + self.mean(i, f) - self.mean(d, f);
+        let mut readings = Vec::new();
+        let mut truth = LaserTruth {
+            exact_um: Vec::new(),
+            chain_um: Vec::new(),
+        };
+        for (i, m) in self.setup.measurements.iter().enumerate() {
+            let target = test.targets_m[m.target];
+            let reading = relative(i, &|w| w.measured);
+            readings.push(LaserReading {
+                time_s: self.windows[i].1,
+                target: m.target + 1,
+                target_mm: target * 1e3,
+                direction: m.approach.name().into(),
+                run: m.run + 1,
+                reading_mm: reading * 1e3,
+                deviation_um: (reading - target) * 1e6,
+            });
+            truth
+                .exact_um
+                .push((relative(i, &|w| w.exact) - target) * 1e6);
+            truth
+                .chain_um
+                .push((relative(i, &|w| w.chain) - target) * 1e6);
+        }
+        let mut line = test.line_m * 1e3;
+        line[test.axis.index()] = 0.0;
+        let run = LaserRun {
+            axis: test.axis.to_string(),
+            targets_mm: test.targets_m.iter().map(|t| t * 1e3).collect(),
+            runs: test.runs,
+            line_mm: [line.x, line.y, line.z],
+            readings,
+        };
+        (run, truth)
+    }
+}
+
+/// ISO 230-2:2014 figures of a positioning test, µm.
+///
+/// With `x_ij = P_ij − P_i` the deviation at target `i` in run `j` (`n` runs), per direction
+/// (↑ forward, ↓ backward):
+///
+/// ```text
+/// x̄_i↑ = (1/n) Σ_j x_ij↑                          mean unidirectional positional deviation
+/// x̄_i  = (x̄_i↑ + x̄_i↓) / 2                        mean bidirectional positional deviation
+/// B_i  = x̄_i↑ − x̄_i↓                              reversal value at a position
+/// s_i↑ = sqrt(Σ_j (x_ij↑ − x̄_i↑)² / (n − 1))      unidirectional standard uncertainty estimator
+/// R_i↑ = 4 s_i↑                                   unidirectional repeatability
+/// R_i  = max(2 s_i↑ + 2 s_i↓ + |B_i|, R_i↑, R_i↓)  bidirectional repeatability
+/// B    = max_i |B_i|,  B̄ = mean_i B_i              reversal value, mean reversal value
+/// R↑   = max_i R_i↑,  R = max_i R_i
+/// E↑   = max_i x̄_i↑ − min_i x̄_i↑                   unidirectional systematic positioning error
+/// E    = max(x̄_i↑, x̄_i↓) − min(x̄_i↑, x̄_i↓)          bidirectional systematic positioning error
+/// M    = max_i x̄_i − min_i x̄_i                     mean bidirectional positioning error
+/// A↑   = max(x̄_i↑ + 2 s_i↑) − min(x̄_i↑ − 2 s_i↑)   unidirectional accuracy
+/// A    = max(x̄_i↑ + 2 s_i↑, x̄_i↓ + 2 s_i↓) − min(x̄_i↑ − 2 s_i↑, x̄_i↓ − 2 s_i↓)
+/// ```
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Iso230_2 {
+    /// Target positions, mm.
+    pub targets_mm: Vec<f64>,
+    /// x̄_i↑, µm.
+    pub mean_forward_um: Vec<f64>,
+    /// x̄_i↓, µm.
+    pub mean_backward_um: Vec<f64>,
+    /// s_i↑, µm.
+    pub s_forward_um: Vec<f64>,
+    /// s_i↓, µm.
+    pub s_backward_um: Vec<f64>,
+    /// B_i, µm.
+    pub reversal_um: Vec<f64>,
+    /// B, µm.
+    pub b_um: f64,
+    /// B̄, µm.
+    pub b_mean_um: f64,
+    /// E↑, µm.
+    pub e_forward_um: f64,
+    /// E↓, µm.
+    pub e_backward_um: f64,
+    /// E, µm.
+    pub e_um: f64,
+    /// M, µm.
+    pub m_um: f64,
+    /// R↑, µm.
+    pub r_forward_um: f64,
+    /// R↓, µm.
+    pub r_backward_um: f64,
+    /// R, µm.
+    pub r_um: f64,
+    /// A↑, µm.
+    pub a_forward_um: f64,
+    /// A↓, µm.
+    pub a_backward_um: f64,
+    /// A, µm.
+    pub a_um: f64,
+}
+
+fn mean_sd(v: &[f64]) -> (f64, f64) {
+    let n = v.len() as f64;
+    let mean = v.iter().sum::<f64>() / n.max(1.0);
+    let ss = v.iter().map(|x| (x - mean).powi(2)).sum::<f64>();
+    (mean, (ss / (n - 1.0).max(1.0)).sqrt())
+}
+
+fn span(hi: impl Iterator<Item = f64>, lo: impl Iterator<Item = f64>) -> f64 {
+    hi.fold(f64::NEG_INFINITY, f64::max) - lo.fold(f64::INFINITY, f64::min)
+}
+
+impl Iso230_2 {
+    /// The figures of deviations `x_um[k]` (µm) of `measurements[k]` at `targets_m`.
+    pub fn evaluate(targets_m: &[f64], measurements: &[Measurement], x_um: &[f64]) -> Self {
+        let m = targets_m.len();
+        let stats = |approach: Approach| -> (Vec<f64>, Vec<f64>) {
+            (0..m)
+                .map(|i| {
+                    let v: Vec<f64> = measurements
+                        .iter()
+                        .zip(x_um)
+                        .filter(|(r, _)| r.target == i && r.approach == approach)
+                        .map(|(_, x)| *x)
+                        .collect();
+                    mean_sd(&v)
+                })
+                .unzip()
+        };
+        let (up, su) = stats(Approach::Forward);
+        let (down, sd) = stats(Approach::Backward);
+        let b: Vec<f64> = up.iter().zip(&down).map(|(u, d)| u - d).collect();
+        let r_i: Vec<f64> = (0..m)
+            .map(|i| (2.0 * su[i] + 2.0 * sd[i] + b[i].abs()).max(4.0 * su[i].max(sd[i])))
+            .collect();
+        let max = |v: &[f64]| v.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        let plus = |x: &[f64], s: &[f64], k: f64| -> Vec<f64> {
+            x.iter().zip(s).map(|(x, s)| x + k * s).collect()
+        };
+        let bi: Vec<f64> = up.iter().zip(&down).map(|(u, d)| 0.5 * (u + d)).collect();
+        let (up_hi, up_lo) = (plus(&up, &su, 2.0), plus(&up, &su, -2.0));
+        let (dn_hi, dn_lo) = (plus(&down, &sd, 2.0), plus(&down, &sd, -2.0));
+        Self {
+            targets_mm: targets_m.iter().map(|t| t * 1e3).collect(),
+            b_um: b.iter().map(|v| v.abs()).fold(0.0, f64::max),
+            b_mean_um: b.iter().sum::<f64>() / m.max(1) as f64,
+            e_forward_um: span(up.iter().copied(), up.iter().copied()),
+            e_backward_um: span(down.iter().copied(), down.iter().copied()),
+            e_um: span(
+                up.iter().chain(&down).copied(),
+                up.iter().chain(&down).copied(),
+            ),
+            m_um: span(bi.iter().copied(), bi.iter().copied()),
+            r_forward_um: 4.0 * max(&su),
+            r_backward_um: 4.0 * max(&sd),
+            r_um: max(&r_i),
+            a_forward_um: span(up_hi.iter().copied(), up_lo.iter().copied()),
+            a_backward_um: span(dn_hi.iter().copied(), dn_lo.iter().copied()),
+            a_um: span(
+                up_hi.iter().chain(&dn_hi).copied(),
+                up_lo.iter().chain(&dn_lo).copied(),
+            ),
+            mean_forward_um: up,
+            mean_backward_um: down,
+            s_forward_um: su,
+            s_backward_um: sd,
+            reversal_um: b,
+        }
+    }
+
+    /// The figures of the readings of a [`LaserRun`].
+    pub fn of_run(run: &LaserRun) -> Self {
+        let targets: Vec<f64> = run.targets_mm.iter().map(|t| t * 1e-3).collect();
+        let ms: Vec<Measurement> = run
+            .readings
+            .iter()
+            .map(|r| Measurement {
+                block: 0,
+                target: r.target.saturating_sub(1),
+                approach: if r.direction == "forward" {
+                    Approach::Forward
+                } else {
+                    Approach::Backward
+                },
+                run: r.run.saturating_sub(1),
+            })
+            .collect();
+        let x: Vec<f64> = run.readings.iter().map(|r| r.deviation_um).collect();
+        Self::evaluate(&targets, &ms, &x)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::nc::parse;
+
+    fn test() -> PositioningTest {
+        PositioningTest {
+            axis: Axis::Y,
+            targets_m: vec![0.1, 0.15, 0.2],
+            line_m: Vector3::new(0.25, 0.0, 0.2),
+            runs: 2,
+            dwell_s: 0.5,
+            feed_m_s: 0.05,
+            overrun_m: 0.004,
+        }
+    }
+
+    #[test]
+    fn program_has_a_dwell_at_every_target_in_both_directions() {
+        let t = test();
+        assert_eq!(t.validate(), Ok(()));
+        let (text, datum, ms) = t.gcode();
+        let p = parse(&text, t.start_point()).unwrap();
+        t.check_program(&p, datum, &ms).unwrap();
+        assert_eq!(ms.len(), 2 * 2 * 3);
+        // Backward run 1 visits the targets from the top; its dwell follows a move down.
+        let order: Vec<(usize, Approach)> =
+            ms[..6].iter().map(|m| (m.target, m.approach)).collect();
+        assert_eq!(order[2], (2, Approach::Forward));
+        assert_eq!(order[3], (2, Approach::Backward));
+        assert_eq!(order[5], (0, Approach::Backward));
+        let before = |b: usize| match &p.blocks[b - 1].motion {
+            Motion::Linear { to, .. } => *to,
+            other => panic!("{other:?}"),
+        };
+        for m in &ms {
+            let to = before(m.block);
+            assert!((to.y - t.targets_m[m.target]).abs() < 1e-12);
+            assert!((to.x - 0.25).abs() < 1e-12 && (to.z - 0.2).abs() < 1e-12);
+        }
+        // The datum is half the overrun below the first target, approached upwards.
+        assert!((before(datum).y - 0.098).abs() < 1e-12);
+        let bad = PositioningTest {
+            targets_m: vec![0.2, 0.1],
+            ..t.clone()
+        };
+        assert!(bad.validate().is_err());
+        assert!(PositioningTest { runs: 1, ..t }.validate().is_err());
+    }
+
+    #[test]
+    fn iso_figures_of_a_known_set() {
+        // Two targets, three runs: forward deviations 1, 2, 3 and 4, 4, 4; backward 0, 0, 0 and
+        // 6, 7, 8 (µm).
+        let mut ms = Vec::new();
+        let mut x = Vec::new();
+        let data = [
+            (0, Approach::Forward, [1.0, 2.0, 3.0]),
+            (1, Approach::Forward, [4.0, 4.0, 4.0]),
+            (0, Approach::Backward, [0.0, 0.0, 0.0]),
+            (1, Approach::Backward, [6.0, 7.0, 8.0]),
+        ];
+        for (target, approach, v) in data {
+            for (run, xv) in v.into_iter().enumerate() {
+                ms.push(Measurement {
+                    block: 0,
+                    target,
+                    approach,
+                    run,
+                });
+                x.push(xv);
+            }
+        }
+        let f = Iso230_2::evaluate(&[0.0, 0.1], &ms, &x);
+        assert_eq!(f.mean_forward_um, [2.0, 4.0]);
+        assert_eq!(f.mean_backward_um, [0.0, 7.0]);
+        assert_eq!(f.s_forward_um, [1.0, 0.0]);
+        assert_eq!(f.reversal_um, [2.0, -3.0]);
+        assert_eq!(f.b_um, 3.0);
+        assert_eq!(f.b_mean_um, -0.5);
+        assert_eq!(f.e_forward_um, 2.0);
+        assert_eq!(f.e_um, 7.0);
+        // Bidirectional means 1 and 5.5.
+        assert_eq!(f.m_um, 4.5);
+        assert_eq!(f.r_forward_um, 4.0);
+        // R_1 = max(2 + 0 + 2, 4, 0) = 4; R_2 = max(0 + 2 + 3, 0, 4) = 5.
+        assert_eq!(f.r_um, 5.0);
+        // A = max(2+2, 4, 0, 7+2) - min(2-2, 4, 0, 7-2) = 9.
+        assert_eq!(f.a_um, 9.0);
+        assert_eq!(f.a_forward_um, 4.0);
+    }
+
+    #[test]
+    fn scale_error_signs() {
+        let s = LaserSpec {
+            air_temperature_error_k: 1.0,
+            ..LaserSpec::default()
+        };
+        assert!((s.scale_error() - 0.925e-6).abs() < 1e-15);
+        let s = LaserSpec {
+            material_temperature_error_k: 1.0,
+            ..LaserSpec::default()
+        };
+        assert!((s.scale_error() + 11.5e-6).abs() < 1e-15);
+    }
+}

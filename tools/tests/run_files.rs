@@ -1,0 +1,139 @@
+//! `vmt run` end to end: one clear error per bad job, and byte-identical MCAP files for the same
+//! scenario and seed.
+
+use std::path::Path;
+use std::process::{Command, Output};
+
+fn vmt(args: &[&str]) -> Output {
+    // coreutils `timeout`: a command that hangs fails its test instead of stalling the suite.
+    Command::new("timeout")
+        .args(["300", env!("CARGO_BIN_EXE_vmt")])
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+/// The built-in scenario with its `[job]` section replaced by `job` and every `(from, to)`
+/// text replacement applied, written to `dir/name`.
+fn scenario(dir: &Path, name: &str, job: &str, edits: &[(&str, &str)]) -> String {
+    let text = vmt_scenario::BUILTIN_DEFAULT;
+    let start = text.find("[job]").unwrap();
+    let end = text.find("[instruments.ballbar]").unwrap();
+    let mut out = format!("{}{job}\n\n{}", &text[..start], &text[end..]);
+    for (from, to) in edits {
+        assert!(out.contains(from), "{from}");
+        out = out.replace(from, to);
+    }
+    let p = dir.join(name);
+    std::fs::write(&p, out).unwrap();
+    p.display().to_string()
+}
+
+/// `vmt run` on a program job whose file `bad.nc` holds `program`: exit code, stderr and
+/// whether a recording was written.
+fn run_program(program: &str, edits: &[(&str, &str)]) -> (Option<i32>, String, bool) {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("bad.nc"), program).unwrap();
+    let job = "[job]\nkind = \"program\"\nprogram = \"bad.nc\"";
+    let s = scenario(dir.path(), "s.toml", job, edits);
+    let out = dir.path().join("out");
+    let o = vmt(&["run", &s, "--out", out.to_str().unwrap(), "--quiet"]);
+    (o.status.code(), stderr(&o), out.join("run.mcap").exists())
+}
+
+/// The program starts with the axes at 0; tool length 100 mm, so the tool point is at Z -100.
+const MOVE: &str = "G0 X100 Y100 Z0\n";
+
+#[test]
+fn malformed_gcode_names_file_line_and_column() {
+    let (code, e, written) = run_program(&format!("{MOVE}G1 X110 F500\nG1 X1..2\n"), &[]);
+    assert_ne!(code, Some(0));
+    assert!(!written);
+    assert!(e.contains("bad.nc:3:7: "), "{e}");
+    assert!(e.contains("`.2`"), "{e}");
+}
+
+#[test]
+fn an_arc_whose_end_is_off_its_circle_is_refused() {
+    let (_, e, written) = run_program(&format!("{MOVE}G3 X90 Y110.01 I-10 F500\n"), &[]);
+    assert!(!written);
+    assert!(
+        e.contains("bad.nc:2:1: the end point is not on the arc's circle"),
+        "{e}"
+    );
+    assert!(e.contains("10.0000 mm") && e.contains("10.0100 mm"), "{e}");
+}
+
+#[test]
+fn a_zero_feed_is_refused() {
+    let (_, e, written) = run_program(&format!("{MOVE}F0\nG1 X110\n"), &[]);
+    assert!(!written);
+    assert!(
+        e.contains("bad.nc:2:1: F0: the feed must be > 0 (mm/min)"),
+        "{e}"
+    );
+}
+
+#[test]
+fn travel_beyond_a_stroke_is_refused_before_the_run() {
+    let (_, e, written) = run_program(&format!("{MOVE}G1 X300 F2000\nG1 X520\n"), &[]);
+    assert!(!written, "refused before the run");
+    assert!(
+        e.contains("block at line 3: the X axis would reach 500.0"),
+        "{e}"
+    );
+    assert!(e.contains("beyond its stroke 0 to 500 mm"), "{e}");
+}
+
+/// One 2.5 ms step per servo period is beyond the X screw mode's limit
+/// h < (2/ω)(√(1+ζ²) - ζ): k = 180 N/µm on the reduced mass of the 250 kg table and the motor
+/// (0.003 kg·m² through a 10 mm lead: 1184 kg), c = 2e4 N·s/m.
+#[test]
+fn a_step_too_coarse_for_the_stiffest_mode_is_refused_with_the_largest_stable_step() {
+    let edits = [
+        ("servo_period_us = 125.0", "servo_period_us = 2500.0"),
+        ("ipo_period_ms = 1.0", "ipo_period_ms = 2.5"),
+        ("plant_substeps = 2", "plant_substeps = 1"),
+    ];
+    let (_, e, written) = run_program(&format!("{MOVE}G1 X110 F500\n"), &edits);
+    assert!(!written);
+    let mm = 0.003 * (std::f64::consts::TAU / 0.01_f64).powi(2);
+    let m = mm * 250.0 / (mm + 250.0);
+    let (k, c) = (1.8e8, 2e4);
+    let (w, z) = ((k / m).sqrt(), c / (2.0 * (k * m).sqrt()));
+    let limit_us = 2.0 / w * ((1.0 + z * z).sqrt() - z) * 1e6;
+    let expected = format!(
+        "a plant step of 2500.00 µs is too coarse for the screw axial mode of the X drive: the \
+         largest stable step is {limit_us:.2} µs; raise plant_substeps"
+    );
+    assert!(e.contains(&expected), "{e}\nexpected: {expected}");
+}
+
+/// A short circular test (a quarter circle of 50 mm at 3000 mm/min, CCW) with the built-in
+/// noise and set-up eccentricity.
+/// `run` names its output folder.
+fn quarter(dir: &Path, seed: u64, run: &str) -> Vec<u8> {
+    let job = "[job]\nkind = \"ballbar\"\nplane = \"XY\"\ncenter_mm = [250.0, 200.0, 200.0]\n\
+               radius_mm = 50.0\nfeed_mm_min = 3000.0\narc_deg = 90.0\ndirections = [\"ccw\"]";
+    let name = format!("s{seed}.toml");
+    let s = scenario(dir, &name, job, &[("seed = 1", &format!("seed = {seed}"))]);
+    let out = dir.join(run);
+    let o = vmt(&["run", &s, "--out", out.to_str().unwrap(), "--quiet"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    std::fs::read(out.join("run.mcap")).unwrap()
+}
+
+#[test]
+fn the_same_scenario_and_seed_give_byte_identical_mcap_files() {
+    let dir = tempfile::tempdir().unwrap();
+    let a = quarter(dir.path(), 1, "a");
+    let b = quarter(dir.path(), 1, "b");
+    assert!(a.len() > 10_000, "{} bytes", a.len());
+    assert!(a == b, "two runs of seed 1 differ");
+    let c = quarter(dir.path(), 2, "c");
+    assert!(a != c, "seeds 1 and 2 give the same file");
+}
