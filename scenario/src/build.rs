@@ -50,6 +50,9 @@ pub struct Execution {
     pub settings: vmt_sim::simulate::SimSettings,
     /// The job.
     pub job: vmt_sim::simulate::Job,
+    /// The NC program's file of a `kind = "program"` job, so that errors about a block can
+    /// name the file as well as the line.
+    pub program_file: Option<String>,
 }
 
 /// A loaded scenario.
@@ -137,12 +140,19 @@ fn execution(
     };
     let settings = dynamics::simulation(raw.simulation.as_ref().unwrap_or(&default), substeps)?;
     let tool = machine.volumetric.kinematics.tool_offset;
+    let program_file = match (job, base_dir) {
+        (dynamics::JobToml::Program { program }, Some(dir)) => {
+            Some(dir.join(program).display().to_string())
+        }
+        _ => None,
+    };
     let job = dynamics::job(job, &raw.instruments, tool, base_dir)?;
     Ok(Some(Execution {
         axes,
         controller,
         settings,
         job,
+        program_file,
     }))
 }
 

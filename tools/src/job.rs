@@ -14,7 +14,7 @@ use vmt_scenario::Scenario;
 use vmt_sim::laser::Iso230_2;
 use vmt_sim::plant::Fidelity;
 use vmt_sim::run::Run;
-use vmt_sim::simulate::simulate;
+use vmt_sim::simulate::{SimError, simulate};
 
 /// The files a run wrote.
 #[derive(Clone, Debug)]
@@ -60,7 +60,12 @@ pub fn execute(
         text,
         &mut |f| bar.set_position((f * 1000.0) as u64),
     )
-    .map_err(|e| CliError::Model(e.to_string()))?;
+    .map_err(|e| match (&e, &exec.program_file) {
+        (SimError::Stroke { line, .. }, Some(file)) => {
+            CliError::Model(format!("{file}:{line}: {e}"))
+        }
+        _ => CliError::Model(e.to_string()),
+    })?;
     bar.finish_and_clear();
     Ok(run)
 }
