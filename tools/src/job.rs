@@ -134,7 +134,8 @@ pub fn summary_figures(run: &Run) -> String {
                 });
             let mean = t.deviation_um.iter().sum::<f64>() / t.deviation_um.len().max(1) as f64;
             format!(
-                "{}: span {:.2} um, mean {:+.2} um, {} samples",
+                // Two lines per trace: the plot's text block is narrower than label and figures.
+                "{}:\n  span {:.2} um, mean {:+.2} um, {} samples",
                 t.label,
                 hi - lo,
                 mean,

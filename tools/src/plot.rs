@@ -448,8 +448,8 @@ impl Polar {
         let title =
             format!("Ball-bar circular test, {plane} plane: R = {radius} mm, F = {feed} mm/min");
         root.draw(&Text::new(title, (30, 18), (FONT, 28).into_font()))?;
-        let sub = "Radial deviation (measured − nominal bar length), magnified about the \
-                   nominal circle";
+        // Short enough to end left of the +Y axis label.
+        let sub = "Measured − nominal bar length, magnified";
         root.draw(&Text::new(
             sub,
             (30, 54),
