@@ -1,20 +1,10 @@
 //! The `vmt` binary end to end: outputs that match the library, and one clear error per bad input.
 
 use std::path::Path;
-use std::process::{Command, Output};
+mod common;
 
-fn vmt(args: &[&str]) -> Output {
-    // coreutils `timeout`: a command that hangs fails its test instead of stalling the suite.
-    Command::new("timeout")
-        .args(["300", env!("CARGO_BIN_EXE_vmt")])
-        .args(args)
-        .output()
-        .unwrap()
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
+use common::{stderr, vmt};
+use std::process::Output;
 
 fn write(dir: &Path, name: &str, text: &str) -> String {
     let p = dir.join(name);

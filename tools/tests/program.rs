@@ -2,21 +2,10 @@
 //! circles; bad arguments are refused with the option's name and exit code 2.
 
 use nalgebra::Vector3;
-use std::process::{Command, Output};
+mod common;
+
+use common::{stderr, vmt};
 use vmt_sim::nc::{ArcDirection, Motion, Plane, ballbar::CircularTest, parse};
-
-fn vmt(args: &[&str]) -> Output {
-    // coreutils `timeout`: a command that hangs fails its test instead of stalling the suite.
-    Command::new("timeout")
-        .args(["300", env!("CARGO_BIN_EXE_vmt")])
-        .args(args)
-        .output()
-        .unwrap()
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
 
 const BASE: &[&str] = &[
     "program",

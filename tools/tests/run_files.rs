@@ -2,20 +2,9 @@
 //! scenario and seed.
 
 use std::path::Path;
-use std::process::{Command, Output};
+mod common;
 
-fn vmt(args: &[&str]) -> Output {
-    // coreutils `timeout`: a command that hangs fails its test instead of stalling the suite.
-    Command::new("timeout")
-        .args(["300", env!("CARGO_BIN_EXE_vmt")])
-        .args(args)
-        .output()
-        .unwrap()
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
+use common::{stderr, vmt};
 
 /// The built-in scenario with its `[job]` section replaced by `job` and every `(from, to)`
 /// text replacement applied, written to `dir/name`.
