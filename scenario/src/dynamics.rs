@@ -660,16 +660,10 @@ fn positioning_job(j: &PositioningToml, instruments: &InstrumentsToml) -> R<Job>
         beam_line_mm,
     } = j;
     let p = KeyPath::of(&["job"]);
-    let axis = match axis.to_ascii_uppercase().as_str() {
-        "X" => Axis::X,
-        "Y" => Axis::Y,
-        "Z" => Axis::Z,
-        other => {
-            return Err(Invalid::new(
-                p.key("axis"),
-                format!("`{other}` is not accepted; X, Y or Z"),
-            ));
-        }
+    let upper = axis.to_ascii_uppercase();
+    let Some(axis) = upper.parse::<char>().ok().and_then(Axis::from_letter) else {
+        let msg = format!("`{upper}` is not accepted; X, Y or Z");
+        return Err(Invalid::new(p.key("axis"), msg));
     };
     if *runs < 2 {
         return Err(Invalid::new(
