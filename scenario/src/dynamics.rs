@@ -217,6 +217,8 @@ pub struct BallbarToml {
     pub sample_rate_hz: f64,
     #[serde(default)]
     pub setup_eccentricity_um: Numbers<3>,
+    #[serde(default)]
+    pub setup_drift_um_per_min: Numbers<3>,
     #[serde(default = "twenty")]
     pub bar_temperature_c: f64,
     #[serde(default = "steel")]
@@ -245,6 +247,16 @@ fn pos(v: f64, path: &KeyPath, what: &str) -> R<f64> {
             path.clone(),
             format!("{v} is not accepted; {what} must be a finite number > 0"),
         ))
+    }
+}
+
+fn finite3(v: &Numbers<3>, path: &KeyPath) -> R<Vector3<f64>> {
+    match v.iter().find(|x| !x.is_finite()) {
+        None => Ok(Vector3::from(v.0)),
+        Some(x) => Err(Invalid::new(
+            path.clone(),
+            format!("{x} is not accepted; three finite numbers [x, y, z]"),
+        )),
     }
 }
 
@@ -466,7 +478,10 @@ fn ballbar_spec(b: Option<&BallbarToml>) -> R<BallbarSpec> {
         resolution_m: nonneg(b.resolution_um, &p.key("resolution_um"), "a resolution")? * 1e-6,
         noise_m: nonneg(b.noise_um, &p.key("noise_um"), "a noise")? * 1e-6,
         sample_rate_hz: pos(b.sample_rate_hz, &p.key("sample_rate_hz"), "a sample rate")?,
-        setup_eccentricity_m: Vector3::from(b.setup_eccentricity_um.0) * 1e-6,
+        setup_eccentricity_m: finite3(&b.setup_eccentricity_um, &p.key("setup_eccentricity_um"))?
+            * 1e-6,
+        setup_drift_m_per_s: finite3(&b.setup_drift_um_per_min, &p.key("setup_drift_um_per_min"))?
+            * (1e-6 / 60.0),
         bar_temperature_c: b.bar_temperature_c,
         bar_alpha_per_k: b.bar_alpha_per_k,
     })

@@ -2,8 +2,10 @@
 //! ball in the spindle (the tool point), ISO 230-4 circular tests.
 //!
 //! ```text
-//! L_true = |P_tool - (C + e)|                      bar length, m (C nominal centre, e set-up
-//!                                                  eccentricity of the pivot, m)
+//! L_true = |P_tool - (C + e + v (t - t₀))|        bar length, m (C nominal centre, e set-up
+//!                                                  eccentricity of the pivot, m; v the creep of
+//!                                                  the pivot's mount, m/s, from the bar's first
+//!                                                  reading t₀: a magnetic base warming up)
 //! r      = L_true - R - α_bar R (T_bar - 20 °C)    transducer reading: the bar body grows with its
 //!                                                  temperature and the reading drops by as much
 //! d      = q·round((r + n) / q),  n ~ N(0, σ²)     noise σ, resolution q (0.1 µm)
@@ -29,6 +31,8 @@ pub struct BallbarSpec {
     pub sample_rate_hz: f64,
     /// Set-up eccentricity of the pivot from the nominal centre, m.
     pub setup_eccentricity_m: Vector3<f64>,
+    /// Drift of the pivot after set-up, m/s.
+    pub setup_drift_m_per_s: Vector3<f64>,
     /// Temperature of the bar, °C.
     pub bar_temperature_c: f64,
     /// Expansion coefficient of the bar body, 1/K.
@@ -42,6 +46,7 @@ impl Default for BallbarSpec {
             noise_m: 0.0,
             sample_rate_hz: 1000.0,
             setup_eccentricity_m: Vector3::zeros(),
+            setup_drift_m_per_s: Vector3::zeros(),
             bar_temperature_c: 20.0,
             bar_alpha_per_k: 11.5e-6,
         }
@@ -56,6 +61,8 @@ pub struct Ballbar {
     radius_m: f64,
     plane: Plane,
     rng: StdRng,
+    /// Time of the first reading, s.
+    set_up_s: Option<f64>,
 }
 
 impl Ballbar {
@@ -73,13 +80,21 @@ impl Ballbar {
             radius_m,
             plane,
             rng: StdRng::seed_from_u64(seed),
+            set_up_s: None,
         }
     }
 
+    /// Where the pivot is at `time_s` (s), m.
+    pub fn pivot(&self, time_s: f64) -> Vector3<f64> {
+        let since = time_s - self.set_up_s.unwrap_or(time_s);
+        self.center + self.spec.setup_eccentricity_m + self.spec.setup_drift_m_per_s * since
+    }
+
     /// The reading (length minus nominal, m) and the bar's angle (rad, wrapped to (-π, π]) for
-    /// a tool point `tool` (m, relative to the workpiece).
-    pub fn read(&mut self, tool: &Vector3<f64>) -> (f64, f64) {
-        let bar = tool - (self.center + self.spec.setup_eccentricity_m);
+    /// a tool point `tool` (m, relative to the workpiece) at `time_s` (s).
+    pub fn read(&mut self, tool: &Vector3<f64>, time_s: f64) -> (f64, f64) {
+        self.set_up_s.get_or_insert(time_s);
+        let bar = tool - self.pivot(time_s);
         let growth =
             self.spec.bar_alpha_per_k * self.radius_m * (self.spec.bar_temperature_c - 20.0);
         let r = bar.norm() - self.radius_m - growth;

@@ -21,6 +21,7 @@ use crate::laser::{Laser, LaserSetup};
 use crate::nc::program::{ArcDirection, Plane, Program, Spindle};
 use crate::plant::{Fidelity, MultibodyPlant, Plant, PlantError, ReducedPlant, layout};
 use crate::run::{BallbarTrace, Channel, MachineSummary, Run, Stream};
+use crate::truth::TruthInputs;
 use nalgebra::Vector3;
 use std::ops::Range;
 use thiserror::Error;
@@ -174,6 +175,7 @@ pub fn simulate(
     let mut heat = HeatTracker::new(machine)?;
     // Link and joint matrices of the current thermal state, rebuilt only when it changes.
     let mut evaluator = machine.volumetric.evaluator(&heat.deformation);
+    let initial_deformation = heat.deformation;
     let ticks = interpolator.servo_ticks();
     let mut trackers =
         Axis::ALL.map(|a| DirectionTracker::new(start[a.index()], Direction::Forward, 0.05e-6));
@@ -212,7 +214,14 @@ pub fn simulate(
         }
     }
     progress(1.0);
-    Ok(recorder.finish(machine, axes, job, settings, scenario_toml))
+    recorder.end_closing(&evaluator);
+    let truth = TruthInputs {
+        machine,
+        axes,
+        job,
+        initial: &machine.volumetric.evaluator(&initial_deformation),
+    };
+    Ok(recorder.finish(&truth, settings, scenario_toml))
 }
 
 fn check_strokes(
@@ -381,7 +390,31 @@ struct Recorder {
     /// Test (index in `ballbar`) and program blocks of each trace's data arc.
     data: Vec<(usize, Range<usize>)>,
     traces: Vec<BallbarTrace>,
+    /// Per trace, the drift of its start point (see [`Closing`]).
+    closing: Vec<Option<Closing>>,
+    /// The trace being recorded.
+    active: Option<usize>,
     laser: Option<Laser>,
+}
+
+/// What a trace's closing error is made of: the tool point at the commanded start of the trace
+/// then and at its end (thermal drift of the machine), the pivot's creep, along the bar.
+#[derive(Clone, Copy, Debug)]
+struct Closing {
+    commanded: AxisState,
+    tool_start: Vector3<f64>,
+    tool_end: Vector3<f64>,
+    pivot_start: Vector3<f64>,
+    pivot_end: Vector3<f64>,
+    unit: Vector3<f64>,
+}
+
+impl Closing {
+    /// Closing error: change of the bar length at the start point over the trace, µm.
+    fn error_um(&self) -> f64 {
+        ((self.tool_end - self.tool_start) - (self.pivot_end - self.pivot_start)).dot(&self.unit)
+            * 1e6
+    }
 }
 
 impl Recorder {
@@ -408,7 +441,7 @@ impl Recorder {
                 Ballbar::new(b.spec, b.center, b.radius_m, b.plane, seed)
             })
             .collect();
-        let traces = job
+        let traces: Vec<BallbarTrace> = job
             .ballbar
             .iter()
             .flat_map(|b| b.data.iter().map(|(d, _)| new_trace(b, *d)))
@@ -432,8 +465,17 @@ impl Recorder {
             tool: Default::default(),
             ballbar,
             data,
+            closing: vec![None; traces.len()],
+            active: None,
             traces,
             laser,
+        }
+    }
+
+    /// Ends the closing record of the active trace with the machine's present thermal state.
+    fn end_closing(&mut self, evaluator: &VolumetricEvaluator) {
+        if let Some(c) = self.active.and_then(|j| self.closing[j].as_mut()) {
+            c.tool_end = evaluator.tool_point(&c.commanded);
         }
     }
 
@@ -490,7 +532,31 @@ impl Recorder {
             && let Some(block) = sp.block
             && let Some(j) = self.data.iter().position(|(_, r)| r.contains(&block))
         {
-            let (reading, angle) = self.ballbar[self.data[j].0].read(&tool);
+            if self.active != Some(j) {
+                self.end_closing(evaluator);
+                self.active = Some(j);
+            }
+            let bar = &mut self.ballbar[self.data[j].0];
+            let (reading, angle) = bar.read(&tool, sp.time_s);
+            let pivot = bar.pivot(sp.time_s);
+            match &mut self.closing[j] {
+                Some(c) => c.pivot_end = pivot,
+                slot @ None => {
+                    let commanded = AxisState {
+                        position: sp.position - machine.volumetric.kinematics.tool_offset,
+                        direction: state.direction,
+                    };
+                    let start = evaluator.tool_point(&commanded);
+                    *slot = Some(Closing {
+                        commanded,
+                        tool_start: start,
+                        tool_end: start,
+                        pivot_start: pivot,
+                        pivot_end: pivot,
+                        unit: (tool - pivot).normalize(),
+                    });
+                }
+            }
             let t = &mut self.traces[j];
             let mut deg = angle.to_degrees();
             if let Some(last) = t.angle_deg.last() {
@@ -503,14 +569,8 @@ impl Recorder {
         Ok(())
     }
 
-    fn finish(
-        self,
-        machine: &Machine,
-        axes: &[AxisDynamics; 3],
-        job: &Job,
-        settings: &SimSettings,
-        scenario_toml: &str,
-    ) -> Run {
+    fn finish(self, truth: &TruthInputs, settings: &SimSettings, scenario_toml: &str) -> Run {
+        let machine = truth.machine;
         let names = ["x", "y", "z"];
         let mut channels = Vec::new();
         let mut servo = self.servo.into_iter();
@@ -537,6 +597,11 @@ impl Recorder {
             channels,
         };
         let laser = self.laser.map(Laser::finish);
+        let closing: Vec<Option<f64>> = self
+            .closing
+            .iter()
+            .map(|c| c.map(|c| c.error_um()))
+            .collect();
         Run {
             scenario_name: machine.name.clone(),
             scenario_toml: scenario_toml.to_string(),
@@ -545,7 +610,7 @@ impl Recorder {
             machine: summary(machine),
             streams: vec![stream],
             ballbar: self.traces,
-            ground_truth: crate::truth::ground_truth(machine, axes, job, laser.as_ref()),
+            ground_truth: crate::truth::ground_truth(truth, &closing, laser.as_ref()),
             laser: laser.map(|(run, _)| run),
         }
     }

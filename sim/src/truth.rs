@@ -2,12 +2,29 @@
 //! in the same definitions and units.
 
 use crate::laser::{Iso230_2, LaserRun, LaserTruth};
+use crate::nc::program::{ArcDirection, Plane};
 use crate::simulate::{AxisDynamics, BallbarSetup, Job};
+use nalgebra::Vector3;
 use serde_json::{Value, json};
-use vmt_model::Axis;
+use std::f64::consts::TAU;
 use vmt_model::drive::Feedback;
 use vmt_model::geometric::SquarenessError;
+use vmt_model::kinematics::{AxisState, VolumetricEvaluator};
 use vmt_model::machine::Machine;
+use vmt_model::{Axis, Direction};
+
+/// What the truth of a run is computed from: the machine with its drives, the job, and the error
+/// chain at the machine's thermal state when the job began.
+pub struct TruthInputs<'a> {
+    /// The machine.
+    pub machine: &'a Machine,
+    /// Its drives.
+    pub axes: &'a [AxisDynamics; 3],
+    /// The job.
+    pub job: &'a Job,
+    /// The error chain at the start of the job.
+    pub initial: &'a VolumetricEvaluator<'a>,
+}
 
 /// The truth of a run of `job` on `machine` with drives `axes`, as JSON.
 ///
@@ -20,15 +37,19 @@ use vmt_model::machine::Machine;
 /// - `squareness_um_per_m`: the ISO squareness of the plane, µm/m.
 ///
 /// `drives.<axis>.backlash_seen_um` is taken at the job's test feed ([`Job::test_feed_m_s`]);
-/// each circular test of `ballbar.tests` has its own at its feed. A positioning test's
+/// each circular test of `ballbar.tests` has its own at its feed, and a `figures` object with
+/// every figure a ball-bar diagnosis reports, under the diagnosis' keys (see [`test_figures`]).
+/// A positioning test's
 /// `laser` section holds the noise-free deviations (what a perfect laser would read), the error
 /// chain's share, and the ISO 230-2 figures of both (see [`Iso230_2`]).
 pub fn ground_truth(
-    machine: &Machine,
-    axes: &[AxisDynamics; 3],
-    job: &Job,
+    inputs: &TruthInputs,
+    closing_um: &[Option<f64>],
     laser: Option<&(LaserRun, LaserTruth)>,
 ) -> Value {
+    let TruthInputs {
+        machine, axes, job, ..
+    } = *inputs;
     let feed = job.test_feed_m_s();
     let mut drives = serde_json::Map::new();
     for a in Axis::ALL {
@@ -57,11 +78,31 @@ pub fn ground_truth(
         squareness.insert(format!("{}_urad", s.iso_name()), json!(v));
     }
     let ballbar = job.ballbar.first().map(|b| {
-        let tests: Vec<Value> = job.ballbar.iter().map(|t| ballbar_test(t, axes)).collect();
+        let mut closing = closing_um.iter();
+        let tests: Vec<Value> = job
+            .ballbar
+            .iter()
+            .map(|t| {
+                let mut v = ballbar_test(t, axes);
+                let mut figures = test_figures(inputs, t);
+                for (d, _) in &t.data {
+                    let dir = match d {
+                        ArcDirection::Cw => "cw",
+                        ArcDirection::Ccw => "ccw",
+                    };
+                    if let Some(Some(c)) = closing.next() {
+                        figures.insert(format!("closing_error_{dir}"), json!(c));
+                    }
+                }
+                v["figures"] = Value::Object(figures);
+                v
+            })
+            .collect();
         json!({
             "radius_mm": b.radius_m * 1e3,
             "feed_mm_min": b.feed_m_s * 60_000.0,
             "setup_eccentricity_um": [b.spec.setup_eccentricity_m.x * 1e6, b.spec.setup_eccentricity_m.y * 1e6, b.spec.setup_eccentricity_m.z * 1e6],
+            "setup_drift_um_per_min": (b.spec.setup_drift_m_per_s * 6e7).as_slice(),
             "bar_temperature_c": b.spec.bar_temperature_c,
             "noise_um": b.spec.noise_m * 1e6,
             "resolution_um": b.spec.resolution_m * 1e6,
@@ -146,4 +187,135 @@ fn laser_truth(setup: &crate::laser::LaserSetup, run: &LaserRun, truth: &LaserTr
         "iso230_2_exact": Iso230_2::evaluate(&t.targets_m, ms, &truth.exact_um),
         "iso230_2_chain": Iso230_2::evaluate(&t.targets_m, ms, &truth.chain_um),
     })
+}
+
+/// The plane's axes (p, q), in the order of its angle.
+fn plane_axes(plane: Plane) -> (Axis, Axis) {
+    match plane {
+        Plane::Xy => (Axis::X, Axis::Y),
+        Plane::Zx => (Axis::Z, Axis::X),
+        Plane::Yz => (Axis::Y, Axis::Z),
+    }
+}
+
+/// Servo lag of an axis at constant velocity, `(1 - k_vff)/K_v`, s.
+fn lag_s(d: &AxisDynamics) -> f64 {
+    (1.0 - d.servo.velocity_ff) / d.servo.kv_per_s
+}
+
+/// The figures a ball-bar diagnosis of circular test `b` reports, in its keys and units.
+///
+/// From the error chain at the job's start (the tool-point error field `δ` on the nominal
+/// circle, averaged over the approach directions of the two plane axes): its radial component
+/// `δ·u(θ)` is expanded in Fourier series `A_k cos kθ + B_k sin kθ` over the full circle, and
+/// the signatures of the diagnosis read off it (see `vmt-ballbar`'s signatures):
+/// straightness `S_p = -4 B_3`, `S_q = 4 A_3` (µm over the diameter); scale mismatch
+/// `2 A_2 / R` (ppm); squareness `2 B_2 / (k R)` (µm/m, k = -1 XY and YZ, +1 ZX); the pivot
+/// offset equivalent `e_p = -A_1 - S_q/4`, `e_q = -B_1 - S_p/4`, added to the bar's set-up
+/// eccentricity. Backlash and lateral play of an axis: the change of `δ` along and across the
+/// axis when it reverses (backward minus forward) at its two reversal points on the circle,
+/// averaged; the backlash adds the drive's lost motion at the test feed. Servo mismatch:
+/// `(1 - k_vff,p)/K_v,p - (1 - k_vff,q)/K_v,q` (ms).
+pub fn test_figures(inputs: &TruthInputs, b: &BallbarSetup) -> serde_json::Map<String, Value> {
+    let (pa, qa) = plane_axes(b.plane);
+    let (ep, eq) = (unit(pa), unit(qa));
+    let r_um = b.radius_m * 1e6;
+    let field = |th: f64| mean_error(inputs, b, th, pa, qa);
+    let n = 720;
+    let (mut a, mut bb) = ([0.0; 4], [0.0; 4]);
+    for i in 0..n {
+        let th = TAU * i as f64 / n as f64;
+        let u = ep * th.cos() + eq * th.sin();
+        let dr = field(th).dot(&u) * 1e6;
+        for k in 1..4 {
+            a[k] += 2.0 / n as f64 * dr * (k as f64 * th).cos();
+            bb[k] += 2.0 / n as f64 * dr * (k as f64 * th).sin();
+        }
+    }
+    let s_p = -4.0 * bb[3];
+    let s_q = 4.0 * a[3];
+    let k = if b.plane == Plane::Zx { 1.0 } else { -1.0 };
+    let e = b.spec.setup_eccentricity_m * 1e6;
+    let (lp, lq) = (pa.to_string().to_lowercase(), qa.to_string().to_lowercase());
+    let pl = format!("{lp}{lq}");
+    let mut m = serde_json::Map::new();
+    let mut put = |key: String, v: f64| {
+        m.insert(key, json!(v));
+    };
+    put(
+        format!("eccentricity_{lp}"),
+        e[pa.index()] - a[1] - s_q / 4.0,
+    );
+    put(
+        format!("eccentricity_{lq}"),
+        e[qa.index()] - bb[1] - s_p / 4.0,
+    );
+    put(format!("straightness_{lp}"), s_p);
+    put(format!("straightness_{lq}"), s_q);
+    put(format!("scale_mismatch_{pl}"), 2.0 * a[2] / r_um * 1e6);
+    put(format!("squareness_{pl}"), 2.0 * bb[2] / (k * r_um) * 1e6);
+    let axes = inputs.axes;
+    put(
+        format!("servo_mismatch_{pl}"),
+        (lag_s(&axes[pa.index()]) - lag_s(&axes[qa.index()])) * 1e3,
+    );
+    for (axis, other) in [(pa, qa), (qa, pa)] {
+        let (along, across) = reversal_change(inputs, b, axis, other);
+        let drive = backlash_seen_m(&axes[axis.index()], b.feed_m_s) * 1e6;
+        let l = axis.to_string().to_lowercase();
+        put(format!("backlash_{l}"), drive + along);
+        put(format!("lateral_play_{l}"), across);
+    }
+    m
+}
+
+fn unit(a: Axis) -> Vector3<f64> {
+    Vector3::from_fn(|i, _| if i == a.index() { 1.0 } else { 0.0 })
+}
+
+fn state(inputs: &TruthInputs, tool: Vector3<f64>, dirs: [(Axis, Direction); 2]) -> AxisState {
+    let mut direction = [Direction::Forward; 3];
+    for (a, d) in dirs {
+        direction[a.index()] = d;
+    }
+    AxisState {
+        position: tool - inputs.machine.volumetric.kinematics.tool_offset,
+        direction,
+    }
+}
+
+/// The tool-point error (m) at angle `th` of the circle, averaged over the four approach
+/// directions of the plane's axes.
+fn mean_error(inputs: &TruthInputs, b: &BallbarSetup, th: f64, pa: Axis, qa: Axis) -> Vector3<f64> {
+    let tool = b.center + (unit(pa) * th.cos() + unit(qa) * th.sin()) * b.radius_m;
+    let dirs = [Direction::Forward, Direction::Backward];
+    let mut sum = Vector3::zeros();
+    for dp in dirs {
+        for dq in dirs {
+            sum += inputs
+                .initial
+                .volumetric_error(&state(inputs, tool, [(pa, dp), (qa, dq)]));
+        }
+    }
+    sum / 4.0
+}
+
+/// The change of the tool-point error when `axis` reverses (backward minus forward), along it
+/// and along `other`, µm, averaged over its two reversal points and the directions of `other`.
+fn reversal_change(inputs: &TruthInputs, b: &BallbarSetup, axis: Axis, other: Axis) -> (f64, f64) {
+    let dirs = [Direction::Forward, Direction::Backward];
+    let mut change = Vector3::zeros();
+    for side in [1.0, -1.0] {
+        let tool = b.center + unit(axis) * (side * b.radius_m);
+        for d in dirs {
+            let at = |dir| {
+                inputs
+                    .initial
+                    .volumetric_error(&state(inputs, tool, [(axis, dir), (other, d)]))
+            };
+            change += at(Direction::Backward) - at(Direction::Forward);
+        }
+    }
+    change /= 4.0;
+    (change[axis.index()] * 1e6, change[other.index()] * 1e6)
 }

@@ -1,0 +1,671 @@
+//! The diagnosis of one circular test: ISO 230-4 figures, the fitted error model, the local
+//! shapes of the residual, each error with its value, sign, confidence and contribution.
+//!
+//! Decision rule (stated in every report): a fitted error is *present* when its signature's
+//! peak-to-valley over the test is at least [`MIN_CONTRIBUTION_UM`] and its value is at least
+//! three standard errors from zero; a local shape (spike, stick-slip, vibration, transient,
+//! cyclic error) when its size is at least [`MIN_CONTRIBUTION_UM`] and stands out of the noise
+//! as its own rule says. The 95 % confidence is ±1.96 standard errors of the fit (or of the
+//! spread between reversals for local shapes).
+
+use crate::features::{self, Residual};
+use crate::iso230_4::{self, Figures};
+use crate::model::{Fit, FitError, Term, Terms, reversal_angles};
+use crate::samples::Samples;
+use crate::signatures::Point;
+use crate::trace::{Plane, Trace, TraceError};
+use serde::Serialize;
+use thiserror::Error;
+
+/// The smallest peak-to-valley contribution (µm) for an error to be reported present.
+pub const MIN_CONTRIBUTION_UM: f64 = 0.5;
+
+/// What to compute besides the standard set.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Options {
+    /// Minimum-zone circular deviation.
+    pub minimum_zone: bool,
+    /// Search for cyclic errors (a periodogram per axis; the costliest step).
+    pub cyclic: bool,
+}
+
+impl Default for Options {
+    fn default() -> Self {
+        Self {
+            minimum_zone: false,
+            cyclic: true,
+        }
+    }
+}
+
+/// Why a test cannot be diagnosed.
+#[derive(Debug, Error, PartialEq)]
+pub enum DiagnosisError {
+    /// A trace is malformed.
+    #[error(transparent)]
+    Trace(#[from] TraceError),
+    /// The model cannot be fitted.
+    #[error("{0}")]
+    Fit(#[from] FitError),
+    /// No traces.
+    #[error("a test needs one or two traces (a CW and a CCW run of the same circle); got none")]
+    Empty,
+    /// Traces of different set-ups in one test.
+    #[error(
+        "trace `{label}` has {what} {got} but `{first}` has {expected}: the traces of one test must share plane, radius and feed"
+    )]
+    Mismatch {
+        /// The odd trace.
+        label: String,
+        /// The first trace.
+        first: String,
+        /// Which set-up value.
+        what: &'static str,
+        /// Its value.
+        got: String,
+        /// The first trace's value.
+        expected: String,
+    },
+    /// More than two traces or two of one sense.
+    #[error(
+        "a test holds at most one CW and one CCW trace; got {0} traces (split repeated runs into separate tests)"
+    )]
+    TooManyTraces(usize),
+}
+
+/// One diagnosed error.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Finding {
+    /// Machine-readable key, e.g. `backlash_x`.
+    pub key: String,
+    /// Name for people, e.g. `Backlash X`.
+    pub name: String,
+    /// Value (signed), in `unit`.
+    pub value: f64,
+    /// Unit of `value` and `ci95`.
+    pub unit: &'static str,
+    /// Half width of the 95 % confidence interval.
+    pub ci95: f64,
+    /// Peak-to-valley of its signature on this test, µm.
+    pub contribution_um: f64,
+    /// The value from which this error is reported present (in `unit`, by magnitude).
+    pub threshold: f64,
+    /// Whether the decision rule reports it present.
+    pub present: bool,
+    /// Further numbers (per side, width, frequency...), name and value with unit in the name.
+    pub details: Vec<(String, f64)>,
+}
+
+/// An error the test cannot determine, and why.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct NotComputed {
+    /// Key, as a [`Finding`]'s.
+    pub key: String,
+    /// Why.
+    pub reason: String,
+}
+
+/// The diagnosis of one test.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Diagnosis {
+    /// Test plane.
+    pub plane: Plane,
+    /// Nominal radius, mm.
+    pub radius_mm: f64,
+    /// Feed, mm/min.
+    pub feed_mm_min: f64,
+    /// Labels of the traces.
+    pub traces: Vec<String>,
+    /// ISO 230-4 figures.
+    pub iso: Figures,
+    /// Diagnosed errors, ranked by contribution to the circular deviation.
+    pub findings: Vec<Finding>,
+    /// Errors this test cannot determine.
+    pub not_computed: Vec<NotComputed>,
+    /// RMS of what the model and the local shapes leave, µm.
+    pub residual_rms_um: f64,
+    /// Robust estimate of the instrument noise, µm.
+    pub noise_um: f64,
+}
+
+impl Diagnosis {
+    /// The finding with `key`.
+    pub fn finding(&self, key: &str) -> Option<&Finding> {
+        self.findings.iter().find(|f| f.key == key)
+    }
+}
+
+/// Diagnoses a test of one or two traces (CW and CCW of the same circle).
+pub fn diagnose(traces: &[Trace], options: &Options) -> Result<Diagnosis, DiagnosisError> {
+    check_test(traces)?;
+    let refs: Vec<&Trace> = traces.iter().collect();
+    let first = &traces[0];
+    let plane = first.plane;
+    let progress = progress(traces);
+    let samples: Vec<Samples> = traces
+        .iter()
+        .zip(progress)
+        .map(|(t, p)| Samples::new(t, p))
+        .collect();
+    let terms = Terms::for_test(&refs);
+    let pairs: Vec<(&Trace, &Samples)> = traces.iter().zip(&samples).collect();
+    let fit = Fit::new(plane, &terms.terms, &pairs)?;
+    let group_points: Vec<Point> = pairs
+        .iter()
+        .flat_map(|(t, s)| s.groups(&t.angle_deg).into_iter().map(|g| g.0))
+        .collect();
+    let mut findings = fitted_findings(&fit, &group_points);
+    let points: Vec<Vec<Point>> = samples
+        .iter()
+        .map(|s| (0..s.len()).map(|i| s.point(i)).collect())
+        .collect();
+    let residuals: Vec<Residual> = traces
+        .iter()
+        .zip(&samples)
+        .zip(&points)
+        .map(|((t, s), pts)| residual(t, s, pts, &fit))
+        .collect();
+    let noise = features::median(
+        residuals
+            .iter()
+            .map(|r| features::noise_sigma(&r.r))
+            .collect(),
+    );
+    findings.extend(closing_errors(&fit, traces, &samples));
+    let local = local_findings(&mut findings, &fit, &residuals, traces, noise, options);
+    findings.extend(local);
+    findings.sort_by(|a, b| b.contribution_um.total_cmp(&a.contribution_um));
+    let n: usize = residuals.iter().map(|r| r.r.len()).sum();
+    let rss: f64 = residuals.iter().flat_map(|r| &r.r).map(|x| x * x).sum();
+    Ok(Diagnosis {
+        plane,
+        radius_mm: first.radius_mm,
+        feed_mm_min: first.feed_mm_min,
+        traces: traces.iter().map(|t| t.label.clone()).collect(),
+        iso: iso230_4::figures(&refs, options.minimum_zone),
+        findings,
+        not_computed: not_computed(&terms, first),
+        residual_rms_um: (rss / n as f64).sqrt(),
+        noise_um: noise,
+    })
+}
+
+fn check_test(traces: &[Trace]) -> Result<(), DiagnosisError> {
+    let first = traces.first().ok_or(DiagnosisError::Empty)?;
+    if traces.len() > 2 || (traces.len() == 2 && traces[0].sense == traces[1].sense) {
+        return Err(DiagnosisError::TooManyTraces(traces.len()));
+    }
+    for t in traces {
+        t.validate()?;
+        let mismatch = |what, got: String, expected: String| DiagnosisError::Mismatch {
+            label: t.label.clone(),
+            first: first.label.clone(),
+            what,
+            got,
+            expected,
+        };
+        if t.plane != first.plane {
+            return Err(mismatch(
+                "plane",
+                t.plane.to_string(),
+                first.plane.to_string(),
+            ));
+        }
+        if (t.radius_mm - first.radius_mm).abs() > 1e-6 * first.radius_mm {
+            return Err(mismatch(
+                "radius_mm",
+                t.radius_mm.to_string(),
+                first.radius_mm.to_string(),
+            ));
+        }
+        if (t.feed_mm_min - first.feed_mm_min).abs() > 1e-6 * first.feed_mm_min {
+            return Err(mismatch(
+                "feed_mm_min",
+                t.feed_mm_min.to_string(),
+                first.feed_mm_min.to_string(),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// Progress of every sample over the whole test, 0…1: by time when every trace has times
+/// (one clock), else by angle travelled with the traces run back to back in the given order.
+fn progress(traces: &[Trace]) -> Vec<Vec<f64>> {
+    if let Some(times) = traces
+        .iter()
+        .map(|t| t.time_s.as_ref())
+        .collect::<Option<Vec<_>>>()
+    {
+        let t0 = times.iter().map(|t| t[0]).fold(f64::INFINITY, f64::min);
+        let t1 = times
+            .iter()
+            .map(|t| t[t.len() - 1])
+            .fold(f64::NEG_INFINITY, f64::max);
+        let span = (t1 - t0).max(1e-12);
+        return times
+            .iter()
+            .map(|t| t.iter().map(|x| (x - t0) / span).collect())
+            .collect();
+    }
+    let total: f64 = traces.iter().map(|t| t.sweep_deg()).sum::<f64>().max(1e-12);
+    let mut before = 0.0;
+    traces
+        .iter()
+        .map(|t| {
+            let a0 = t.angle_deg[0];
+            let p = t
+                .angle_deg
+                .iter()
+                .map(|a| (before + (a - a0).abs()) / total)
+                .collect();
+            before += t.sweep_deg();
+            p
+        })
+        .collect()
+}
+
+fn residual<'a>(t: &'a Trace, s: &Samples, points: &'a [Point], fit: &Fit) -> Residual<'a> {
+    let r = points
+        .iter()
+        .zip(&s.deviation_um)
+        .map(|(p, d)| d - fit.model(p, |_| false))
+        .collect();
+    let n = t.angle_deg.len();
+    let dt_ms = match &t.time_s {
+        Some(ts) => (ts[n - 1] - ts[0]) / (n - 1) as f64 * 1e3,
+        None => {
+            let deg = t.sweep_deg() / (n - 1) as f64;
+            deg.to_radians() * s.radius_um / s.feed_um_per_ms
+        }
+    };
+    Residual {
+        angle_deg: &t.angle_deg,
+        points,
+        r,
+        dt_ms,
+    }
+}
+
+/// Key, name and unit of a fitted term in `plane`.
+fn describe(term: Term, plane: Plane) -> Option<(String, String, &'static str)> {
+    let (p, q) = plane.axes();
+    let ax = |i: usize| if i == 0 { p } else { q };
+    let lower = |c: char| c.to_ascii_lowercase();
+    let pl = plane.name().to_lowercase();
+    Some(match term {
+        Term::Pivot(i) => (
+            format!("eccentricity_{}", lower(ax(i))),
+            format!(
+                "Set-up eccentricity {} (pivot off the programmed centre)",
+                ax(i)
+            ),
+            "µm",
+        ),
+        Term::Radius => (
+            "radius_offset".into(),
+            "Radius offset (bar length, bar temperature)".into(),
+            "µm",
+        ),
+        Term::ScaleMismatch => (
+            format!("scale_mismatch_{pl}"),
+            format!("Scale mismatch {p} - {q}"),
+            "ppm",
+        ),
+        Term::Squareness => (
+            format!("squareness_{pl}"),
+            format!(
+                "Squareness {} (ISO {})",
+                plane.name(),
+                squareness_iso(plane)
+            ),
+            "µm/m",
+        ),
+        Term::ServoMismatch => (
+            format!("servo_mismatch_{pl}"),
+            format!("Servo mismatch {p} lag - {q} lag"),
+            "ms",
+        ),
+        Term::Backlash(i) => (
+            format!("backlash_{}", lower(ax(i))),
+            format!("Backlash {}", ax(i)),
+            "µm",
+        ),
+        Term::LateralPlay(i) => (
+            format!("lateral_play_{}", lower(ax(i))),
+            format!("Lateral play {} (across {})", ax(i), ax(1 - i)),
+            "µm",
+        ),
+        Term::Straightness(i) => (
+            format!("straightness_{}", lower(ax(i))),
+            format!(
+                "Straightness {} (bow towards +{} over the diameter)",
+                ax(i),
+                ax(1 - i)
+            ),
+            "µm",
+        ),
+        Term::RadialDrift | Term::PivotDrift(_) => return None,
+    })
+}
+
+/// The ISO 230-1 name of the squareness a plane's test measures.
+pub const fn squareness_iso(plane: Plane) -> &'static str {
+    match plane {
+        Plane::Xy => "EC0Y",
+        Plane::Zx => "EB0Z",
+        Plane::Yz => "EA0Z",
+    }
+}
+
+fn fitted_findings(fit: &Fit, points: &[Point]) -> Vec<Finding> {
+    let one_sense = fit.get(Term::ServoMismatch).is_none();
+    fit.terms
+        .iter()
+        .filter_map(|&term| {
+            let (key, mut name, unit) = describe(term, fit.plane)?;
+            let (value, se) = fit.get(term)?;
+            let per_unit = fit_contribution(fit, term, points, 1.0);
+            let contribution = per_unit * value.abs();
+            let threshold = if per_unit > 0.0 {
+                MIN_CONTRIBUTION_UM / per_unit
+            } else {
+                f64::INFINITY
+            };
+            if term == Term::Squareness && one_sense {
+                name.push_str(" with servo mismatch (one direction only)");
+            }
+            let present = term != Term::Radius
+                && contribution >= MIN_CONTRIBUTION_UM
+                && value.abs() >= 3.0 * se;
+            Some(Finding {
+                key,
+                name,
+                value,
+                unit,
+                ci95: 1.96 * se,
+                contribution_um: contribution,
+                threshold,
+                present,
+                details: Vec::new(),
+            })
+        })
+        .collect()
+}
+
+/// Peak-to-valley of `value` units of `term` over `points`, µm.
+fn fit_contribution(fit: &Fit, term: Term, points: &[Point], value: f64) -> f64 {
+    let (lo, hi) = points
+        .iter()
+        .map(|p| value * term.basis(p, fit.plane))
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), x| {
+            (a.min(x), b.max(x))
+        });
+    if hi >= lo { hi - lo } else { 0.0 }
+}
+
+/// Closing error of each full trace (Kwon): the drift of the model between its first and last
+/// sample at the start angle, µm.
+fn closing_errors(fit: &Fit, traces: &[Trace], samples: &[Samples]) -> Vec<Finding> {
+    let drift = [Term::RadialDrift, Term::PivotDrift(0), Term::PivotDrift(1)];
+    if drift.iter().any(|t| fit.get(*t).is_none()) {
+        return Vec::new();
+    }
+    traces
+        .iter()
+        .zip(samples)
+        .map(|(t, s)| {
+            let (first, last) = (s.point(0), s.point(s.len() - 1));
+            let mut end = first;
+            end.progress = last.progress;
+            let only_drift = |term: Term| !drift.contains(&term);
+            let value = fit.model(&end, only_drift) - fit.model(&first, only_drift);
+            let ds = last.progress - first.progress;
+            let var: f64 = drift
+                .iter()
+                .filter_map(|term| fit.get(*term))
+                .zip([1.0, first.cos, first.sin])
+                .map(|((_, se), k)| (se * k * ds).powi(2))
+                .sum();
+            let se = var.sqrt();
+            Finding {
+                key: format!("closing_error_{}", t.sense.name()),
+                name: format!("Closing error {}", t.sense.name().to_uppercase()),
+                value,
+                unit: "µm",
+                ci95: 1.96 * se,
+                contribution_um: value.abs(),
+                threshold: MIN_CONTRIBUTION_UM,
+                present: value.abs() >= MIN_CONTRIBUTION_UM && value.abs() >= 3.0 * se,
+                details: Vec::new(),
+            }
+        })
+        .collect()
+}
+
+fn not_computed(terms: &Terms, first: &Trace) -> Vec<NotComputed> {
+    let mut out: Vec<NotComputed> = terms
+        .left_out
+        .iter()
+        .filter_map(|(term, why)| {
+            let key = match term {
+                Term::RadialDrift | Term::PivotDrift(_) => "closing_error".to_string(),
+                t => describe(*t, first.plane)?.0,
+            };
+            Some(NotComputed {
+                key,
+                reason: why.to_string(),
+            })
+        })
+        .collect();
+    out.dedup_by(|a, b| a.key == b.key);
+    out
+}
+
+fn mean_sd(v: &[f64]) -> (f64, f64) {
+    let n = v.len() as f64;
+    let m = v.iter().sum::<f64>() / n;
+    let sd = if v.len() > 1 {
+        (v.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (n - 1.0)).sqrt()
+    } else {
+        0.0
+    };
+    (m, sd)
+}
+
+fn local_findings(
+    findings: &mut [Finding],
+    fit: &Fit,
+    residuals: &[Residual],
+    traces: &[Trace],
+    noise: f64,
+    options: &Options,
+) -> Vec<Finding> {
+    let (p, q) = fit.plane.axes();
+    let mut out = Vec::new();
+    for axis in 0..2 {
+        let letter = if axis == 0 { p } else { q };
+        let l = letter.to_ascii_lowercase();
+        out.extend(spike_finding(residuals, axis, letter, noise));
+        if let Some(sides) = side_details(fit, residuals, axis, letter)
+            && let Some(b) = findings
+                .iter_mut()
+                .find(|f| f.key == format!("backlash_{l}"))
+        {
+            b.details = sides;
+        }
+        if let Some((near, far, pp)) = features::stick_slip(residuals, axis) {
+            let ratio = near / far.max(1e-9);
+            // Peak-to-peak of a sawtooth with the RMS that the reversal zones add to the noise.
+            let excess = 2.0 * 3f64.sqrt() * (near * near - far * far).max(0.0).sqrt();
+            out.push(Finding {
+                key: format!("stick_slip_{l}"),
+                name: format!("Stick-slip {letter} (near its reversals)"),
+                value: excess,
+                unit: "µm",
+                ci95: 1.96 * 2.0 * 3f64.sqrt() * far,
+                contribution_um: excess,
+                threshold: MIN_CONTRIBUTION_UM,
+                present: ratio >= 2.0 && excess >= MIN_CONTRIBUTION_UM,
+                details: vec![
+                    ("rms_ratio_near_to_far".into(), ratio),
+                    ("peak_to_peak_near_um".into(), pp),
+                ],
+            });
+        }
+    }
+    out.extend(vibration_finding(residuals, noise));
+    for (t, res) in traces.iter().zip(residuals) {
+        if let Some(h) = features::start_transient(res) {
+            let floor = 6.0 * noise / ((features::SMOOTH_MS / res.dt_ms).max(1.0)).sqrt();
+            out.push(Finding {
+                key: format!("start_transient_{}", t.sense.name()),
+                name: format!("Transient at the start, {}", t.sense.name().to_uppercase()),
+                value: h,
+                unit: "µm",
+                ci95: 1.96 * noise,
+                contribution_um: h.abs(),
+                threshold: MIN_CONTRIBUTION_UM.max(floor),
+                present: h.abs() >= MIN_CONTRIBUTION_UM.max(floor),
+                details: Vec::new(),
+            });
+        }
+    }
+    if options.cyclic {
+        out.extend(cyclic_findings(fit, residuals));
+    }
+    out
+}
+
+/// The step of the backlash at each end of the axis' travel (reversals at θ = 0° and 180° for
+/// p, 90° and 270° for q), µm, as finding details.
+fn side_details(
+    fit: &Fit,
+    residuals: &[Residual],
+    axis: usize,
+    letter: char,
+) -> Option<Vec<(String, f64)>> {
+    let (b, _) = fit.get(Term::Backlash(axis))?;
+    let ends = reversal_angles(axis);
+    let mut per_end: [Vec<f64>; 2] = [Vec::new(), Vec::new()];
+    for res in residuals {
+        let partial: Vec<f64> = res
+            .r
+            .iter()
+            .zip(res.points)
+            .map(|(r, p)| r + b * Term::Backlash(axis).basis(p, fit.plane))
+            .collect();
+        for i in features::reversals(res.points, axis) {
+            let Some(step) = features::step(res, &partial, i) else {
+                continue;
+            };
+            let before = Term::Backlash(axis).basis(&res.points[i - 1], fit.plane);
+            let after = Term::Backlash(axis).basis(&res.points[i], fit.plane);
+            let unit_step = after - before;
+            if unit_step.abs() < 0.5 {
+                continue;
+            }
+            let off = (res.angle_deg[i] - ends[1]).rem_euclid(360.0);
+            let end = usize::from(off.min(360.0 - off) < 45.0);
+            per_end[end].push(step / unit_step);
+        }
+    }
+    let l = letter.to_ascii_lowercase();
+    let details: Vec<(String, f64)> = per_end
+        .iter()
+        .zip(["plus", "minus"])
+        .filter(|(v, _)| !v.is_empty())
+        .map(|(v, side)| (format!("at_{side}_{l}_end_um"), mean_sd(v).0))
+        .collect();
+    (!details.is_empty()).then_some(details)
+}
+
+fn spike_finding(residuals: &[Residual], axis: usize, letter: char, noise: f64) -> Option<Finding> {
+    let mut found = Vec::new();
+    let mut floor: f64 = 0.0;
+    for res in residuals {
+        let smooth_n = (features::SMOOTH_MS / res.dt_ms).max(1.0);
+        floor = floor.max(6.0 * noise / smooth_n.sqrt());
+        for i in features::reversals(res.points, axis) {
+            found.extend(features::spike(res, i));
+        }
+    }
+    if found.is_empty() {
+        return None;
+    }
+    let heights: Vec<f64> = found.iter().map(|s| s.height_um).collect();
+    let widths: Vec<f64> = found.iter().map(|s| s.width_ms).collect();
+    let (h, sd) = mean_sd(&heights);
+    let (w, _) = mean_sd(&widths);
+    let threshold = MIN_CONTRIBUTION_UM.max(floor);
+    let l = letter.to_ascii_lowercase();
+    Some(Finding {
+        key: format!("reversal_spike_{l}"),
+        name: format!("Reversal spike {letter}"),
+        value: h,
+        unit: "µm",
+        ci95: 1.96 * sd / (heights.len() as f64).sqrt(),
+        contribution_um: h.abs(),
+        threshold,
+        present: h.abs() >= threshold,
+        details: vec![
+            ("width_ms".into(), w),
+            ("reversals".into(), heights.len() as f64),
+        ],
+    })
+}
+
+fn vibration_finding(residuals: &[Residual], noise: f64) -> Option<Finding> {
+    let best = residuals
+        .iter()
+        .filter_map(|r| features::vibration(r, 5.0).map(|v| (v, r.r.len())))
+        .max_by(|a, b| a.0.1.total_cmp(&b.0.1))?;
+    let ((hz, amp, median), n) = best;
+    let se = noise * (2.0 / n as f64).sqrt();
+    let present = 2.0 * amp >= MIN_CONTRIBUTION_UM && amp >= 10.0 * median.max(se);
+    Some(Finding {
+        key: "servo_vibration".into(),
+        name: "High servo gain vibration".into(),
+        value: amp,
+        unit: "µm",
+        ci95: 1.96 * se,
+        contribution_um: 2.0 * amp,
+        threshold: MIN_CONTRIBUTION_UM / 2.0,
+        present,
+        details: vec![("frequency_hz".into(), hz)],
+    })
+}
+
+fn cyclic_findings(fit: &Fit, residuals: &[Residual]) -> Vec<Finding> {
+    let (p, q) = fit.plane.axes();
+    let mut points = Vec::new();
+    let mut r = Vec::new();
+    let mut w = Vec::new();
+    for res in residuals {
+        let size = res.r.len().div_ceil(crate::samples::MAX_GROUPS).max(1);
+        for (k, chunk) in res.r.chunks(size).enumerate() {
+            let i = k * size + chunk.len() / 2;
+            points.push(res.points[i]);
+            r.push(chunk.iter().sum::<f64>() / chunk.len() as f64);
+            w.push(chunk.len() as f64);
+        }
+    }
+    (0..2)
+        .filter_map(|axis| {
+            let c = features::cyclic(&points, &r, &w, axis, fit.sample_sigma_um)?;
+            let letter = if axis == 0 { p } else { q };
+            let threshold = (MIN_CONTRIBUTION_UM / 2.0).max(5.0 * c.std_error_um);
+            Some(Finding {
+                key: format!("cyclic_{}", letter.to_ascii_lowercase()),
+                name: format!("Cyclic error {letter}"),
+                value: c.amplitude_um,
+                unit: "µm",
+                ci95: 1.96 * c.std_error_um,
+                contribution_um: 2.0 * c.amplitude_um,
+                threshold,
+                present: c.amplitude_um >= threshold,
+                details: vec![("pitch_mm".into(), c.pitch_mm)],
+            })
+        })
+        .collect()
+}

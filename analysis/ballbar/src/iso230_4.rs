@@ -1,0 +1,341 @@
+//! ISO 230-4:2022 figures of a circular test.
+//!
+//! With the deviation `Δr(θ)` (measured minus nominal radius, µm) and a centre offset `(a, b)`
+//! (µm, the path centre relative to the pivot), the radial deviation from a circle about that
+//! centre is `e(θ) = Δr(θ) − a cos θ − b sin θ`. The least-squares centre minimises `Σ (e − r₀)²`,
+//! which to first order in `(a, b)/R` is the linear fit `Δr ≈ r₀ + a cos θ + b sin θ`
+//! (the standard's least-squares circle, ISO 230-4 3.4 and Annex; Kwon 1998 "best fitting
+//! circle"). Then, per direction:
+//!
+//! - circular deviation `G = max e − min e` (3.5), about the least-squares centre;
+//! - radial deviation `F_max = max e`, `F_min = min e` from the nominal radius (3.7);
+//! - bidirectional circular deviation `G(b)`: `max − min` of `e` over both directions about their
+//!   common least-squares centre (3.6);
+//! - circular hysteresis `H`: the largest radial difference between the CW and CCW paths at the
+//!   same angle (3.8), where both cover that angle;
+//! - minimum-zone circular deviation (optional): `min over (a, b) of max e − min e`, the width of
+//!   the thinnest concentric annulus that holds the path; a convex problem solved here by
+//!   Nelder–Mead from the least-squares centre to 1e-6 µm.
+
+use crate::trace::Trace;
+use serde::Serialize;
+
+/// A least-squares circle: centre offset of the path (µm) and radius offset (µm).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct Circle {
+    /// Path centre along the plane's first axis relative to the pivot, µm.
+    pub centre_p_um: f64,
+    /// Path centre along the plane's second axis, µm.
+    pub centre_q_um: f64,
+    /// Mean radius minus nominal, µm.
+    pub radius_offset_um: f64,
+}
+
+impl Circle {
+    /// Radial deviation of a sample from this circle's centre (not its radius), µm.
+    pub fn radial(&self, theta: f64, deviation_um: f64) -> f64 {
+        deviation_um - self.centre_p_um * theta.cos() - self.centre_q_um * theta.sin()
+    }
+}
+
+/// The least-squares circle of one or more traces together.
+pub fn least_squares_circle(traces: &[&Trace]) -> Circle {
+    let mut ata = nalgebra::Matrix3::<f64>::zeros();
+    let mut aty = nalgebra::Vector3::<f64>::zeros();
+    for t in traces {
+        for (a, d) in t.angle_deg.iter().zip(&t.deviation_um) {
+            let (s, c) = a.to_radians().sin_cos();
+            let row = nalgebra::Vector3::new(1.0, c, s);
+            ata += row * row.transpose();
+            aty += row * *d;
+        }
+    }
+    // A trace of at least a few degrees makes the 3×3 system regular; validation ensures it.
+    let x = ata
+        .try_inverse()
+        .map_or(nalgebra::Vector3::zeros(), |inv| inv * aty);
+    Circle {
+        centre_p_um: x[1],
+        centre_q_um: x[2],
+        radius_offset_um: x[0],
+    }
+}
+
+/// ISO 230-4 figures of one direction.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Directional {
+    /// Label of the trace.
+    pub label: String,
+    /// `cw` or `ccw`.
+    pub sense: String,
+    /// Angle swept, deg.
+    pub sweep_deg: f64,
+    /// Least-squares circle.
+    pub circle: Circle,
+    /// Circular deviation G, µm.
+    pub circular_deviation_um: f64,
+    /// Largest radial deviation F_max, µm.
+    pub radial_deviation_max_um: f64,
+    /// Smallest radial deviation F_min, µm.
+    pub radial_deviation_min_um: f64,
+    /// Minimum-zone circular deviation, µm, when asked for.
+    pub minimum_zone_um: Option<f64>,
+}
+
+/// ISO 230-4 figures of a test.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Figures {
+    /// Per direction.
+    pub directions: Vec<Directional>,
+    /// Bidirectional circular deviation G(b), µm, with both directions.
+    pub bidirectional_deviation_um: Option<f64>,
+    /// Circular hysteresis H, µm, with both directions.
+    pub hysteresis_um: Option<f64>,
+}
+
+/// The figures of the traces of one test (one or two directions).
+pub fn figures(traces: &[&Trace], minimum_zone: bool) -> Figures {
+    let directions = traces
+        .iter()
+        .map(|t| directional(t, minimum_zone))
+        .collect();
+    let both = traces.len() == 2 && traces[0].sense != traces[1].sense;
+    let (bidirectional, hysteresis) = if both {
+        let c = least_squares_circle(traces);
+        let e: Vec<f64> = traces.iter().flat_map(|t| radial(t, &c)).collect();
+        (
+            Some(span(&e)),
+            hysteresis(traces[0], traces[1], &c).filter(|h| h.is_finite()),
+        )
+    } else {
+        (None, None)
+    };
+    Figures {
+        directions,
+        bidirectional_deviation_um: bidirectional,
+        hysteresis_um: hysteresis,
+    }
+}
+
+fn directional(t: &Trace, minimum_zone: bool) -> Directional {
+    let circle = least_squares_circle(&[t]);
+    let e = radial(t, &circle);
+    let (lo, hi) = bounds(&e);
+    Directional {
+        label: t.label.clone(),
+        sense: t.sense.name().into(),
+        sweep_deg: t.sweep_deg(),
+        circle,
+        circular_deviation_um: hi - lo,
+        radial_deviation_max_um: hi,
+        radial_deviation_min_um: lo,
+        minimum_zone_um: minimum_zone.then(|| minimum_zone_deviation(t, &circle)),
+    }
+}
+
+fn radial(t: &Trace, c: &Circle) -> Vec<f64> {
+    t.angle_deg
+        .iter()
+        .zip(&t.deviation_um)
+        .map(|(a, d)| c.radial(a.to_radians(), *d))
+        .collect()
+}
+
+fn bounds(v: &[f64]) -> (f64, f64) {
+    v.iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), x| {
+            (lo.min(*x), hi.max(*x))
+        })
+}
+
+fn span(v: &[f64]) -> f64 {
+    let (lo, hi) = bounds(v);
+    hi - lo
+}
+
+/// The path of `t` about centre `c` as (angle in [0, 360), e) sorted by angle.
+fn sorted_path(t: &Trace, c: &Circle) -> Vec<(f64, f64)> {
+    let mut p: Vec<(f64, f64)> = t
+        .angle_deg
+        .iter()
+        .zip(radial(t, c))
+        .map(|(a, e)| (a.rem_euclid(360.0), e))
+        .collect();
+    p.sort_by(|x, y| x.0.total_cmp(&y.0));
+    p
+}
+
+/// Largest |e_a(θ) − e_b(θ)| at the angles of `a` that `b` covers (linear interpolation of b).
+fn hysteresis(a: &Trace, b: &Trace, c: &Circle) -> Option<f64> {
+    let pb = sorted_path(b, c);
+    let ea = radial(a, c);
+    let max_step = 2.0 * crate::trace::MAX_GAP_DEG;
+    let mut worst: Option<f64> = None;
+    for (ang, e) in a.angle_deg.iter().zip(ea) {
+        let x = ang.rem_euclid(360.0);
+        let k = pb.partition_point(|p| p.0 < x);
+        let (lo, hi) = match (k.checked_sub(1).map(|i| pb[i]), pb.get(k)) {
+            (Some(l), Some(h)) => (l, h),
+            _ => continue,
+        };
+        if hi.0 - lo.0 > max_step {
+            continue;
+        }
+        let w = if hi.0 > lo.0 {
+            (x - lo.0) / (hi.0 - lo.0)
+        } else {
+            0.0
+        };
+        let eb = lo.1 + w * (hi.1 - lo.1);
+        let d = (e - eb).abs();
+        worst = Some(worst.map_or(d, |m: f64| m.max(d)));
+    }
+    worst
+}
+
+/// Minimum-zone circular deviation of `t`, µm, starting from the least-squares centre `c`.
+pub fn minimum_zone_deviation(t: &Trace, c: &Circle) -> f64 {
+    let trig: Vec<(f64, f64, f64)> = t
+        .angle_deg
+        .iter()
+        .zip(&t.deviation_um)
+        .map(|(a, d)| {
+            let (s, co) = a.to_radians().sin_cos();
+            (co, s, *d)
+        })
+        .collect();
+    let zone = |x: [f64; 2]| {
+        let (lo, hi) = trig.iter().fold(
+            (f64::INFINITY, f64::NEG_INFINITY),
+            |(lo, hi), (co, s, d)| {
+                let e = d - x[0] * co - x[1] * s;
+                (lo.min(e), hi.max(e))
+            },
+        );
+        hi - lo
+    };
+    let start = [c.centre_p_um, c.centre_q_um];
+    let scale = span(&radial(t, c)).max(1e-3);
+    nelder_mead(zone, start, 0.1 * scale, 1e-6)
+}
+
+/// Nelder–Mead minimisation of a function of two variables; returns the minimum.
+fn nelder_mead(f: impl Fn([f64; 2]) -> f64, x0: [f64; 2], step: f64, tol: f64) -> f64 {
+    let mut s = [x0, [x0[0] + step, x0[1]], [x0[0], x0[1] + step]].map(|x| (x, f(x)));
+    for _ in 0..2000 {
+        s.sort_by(|a, b| a.1.total_cmp(&b.1));
+        if s[2].1 - s[0].1 < tol {
+            break;
+        }
+        let c = [(s[0].0[0] + s[1].0[0]) / 2.0, (s[0].0[1] + s[1].0[1]) / 2.0];
+        let along = |k: f64| [c[0] + k * (s[2].0[0] - c[0]), c[1] + k * (s[2].0[1] - c[1])];
+        let r = along(-1.0);
+        let fr = f(r);
+        if fr < s[0].1 {
+            let e = along(-2.0);
+            let fe = f(e);
+            s[2] = if fe < fr { (e, fe) } else { (r, fr) };
+        } else if fr < s[1].1 {
+            s[2] = (r, fr);
+        } else {
+            let k = along(if fr < s[2].1 { -0.5 } else { 0.5 });
+            let fk = f(k);
+            if fk < s[2].1.min(fr) {
+                s[2] = (k, fk);
+            } else {
+                let best = s[0].0;
+                for v in s.iter_mut().skip(1) {
+                    let x = [(v.0[0] + best[0]) / 2.0, (v.0[1] + best[1]) / 2.0];
+                    *v = (x, f(x));
+                }
+            }
+        }
+    }
+    s.iter().map(|v| v.1).fold(f64::INFINITY, f64::min)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::trace::{Plane, Sense};
+
+    fn trace(sense: Sense, f: impl Fn(f64) -> f64) -> Trace {
+        let angle_deg: Vec<f64> = (0..3600).map(|i| sense.sign() * i as f64 * 0.1).collect();
+        let deviation_um = angle_deg.iter().map(|a| f(a.to_radians())).collect();
+        Trace {
+            label: sense.name().into(),
+            plane: Plane::Xy,
+            sense,
+            radius_mm: 150.0,
+            feed_mm_min: 1000.0,
+            angle_deg,
+            deviation_um,
+            time_s: None,
+        }
+    }
+
+    #[test]
+    fn an_offset_circle_has_its_centre_found_and_no_deviation() {
+        let t = trace(Sense::Ccw, |th| 2.0 + 5.0 * th.cos() - 3.0 * th.sin());
+        let f = figures(&[&t], true);
+        let d = &f.directions[0];
+        assert!((d.circle.centre_p_um - 5.0).abs() < 1e-9);
+        assert!((d.circle.centre_q_um + 3.0).abs() < 1e-9);
+        assert!((d.circle.radius_offset_um - 2.0).abs() < 1e-9);
+        assert!(d.circular_deviation_um < 1e-9);
+    }
+
+    /// An ellipse `A cos 2θ` has G = 2A, F = ±A; the minimum zone can be no wider; CW and
+    /// CCW paths differing by a constant c give H = c.
+    #[test]
+    fn ellipse_and_hysteresis_have_their_closed_form_figures() {
+        let cw = trace(Sense::Cw, |th| 4.0 * (2.0 * th).cos() + 1.5);
+        let ccw = trace(Sense::Ccw, |th| 4.0 * (2.0 * th).cos());
+        let f = figures(&[&cw, &ccw], true);
+        let d = &f.directions[1];
+        assert!((d.circular_deviation_um - 8.0).abs() < 1e-6);
+        assert!((d.radial_deviation_max_um - 4.0).abs() < 1e-6);
+        assert!((d.radial_deviation_min_um + 4.0).abs() < 1e-6);
+        assert!(d.minimum_zone_um.unwrap() <= d.circular_deviation_um + 1e-9);
+        assert!((f.hysteresis_um.unwrap() - 1.5).abs() < 1e-6);
+        assert!((f.bidirectional_deviation_um.unwrap() - 9.5).abs() < 1e-6);
+    }
+
+    /// The minimum zone found by Nelder–Mead matches a brute-force search over centres and is
+    /// never wider than the least-squares band.
+    #[test]
+    fn minimum_zone_matches_a_brute_force_search() {
+        let mut t = trace(Sense::Ccw, |th| {
+            (2.0 * th).cos()
+                + 0.6 * (3.0 * th).cos()
+                + 0.3 * (5.0 * th).sin()
+                + 0.8 * th.cos().max(0.0)
+        });
+        // Every 10th sample (1°), so that a fine grid of centres stays quick.
+        t.angle_deg = t.angle_deg.into_iter().step_by(10).collect();
+        t.deviation_um = t.deviation_um.into_iter().step_by(10).collect();
+        let f = figures(&[&t], true);
+        let d = &f.directions[0];
+        let z = d.minimum_zone_um.unwrap();
+        let mut best = f64::INFINITY;
+        for i in -300..=300 {
+            for j in -300..=300 {
+                let c = Circle {
+                    centre_p_um: d.circle.centre_p_um + i as f64 * 4e-3,
+                    centre_q_um: d.circle.centre_q_um + j as f64 * 4e-3,
+                    radius_offset_um: 0.0,
+                };
+                best = best.min(span(&radial(&t, &c)));
+            }
+        }
+        assert!(
+            z <= best + 1e-6 && z > best - 1e-2,
+            "Nelder-Mead {z}, grid {best}"
+        );
+        assert!(
+            z < d.circular_deviation_um - 0.01,
+            "{z} vs G {}",
+            d.circular_deviation_um
+        );
+    }
+}

@@ -1,0 +1,24 @@
+//! Ball-bar (circular test) diagnosis: the ISO 230-4 figures of a trace and the machine errors
+//! behind it, from simulated or measured logs alike.
+//!
+//! - [`trace`]: the trace as an instrument records it, and its checks;
+//! - [`iso230_4`]: circular deviation G, radial deviation F, bidirectional deviation, hysteresis
+//!   H, least-squares and minimum-zone centres;
+//! - [`signatures`]: the radial signature of each physical error, to first order;
+//! - [`model`]: the error model and its weighted least-squares fit with confidences;
+//! - [`features`]: reversal spikes, per-side backlash, stick-slip, vibration, start transient and
+//!   cyclic errors in the residual;
+//! - [`diagnosis`]: one test diagnosed into ranked findings;
+//! - [`report`]: the diagnosis as text, Markdown and JSON.
+
+pub mod diagnosis;
+pub mod features;
+pub mod iso230_4;
+pub mod model;
+pub mod report;
+pub mod samples;
+pub mod signatures;
+pub mod trace;
+
+pub use diagnosis::{Diagnosis, DiagnosisError, Finding, Options, diagnose};
+pub use trace::{Plane, Sense, Trace, TraceError};

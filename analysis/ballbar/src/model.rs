@@ -1,0 +1,265 @@
+//! The error model of a circular test and its least-squares fit.
+//!
+//! The deviation of every sample of every trace of a test is modelled as the sum of the
+//! signatures of [`crate::signatures`], each scaled by one unknown physical parameter:
+//!
+//! ```text
+//! Δr = r₀ + Σ_terms x_k f_k(θ, σ, s) + ε,      ε ~ N(0, σ_ε²) per sample
+//! ```
+//!
+//! with s the progress over the whole test (time when the traces carry it), so that a drift of
+//! the pivot or the bar is one continuous law across the CW and CCW runs. Samples are averaged in
+//! groups (see [`crate::samples`]) and the groups weighted by their size, which is the
+//! generalised least-squares estimate for white sample noise; the covariance of the estimate is
+//! `σ̂² (AᵀWA)⁻¹` with `σ̂² = Σ w r² / (n_groups − n_terms)`.
+//!
+//! A term enters only where the test can tell it from the others (see [`Terms::for_test`]):
+//! backlash and lateral play need a reversal of their axis inside the arc, servo mismatch and
+//! lateral play need both senses, drift needs full circles.
+
+use crate::samples::Samples;
+use crate::signatures::{self, Point};
+use crate::trace::{Plane, Trace};
+use nalgebra::{DMatrix, DVector};
+use thiserror::Error;
+
+/// One unknown of the model.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Term {
+    /// Radius offset r₀, µm.
+    Radius,
+    /// Pivot offset along p (0) or q (1) at the start of the test, µm.
+    Pivot(usize),
+    /// Radial growth over the test, µm.
+    RadialDrift,
+    /// Pivot drift over the test along p (0) or q (1), µm.
+    PivotDrift(usize),
+    /// Scale mismatch ε_p − ε_q, ppm.
+    ScaleMismatch,
+    /// The plane's ISO squareness, µrad (µm/m).
+    Squareness,
+    /// Servo mismatch τ_p − τ_q, ms.
+    ServoMismatch,
+    /// Backlash of p (0) or q (1), µm.
+    Backlash(usize),
+    /// Lateral play of p (0) or q (1), µm.
+    LateralPlay(usize),
+    /// Straightness (bow over the diameter) of p (0) or q (1), µm.
+    Straightness(usize),
+}
+
+impl Term {
+    /// Δr per unit of this term at `pt` in `plane`, µm.
+    pub fn basis(self, pt: &Point, plane: Plane) -> f64 {
+        match self {
+            Term::Radius => 1.0,
+            Term::Pivot(i) => signatures::pivot_offset(pt)[i],
+            Term::RadialDrift => signatures::drift(pt)[0],
+            Term::PivotDrift(i) => signatures::drift(pt)[1 + i],
+            Term::ScaleMismatch => signatures::scale_mismatch(pt),
+            Term::Squareness => signatures::squareness(pt, plane),
+            Term::ServoMismatch => signatures::servo_mismatch(pt),
+            Term::Backlash(i) => signatures::backlash(pt)[i],
+            Term::LateralPlay(i) => signatures::lateral_play(pt)[i],
+            Term::Straightness(i) => signatures::straightness(pt)[i],
+        }
+    }
+}
+
+/// Whether an axis reversal at `theta_deg` (mod 360) lies inside the trace with `margin` degrees
+/// on both sides.
+pub fn covers(t: &Trace, theta_deg: f64, margin: f64) -> bool {
+    let (a, b) = (t.angle_deg[0], t.angle_deg[t.angle_deg.len() - 1]);
+    let (lo, hi) = (a.min(b) + margin, a.max(b) - margin);
+    let k = ((lo - theta_deg) / 360.0).ceil();
+    theta_deg + 360.0 * k <= hi
+}
+
+/// Angles (deg) at which the plane's p (index 0) or q (index 1) axis reverses.
+pub const fn reversal_angles(axis: usize) -> [f64; 2] {
+    if axis == 0 {
+        [0.0, 180.0]
+    } else {
+        [90.0, 270.0]
+    }
+}
+
+/// The terms a test can determine, and why the others are left out.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Terms {
+    /// Terms in the model.
+    pub terms: Vec<Term>,
+    /// Terms left out, with the reason.
+    pub left_out: Vec<(Term, &'static str)>,
+}
+
+/// The sweep (deg) a trace needs for drift terms: a closed circle.
+pub const FULL_CIRCLE_DEG: f64 = 355.0;
+/// Margin (deg) a reversal needs inside the arc for its steps to be seen.
+pub const REVERSAL_MARGIN_DEG: f64 = 5.0;
+
+impl Terms {
+    /// The terms for a test made of `traces` (one or two senses, full or partial arcs).
+    pub fn for_test(traces: &[&Trace]) -> Self {
+        let both = traces.iter().any(|t| t.sense != traces[0].sense);
+        let full = traces.iter().all(|t| t.sweep_deg() >= FULL_CIRCLE_DEG);
+        let sweep = traces.iter().map(|t| t.sweep_deg()).fold(0.0, f64::max);
+        let reverses = |axis: usize| {
+            reversal_angles(axis)
+                .iter()
+                .any(|&a| traces.iter().all(|t| covers(t, a, REVERSAL_MARGIN_DEG)))
+        };
+        let mut terms = vec![Term::Radius, Term::Pivot(0), Term::Pivot(1)];
+        let mut left_out = Vec::new();
+        let mut add = |term: Term, ok: bool, why: &'static str| {
+            if ok {
+                terms.push(term);
+            } else {
+                left_out.push((term, why));
+            }
+        };
+        const NEEDS_FULL: &str = "needs full circles (start and end at the same angle)";
+        add(Term::RadialDrift, full, NEEDS_FULL);
+        add(Term::PivotDrift(0), full, NEEDS_FULL);
+        add(Term::PivotDrift(1), full, NEEDS_FULL);
+        const NEEDS_90: &str = "needs an arc of at least 90 deg";
+        add(Term::ScaleMismatch, sweep >= 90.0, NEEDS_90);
+        add(Term::Squareness, sweep >= 90.0, NEEDS_90);
+        const NEEDS_BOTH: &str = "needs both a CW and a CCW run of the same circle";
+        add(Term::ServoMismatch, both && sweep >= 90.0, NEEDS_BOTH);
+        const NEEDS_REVERSAL: &str = "needs a reversal of the axis inside the arc";
+        const NEEDS_REVERSAL_BOTH: &str =
+            "needs a reversal of the axis inside the arc in both a CW and a CCW run";
+        for axis in 0..2 {
+            add(Term::Backlash(axis), reverses(axis), NEEDS_REVERSAL);
+            add(
+                Term::LateralPlay(axis),
+                both && reverses(axis),
+                NEEDS_REVERSAL_BOTH,
+            );
+        }
+        const NEEDS_270: &str = "needs an arc of at least 270 deg";
+        for axis in 0..2 {
+            add(Term::Straightness(axis), sweep >= 270.0, NEEDS_270);
+        }
+        Self { terms, left_out }
+    }
+}
+
+/// Why a fit failed.
+#[derive(Debug, Error, PartialEq)]
+pub enum FitError {
+    /// The normal equations are singular.
+    #[error(
+        "the error terms cannot be told apart on this test (singular normal equations); a longer arc or both directions are needed"
+    )]
+    Singular,
+    /// Fewer groups than unknowns.
+    #[error("{groups} sample groups for {terms} unknowns; the trace is too short")]
+    TooFewSamples {
+        /// Groups.
+        groups: usize,
+        /// Unknowns.
+        terms: usize,
+    },
+}
+
+/// The fitted model.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Fit {
+    /// The test plane.
+    pub plane: Plane,
+    /// The terms, in the order of `values`.
+    pub terms: Vec<Term>,
+    /// Estimates, in the units of each term.
+    pub values: Vec<f64>,
+    /// Standard errors of the estimates.
+    pub std_errors: Vec<f64>,
+    /// Estimated per-sample noise σ̂, µm.
+    pub sample_sigma_um: f64,
+}
+
+impl Fit {
+    /// Fits `terms` to the prepared traces of a test.
+    pub fn new(
+        plane: Plane,
+        terms: &[Term],
+        traces: &[(&Trace, &Samples)],
+    ) -> Result<Self, FitError> {
+        let groups: Vec<(Point, f64, usize)> = traces
+            .iter()
+            .flat_map(|(t, s)| s.groups(&t.angle_deg))
+            .collect();
+        let (m, n) = (groups.len(), terms.len());
+        if m <= n {
+            return Err(FitError::TooFewSamples {
+                groups: m,
+                terms: n,
+            });
+        }
+        let mut ata = DMatrix::<f64>::zeros(n, n);
+        let mut aty = DVector::<f64>::zeros(n);
+        let mut row = DVector::<f64>::zeros(n);
+        for (pt, y, w) in &groups {
+            for (r, term) in row.iter_mut().zip(terms) {
+                *r = term.basis(pt, plane);
+            }
+            let w = *w as f64;
+            ata.syger(w, &row, &row, 1.0);
+            aty.axpy(w * y, &row, 1.0);
+        }
+        let chol = ata.cholesky().ok_or(FitError::Singular)?;
+        let x = chol.solve(&aty);
+        let inv = chol.inverse();
+        let mut rss = 0.0;
+        for (pt, y, w) in &groups {
+            let model: f64 = terms
+                .iter()
+                .zip(x.iter())
+                .map(|(t, v)| v * t.basis(pt, plane))
+                .sum();
+            rss += *w as f64 * (y - model).powi(2);
+        }
+        let sigma = (rss / (m - n) as f64).sqrt();
+        Ok(Self {
+            plane,
+            terms: terms.to_vec(),
+            values: x.iter().copied().collect(),
+            std_errors: (0..n)
+                .map(|i| sigma * inv[(i, i)].max(0.0).sqrt())
+                .collect(),
+            sample_sigma_um: sigma,
+        })
+    }
+
+    /// Estimate and standard error of `term`, if it is in the model.
+    pub fn get(&self, term: Term) -> Option<(f64, f64)> {
+        let i = self.terms.iter().position(|t| *t == term)?;
+        Some((self.values[i], self.std_errors[i]))
+    }
+
+    /// The model's deviation at `pt`, µm, leaving out the terms `except` returns true for.
+    pub fn model(&self, pt: &Point, except: impl Fn(Term) -> bool) -> f64 {
+        self.terms
+            .iter()
+            .zip(&self.values)
+            .filter(|(t, _)| !except(**t))
+            .map(|(t, v)| v * t.basis(pt, self.plane))
+            .sum()
+    }
+
+    /// Peak-to-valley (µm) of one term's signature over the samples of the test.
+    pub fn contribution_um(&self, term: Term, samples: &[&Samples]) -> f64 {
+        let Some((v, _)) = self.get(term) else {
+            return 0.0;
+        };
+        let (lo, hi) = samples
+            .iter()
+            .flat_map(|s| (0..s.len()).map(move |i| s.point(i)))
+            .map(|p| v * term.basis(&p, self.plane))
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), x| {
+                (lo.min(x), hi.max(x))
+            });
+        if hi >= lo { hi - lo } else { 0.0 }
+    }
+}

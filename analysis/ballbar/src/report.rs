@@ -1,0 +1,153 @@
+//! A diagnosis as users of ball-bar software read it: the ISO 230-4 figures, then the errors
+//! ranked by their contribution to the circular deviation, then what could not be determined.
+//! As plain text (terminal), Markdown and JSON.
+
+use crate::diagnosis::{Diagnosis, Finding, MIN_CONTRIBUTION_UM};
+use std::fmt::Write;
+
+/// The decision rule, printed with every report.
+pub const RULE: &str = "An error is reported present when its signature spans at least 0.5 µm \
+peak to valley on this test and its value is at least 3 standard errors from zero (local shapes: \
+at least 0.5 µm and above their noise floor). ± is the 95 % confidence interval.";
+
+fn figures_rows(d: &Diagnosis) -> Vec<(String, String)> {
+    let mut rows = Vec::new();
+    for dir in &d.iso.directions {
+        let s = dir.sense.to_uppercase();
+        rows.push((
+            format!("Circular deviation G {s} ({:.0} deg)", dir.sweep_deg),
+            format!("{:.2} µm", dir.circular_deviation_um),
+        ));
+        rows.push((
+            format!("Radial deviation F {s} max / min"),
+            format!(
+                "{:+.2} / {:+.2} µm",
+                dir.radial_deviation_max_um, dir.radial_deviation_min_um
+            ),
+        ));
+        if let Some(z) = dir.minimum_zone_um {
+            rows.push((
+                format!("Minimum-zone circular deviation {s}"),
+                format!("{z:.2} µm"),
+            ));
+        }
+    }
+    if let Some(g) = d.iso.bidirectional_deviation_um {
+        rows.push((
+            "Bidirectional circular deviation G(b)".into(),
+            format!("{g:.2} µm"),
+        ));
+    }
+    if let Some(h) = d.iso.hysteresis_um {
+        rows.push(("Circular hysteresis H".into(), format!("{h:.2} µm")));
+    }
+    rows
+}
+
+fn value(f: &Finding) -> String {
+    let digits = if f.unit == "ms" { 4 } else { 2 };
+    let ci = if f.ci95.is_finite() {
+        format!(" ± {:.*}", digits, f.ci95)
+    } else {
+        String::new()
+    };
+    format!("{:+.*}{ci} {}", digits, f.value, f.unit)
+}
+
+fn details(f: &Finding) -> String {
+    f.details
+        .iter()
+        .map(|(k, v)| format!("{k} {v:.3}"))
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+fn header(d: &Diagnosis) -> String {
+    format!(
+        "Circular test {} R {:.1} mm at {:.0} mm/min: {}",
+        d.plane,
+        d.radius_mm,
+        d.feed_mm_min,
+        d.traces.join(" / ")
+    )
+}
+
+/// Plain text for a terminal.
+pub fn text(d: &Diagnosis) -> String {
+    let mut s = String::new();
+    let _ = writeln!(s, "{}", header(d));
+    let _ = writeln!(s, "\nISO 230-4");
+    for (k, v) in figures_rows(d) {
+        let _ = writeln!(s, "  {k:<44} {v}");
+    }
+    let _ = writeln!(s, "\nErrors, ranked by contribution (µm peak to valley)");
+    for f in &d.findings {
+        let mark = if f.present { "*" } else { " " };
+        let _ = writeln!(
+            s,
+            "{mark} {:<56} {:>24} {:>7.2}  {}",
+            f.name,
+            value(f),
+            f.contribution_um,
+            details(f)
+        );
+    }
+    if !d.not_computed.is_empty() {
+        let _ = writeln!(s, "\nNot determined by this test");
+        for n in &d.not_computed {
+            let _ = writeln!(s, "  {:<28} {}", n.key, n.reason);
+        }
+    }
+    let _ = writeln!(
+        s,
+        "\nResidual {:.3} µm RMS, noise {:.3} µm. * present. {RULE}",
+        d.residual_rms_um, d.noise_um
+    );
+    s
+}
+
+/// Markdown, for reports kept with the data.
+pub fn markdown(d: &Diagnosis) -> String {
+    let mut s = String::new();
+    let _ = writeln!(s, "## {}\n", header(d));
+    let _ = writeln!(s, "| ISO 230-4 | value |\n|---|---|");
+    for (k, v) in figures_rows(d) {
+        let _ = writeln!(s, "| {k} | {v} |");
+    }
+    let _ = writeln!(
+        s,
+        "\n| error | value | contribution (µm) | present | details |\n|---|---|---|---|---|"
+    );
+    for f in &d.findings {
+        let _ = writeln!(
+            s,
+            "| {} | {} | {:.2} | {} | {} |",
+            f.name,
+            value(f),
+            f.contribution_um,
+            if f.present { "yes" } else { "no" },
+            details(f)
+        );
+    }
+    if !d.not_computed.is_empty() {
+        let _ = writeln!(s, "\nNot determined by this test:\n");
+        for n in &d.not_computed {
+            let _ = writeln!(s, "- `{}`: {}", n.key, n.reason);
+        }
+    }
+    let _ = writeln!(
+        s,
+        "\nResidual {:.3} µm RMS, noise {:.3} µm. Threshold {MIN_CONTRIBUTION_UM} µm. {RULE}",
+        d.residual_rms_um, d.noise_um
+    );
+    s
+}
+
+/// JSON (the [`Diagnosis`] with the decision rule).
+pub fn json(d: &Diagnosis) -> serde_json::Value {
+    let mut v = serde_json::to_value(d).unwrap_or(serde_json::Value::Null);
+    if let Some(o) = v.as_object_mut() {
+        o.insert("decision_rule".into(), RULE.into());
+    }
+    v
+}

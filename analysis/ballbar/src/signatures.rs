@@ -1,0 +1,180 @@
+//! The radial signature of each machine error on a circular test, to first order.
+//!
+//! The tool moves on a circle of radius R about the pivot, `p = R cos θ`, `q = R sin θ` in the
+//! plane's axes `(p, q)`, with `dθ/dt = σ ω` (σ = +1 CCW, −1 CW). A small tool displacement
+//! `(δp, δq)` changes the bar length by
+//!
+//! ```text
+//! Δr = δp cos θ + δq sin θ                                  (µm)
+//! ```
+//!
+//! Each error is a physical displacement law, and its signature follows from it (Kwon 1998;
+//! Knapp 1983; ISO 230-4 Annex; the NOTES of this project):
+//!
+//! | error | displacement | Δr |
+//! |-------|--------------|----|
+//! | pivot offset e (set-up eccentricity) | bar = tool − (C + e) | −(e_p cos θ + e_q sin θ) |
+//! | radius offset r₀ (bar length, temperature) | — | r₀ |
+//! | scale mismatch m = ε_p − ε_q (ppm) | δp = ε_p p, δq = ε_q q | (R/2) m cos 2θ (+ a constant) |
+//! | squareness γ (µrad, ISO EC0Y/EB0Z/EA0Z) | q-axis line rotated by γ | k (R/2) γ sin 2θ, k = −1 XY, +1 ZX, −1 YZ |
+//! | servo mismatch Δτ = τ_p − τ_q (ms) | δp = −τ_p v_p, δq = −τ_q v_q | σ (F/2) Δτ sin 2θ |
+//! | backlash b_p (µm) | δp = −(b_p/2) sign v_p | σ (b_p/2) sign(sin θ) cos θ |
+//! | backlash b_q | δq = −(b_q/2) sign v_q | −σ (b_q/2) sign(cos θ) sin θ |
+//! | lateral play l_p (play of p across, flips when p reverses) | δq = −(l_p/2) sign v_p | σ (l_p/2) \|sin θ\| |
+//! | lateral play l_q | δp = −(l_q/2) sign v_q | −σ (l_q/2) \|cos θ\| |
+//! | straightness S_p (bow of p towards +q, µm over 2R) | δq = S_p (1 − (p/R)²) | −S_p cos²θ sin θ (+ first harmonic) |
+//! | straightness S_q (bow of q towards +p) | δp = S_q (1 − (q/R)²) | −S_q sin²θ cos θ (+ first harmonic) |
+//! | drift over the trace (progress s ∈ [0, 1]) | pivot moves by d·s, bar grows by g·s | g s − (d_p cos θ + d_q sin θ) s |
+//!
+//! with `v_p = −σ R ω sin θ`, `v_q = σ R ω cos θ`, F the feed (µm/ms) and the lags τ in ms.
+//! The servo lag τ of an axis is `(1 − k_vff)/K_v` for a position loop of gain K_v with
+//! velocity feed-forward k_vff. The signs follow ISO 230-1: errors are tool-to-workpiece
+//! displacements along +p, +q; backlash is "backward minus forward" (Ahn & Cho 2002).
+
+use crate::trace::{Plane, Sense};
+
+/// One sample's place on the circle, in the units of the signatures.
+#[derive(Clone, Copy, Debug)]
+pub struct Point {
+    /// cos θ, θ the angle from the plane's first axis.
+    pub cos: f64,
+    /// sin θ.
+    pub sin: f64,
+    /// Sense of travel.
+    pub sense: Sense,
+    /// Progress along the trace, 0 at its start, 1 at its end.
+    pub progress: f64,
+    /// Nominal radius, µm.
+    pub radius_um: f64,
+    /// Feed, µm/ms.
+    pub feed_um_per_ms: f64,
+}
+
+/// Sign of the squareness signature in each plane (see the module table).
+pub const fn squareness_sign(plane: Plane) -> f64 {
+    match plane {
+        Plane::Xy | Plane::Yz => -1.0,
+        Plane::Zx => 1.0,
+    }
+}
+
+fn sign(x: f64) -> f64 {
+    if x > 0.0 {
+        1.0
+    } else if x < 0.0 {
+        -1.0
+    } else {
+        0.0
+    }
+}
+
+/// Δr per µm of pivot offset along p and along q.
+pub fn pivot_offset(pt: &Point) -> [f64; 2] {
+    [-pt.cos, -pt.sin]
+}
+
+/// Δr per ppm of scale mismatch ε_p − ε_q (the constant half goes with the radius offset).
+pub fn scale_mismatch(pt: &Point) -> f64 {
+    0.5 * pt.radius_um * 1e-6 * (pt.cos * pt.cos - pt.sin * pt.sin)
+}
+
+/// Δr per µrad of the plane's ISO squareness.
+pub fn squareness(pt: &Point, plane: Plane) -> f64 {
+    squareness_sign(plane) * pt.radius_um * 1e-6 * pt.sin * pt.cos
+}
+
+/// Δr per ms of servo mismatch τ_p − τ_q.
+pub fn servo_mismatch(pt: &Point) -> f64 {
+    pt.sense.sign() * pt.feed_um_per_ms * pt.sin * pt.cos
+}
+
+/// Δr per µm of backlash of p and of q.
+pub fn backlash(pt: &Point) -> [f64; 2] {
+    let (s, c) = (pt.sin, pt.cos);
+    let sg = pt.sense.sign();
+    [0.5 * sg * sign(s) * c, -0.5 * sg * sign(c) * s]
+}
+
+/// Δr per µm of lateral play of p and of q.
+pub fn lateral_play(pt: &Point) -> [f64; 2] {
+    let (s, c) = (pt.sin, pt.cos);
+    let sg = pt.sense.sign();
+    [0.5 * sg * s.abs(), -0.5 * sg * c.abs()]
+}
+
+/// Δr per µm of straightness (bow over the diameter) of p and of q.
+pub fn straightness(pt: &Point) -> [f64; 2] {
+    let (s, c) = (pt.sin, pt.cos);
+    [-c * c * s, -s * s * c]
+}
+
+/// Δr per µm of radial growth over the trace, and per µm of pivot drift along p and q.
+pub fn drift(pt: &Point) -> [f64; 3] {
+    let (s, c) = (pt.sin, pt.cos);
+    [pt.progress, -c * pt.progress, -s * pt.progress]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::f64::consts::PI;
+
+    fn pt(theta: f64, sense: Sense) -> Point {
+        Point {
+            cos: theta.cos(),
+            sin: theta.sin(),
+            sense,
+            progress: 0.0,
+            radius_um: 150e3,
+            feed_um_per_ms: 1000.0 / 60.0,
+        }
+    }
+
+    /// The table's signatures are `δp cos θ + δq sin θ` of their displacement laws: check them
+    /// against the laws evaluated by finite differences of the nominal path.
+    #[test]
+    fn signatures_follow_from_their_displacement_laws() {
+        for sense in [Sense::Cw, Sense::Ccw] {
+            for k in 0..360 {
+                let th = (k as f64 + 0.37) * PI / 180.0;
+                let p = pt(th, sense);
+                let (r, omega) = (p.radius_um, 1.0);
+                let vp = -sense.sign() * r * omega * th.sin();
+                let vq = sense.sign() * r * omega * th.cos();
+                let radial = |dp: f64, dq: f64| dp * th.cos() + dq * th.sin();
+                let b = backlash(&p);
+                assert!((b[0] - radial(-0.5 * vp.signum(), 0.0)).abs() < 1e-12);
+                assert!((b[1] - radial(0.0, -0.5 * vq.signum())).abs() < 1e-12);
+                let l = lateral_play(&p);
+                assert!((l[0] - radial(0.0, -0.5 * vp.signum())).abs() < 1e-12);
+                assert!((l[1] - radial(-0.5 * vq.signum(), 0.0)).abs() < 1e-12);
+                // Lags in ms at feed F (µm/ms): v in µm/ms is F times the unit direction.
+                let f = p.feed_um_per_ms;
+                let (up, uq) = (vp / r * f, vq / r * f);
+                assert!((servo_mismatch(&p) - radial(-up, 0.0)).abs() < 1e-9);
+                assert!((servo_mismatch(&p) + radial(0.0, -uq)).abs() < 1e-9);
+                let (pp, qq) = (r * th.cos(), r * th.sin());
+                assert!((scale_mismatch(&p) - radial(pp * 0.5e-6, -qq * 0.5e-6)).abs() < 1e-9);
+                let s = straightness(&p);
+                let bow = radial(0.0, 1.0 - (pp / r).powi(2)) - th.sin();
+                assert!((s[0] - bow).abs() < 1e-12);
+            }
+        }
+    }
+
+    /// ISO 230-1 squareness rotates the second axis' line: XY rotates Y about +Z (δx = −γ y),
+    /// ZX rotates Z about +Y (δx = +β z, X is q there), YZ rotates Z about +X (δy = −α z).
+    #[test]
+    fn squareness_signs_match_the_rotations_of_iso_230_1() {
+        let th = 0.3_f64;
+        let p = pt(th, Sense::Ccw);
+        let (r, gamma) = (p.radius_um, 1e-6);
+        let (pp, qq) = (r * th.cos(), r * th.sin());
+        let xy = -gamma * qq * th.cos();
+        let zx = gamma * pp * th.sin();
+        let yz = -gamma * qq * th.cos();
+        assert!((squareness(&p, Plane::Xy) - xy).abs() < 1e-12);
+        assert!((squareness(&p, Plane::Zx) - zx).abs() < 1e-12);
+        assert!((squareness(&p, Plane::Yz) - yz).abs() < 1e-12);
+    }
+}

@@ -1,0 +1,414 @@
+//! A ball-bar trace as an instrument records it, and the checks it must pass before analysis.
+//!
+//! A trace is one direction of one circular test: for each sample the bar's angle in the test
+//! plane (degrees from the plane's first axis, unwrapped, increasing for a counter-clockwise
+//! run as seen from the plane's normal) and the bar's length minus its nominal length (µm,
+//! positive outward), optionally the sample time (s).
+
+use serde::Serialize;
+use std::fmt;
+use thiserror::Error;
+
+/// The test plane and its axes `(p, q)`: the angle is measured from `p` towards `q`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize)]
+pub enum Plane {
+    /// X then Y (G17).
+    Xy,
+    /// Z then X (G18).
+    Zx,
+    /// Y then Z (G19).
+    Yz,
+}
+
+impl Plane {
+    /// The three planes.
+    pub const ALL: [Plane; 3] = [Plane::Xy, Plane::Zx, Plane::Yz];
+
+    /// `XY`, `ZX` or `YZ`.
+    pub const fn name(self) -> &'static str {
+        match self {
+            Plane::Xy => "XY",
+            Plane::Zx => "ZX",
+            Plane::Yz => "YZ",
+        }
+    }
+
+    /// The plane's first and second axis letters, `(p, q)`.
+    pub const fn axes(self) -> (char, char) {
+        match self {
+            Plane::Xy => ('X', 'Y'),
+            Plane::Zx => ('Z', 'X'),
+            Plane::Yz => ('Y', 'Z'),
+        }
+    }
+
+    /// The plane named `s` (`XY`, `ZX`/`XZ`, `YZ`/`ZY`, any case).
+    pub fn parse(s: &str) -> Option<Plane> {
+        match s.to_ascii_uppercase().as_str() {
+            "XY" | "YX" => Some(Plane::Xy),
+            "ZX" | "XZ" => Some(Plane::Zx),
+            "YZ" | "ZY" => Some(Plane::Yz),
+            _ => None,
+        }
+    }
+}
+
+impl fmt::Display for Plane {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// The sense of travel round the circle.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize)]
+pub enum Sense {
+    /// Clockwise: the angle decreases.
+    Cw,
+    /// Counter-clockwise: the angle increases.
+    Ccw,
+}
+
+impl Sense {
+    /// +1 for CCW, −1 for CW: the sign of dθ/dt.
+    pub const fn sign(self) -> f64 {
+        match self {
+            Sense::Cw => -1.0,
+            Sense::Ccw => 1.0,
+        }
+    }
+
+    /// `cw` or `ccw`.
+    pub const fn name(self) -> &'static str {
+        match self {
+            Sense::Cw => "cw",
+            Sense::Ccw => "ccw",
+        }
+    }
+
+    /// `cw` or `ccw` (any case).
+    pub fn parse(s: &str) -> Option<Sense> {
+        match s.to_ascii_lowercase().as_str() {
+            "cw" => Some(Sense::Cw),
+            "ccw" => Some(Sense::Ccw),
+            _ => None,
+        }
+    }
+}
+
+/// One ball-bar trace.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Trace {
+    /// Label for reports.
+    pub label: String,
+    /// Test plane.
+    pub plane: Plane,
+    /// Sense of travel.
+    pub sense: Sense,
+    /// Nominal radius (bar length), mm.
+    pub radius_mm: f64,
+    /// Programmed feed, mm/min.
+    pub feed_mm_min: f64,
+    /// Unwrapped angle of each sample, deg.
+    pub angle_deg: Vec<f64>,
+    /// Measured minus nominal length, µm.
+    pub deviation_um: Vec<f64>,
+    /// Sample times, s, when the instrument recorded them.
+    pub time_s: Option<Vec<f64>>,
+}
+
+/// Why a trace cannot be analysed.
+#[derive(Debug, Error, PartialEq)]
+pub enum TraceError {
+    /// Too few samples.
+    #[error("{label}: {n} samples; at least {min} are needed")]
+    TooShort {
+        /// Trace label.
+        label: String,
+        /// Samples given.
+        n: usize,
+        /// Samples needed.
+        min: usize,
+    },
+    /// Columns of different lengths.
+    #[error("{label}: {what} has {got} values but the trace has {expected} samples")]
+    Length {
+        /// Trace label.
+        label: String,
+        /// The column.
+        what: &'static str,
+        /// Its length.
+        got: usize,
+        /// The angle column's length.
+        expected: usize,
+    },
+    /// A NaN or infinite value.
+    #[error("{label}: sample {index}: {what} is {value}; every value must be a finite number")]
+    NotFinite {
+        /// Trace label.
+        label: String,
+        /// Sample index (0-based).
+        index: usize,
+        /// The column.
+        what: &'static str,
+        /// The value.
+        value: f64,
+    },
+    /// The angle does not move in the trace's sense.
+    #[error(
+        "{label}: sample {index}: the angle goes from {from} to {to} deg, against the {sense} sense of the trace (angles must increase for CCW and decrease for CW)"
+    )]
+    Backwards {
+        /// Trace label.
+        label: String,
+        /// Sample index (0-based).
+        index: usize,
+        /// Angle before, deg.
+        from: f64,
+        /// Angle at `index`, deg.
+        to: f64,
+        /// `CW` or `CCW`.
+        sense: String,
+    },
+    /// A gap in the angle larger than allowed.
+    #[error(
+        "{label}: a gap of {gap:.2} deg between samples {index} and {next} (at {at:.2} deg); the largest accepted gap is {max:.2} deg"
+    )]
+    Gap {
+        /// Trace label.
+        label: String,
+        /// Sample before the gap.
+        index: usize,
+        /// Sample after the gap.
+        next: usize,
+        /// Angle at the start of the gap, deg.
+        at: f64,
+        /// The gap, deg.
+        gap: f64,
+        /// Largest gap accepted, deg.
+        max: f64,
+    },
+    /// Times that do not increase.
+    #[error("{label}: sample {index}: time {to} s does not follow {from} s (times must increase)")]
+    TimeBackwards {
+        /// Trace label.
+        label: String,
+        /// Sample index.
+        index: usize,
+        /// Time before, s.
+        from: f64,
+        /// Time at `index`, s.
+        to: f64,
+    },
+    /// A plane or direction name that is not known.
+    #[error("{label}: {what} `{value}` is not known; {accepted}")]
+    Name {
+        /// Trace label.
+        label: String,
+        /// `plane` or `direction`.
+        what: &'static str,
+        /// The name given.
+        value: String,
+        /// What is accepted.
+        accepted: &'static str,
+    },
+    /// A non-physical set-up value.
+    #[error("{label}: {what} = {value}; {accepted}")]
+    Setup {
+        /// Trace label.
+        label: String,
+        /// The quantity.
+        what: &'static str,
+        /// Its value.
+        value: f64,
+        /// What is accepted.
+        accepted: &'static str,
+    },
+}
+
+/// The largest angular gap between samples accepted by [`Trace::validate`], deg.
+pub const MAX_GAP_DEG: f64 = 2.0;
+/// The fewest samples a trace may have.
+pub const MIN_SAMPLES: usize = 16;
+
+impl Trace {
+    /// A trace from its columns, the plane and direction given by name (`XY`, `ZX`, `YZ`;
+    /// `cw`, `ccw`), validated.
+    #[allow(clippy::too_many_arguments)]
+    pub fn new(
+        label: &str,
+        plane: &str,
+        direction: &str,
+        radius_mm: f64,
+        feed_mm_min: f64,
+        angle_deg: Vec<f64>,
+        deviation_um: Vec<f64>,
+        time_s: Option<Vec<f64>>,
+    ) -> Result<Self, TraceError> {
+        let name = |what, value: &str, accepted| TraceError::Name {
+            label: label.into(),
+            what,
+            value: value.into(),
+            accepted,
+        };
+        let t = Trace {
+            label: label.into(),
+            plane: Plane::parse(plane).ok_or_else(|| name("plane", plane, "XY, ZX or YZ"))?,
+            sense: Sense::parse(direction)
+                .ok_or_else(|| name("direction", direction, "cw or ccw"))?,
+            radius_mm,
+            feed_mm_min,
+            angle_deg,
+            deviation_um,
+            time_s,
+        };
+        t.validate()?;
+        Ok(t)
+    }
+
+    /// Angle swept from the first to the last sample, deg (positive).
+    pub fn sweep_deg(&self) -> f64 {
+        match (self.angle_deg.first(), self.angle_deg.last()) {
+            (Some(a), Some(b)) => (b - a).abs(),
+            _ => 0.0,
+        }
+    }
+
+    /// Feed as µm per ms (the unit in which a lag in ms gives µm).
+    pub fn feed_um_per_ms(&self) -> f64 {
+        self.feed_mm_min / 60.0
+    }
+
+    /// Checks lengths, finiteness, monotonic angles and times, gaps and the set-up values.
+    pub fn validate(&self) -> Result<(), TraceError> {
+        let label = || self.label.clone();
+        for (what, value, accepted) in [
+            (
+                "radius_mm",
+                self.radius_mm,
+                "the bar length must be a positive number of mm",
+            ),
+            (
+                "feed_mm_min",
+                self.feed_mm_min,
+                "the feed must be a positive number of mm/min",
+            ),
+        ] {
+            if !(value.is_finite() && value > 0.0) {
+                return Err(TraceError::Setup {
+                    label: label(),
+                    what,
+                    value,
+                    accepted,
+                });
+            }
+        }
+        let n = self.angle_deg.len();
+        if n < MIN_SAMPLES {
+            return Err(TraceError::TooShort {
+                label: label(),
+                n,
+                min: MIN_SAMPLES,
+            });
+        }
+        let mut columns: Vec<(&'static str, &[f64])> = vec![
+            ("angle_deg", &self.angle_deg),
+            ("deviation_um", &self.deviation_um),
+        ];
+        if let Some(t) = &self.time_s {
+            columns.push(("time_s", t));
+        }
+        for (what, values) in &columns {
+            if values.len() != n {
+                return Err(TraceError::Length {
+                    label: label(),
+                    what,
+                    got: values.len(),
+                    expected: n,
+                });
+            }
+            if let Some((index, &value)) = values.iter().enumerate().find(|(_, v)| !v.is_finite()) {
+                return Err(TraceError::NotFinite {
+                    label: label(),
+                    index,
+                    what,
+                    value,
+                });
+            }
+        }
+        self.check_angles()?;
+        if let Some(t) = &self.time_s
+            && let Some(i) = (1..n).find(|&i| t[i] <= t[i - 1])
+        {
+            return Err(TraceError::TimeBackwards {
+                label: label(),
+                index: i,
+                from: t[i - 1],
+                to: t[i],
+            });
+        }
+        Ok(())
+    }
+
+    fn check_angles(&self) -> Result<(), TraceError> {
+        let s = self.sense.sign();
+        for (i, w) in self.angle_deg.windows(2).enumerate() {
+            let step = (w[1] - w[0]) * s;
+            if step < 0.0 {
+                return Err(TraceError::Backwards {
+                    label: self.label.clone(),
+                    index: i + 1,
+                    from: w[0],
+                    to: w[1],
+                    sense: self.sense.name().to_uppercase(),
+                });
+            }
+            if step > MAX_GAP_DEG {
+                return Err(TraceError::Gap {
+                    label: self.label.clone(),
+                    index: i,
+                    next: i + 1,
+                    at: w[0],
+                    gap: step,
+                    max: MAX_GAP_DEG,
+                });
+            }
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn trace(angles: Vec<f64>) -> Trace {
+        let n = angles.len();
+        Trace {
+            label: "t".into(),
+            plane: Plane::Xy,
+            sense: Sense::Ccw,
+            radius_mm: 150.0,
+            feed_mm_min: 1000.0,
+            angle_deg: angles,
+            deviation_um: vec![0.0; n],
+            time_s: None,
+        }
+    }
+
+    #[test]
+    fn a_gap_larger_than_allowed_is_refused_with_its_place() {
+        let mut a: Vec<f64> = (0..100).map(|i| i as f64).collect();
+        a[1..100].iter_mut().for_each(|v| *v *= 0.5);
+        a.iter_mut().skip(50).for_each(|v| *v += 3.0);
+        let e = trace(a).validate().unwrap_err();
+        assert!(matches!(e, TraceError::Gap { index: 49, .. }), "{e}");
+    }
+
+    #[test]
+    fn angles_against_the_sense_are_refused() {
+        let mut t = trace((0..100).map(|i| i as f64).collect());
+        t.sense = Sense::Cw;
+        let e = t.validate().unwrap_err();
+        assert!(e.to_string().contains("against the CW sense"), "{e}");
+    }
+}

@@ -1,0 +1,156 @@
+//! One injected error at a time, recovered against its truth, on traces computed from the
+//! displacement laws with exact geometry, 0.3 µm noise and 0.1 µm resolution.
+
+mod common;
+
+use common::{Errors, test};
+use vmt_ballbar::{Diagnosis, Options, Plane, Sense, diagnose};
+
+fn run(plane: Plane, e: &Errors) -> Diagnosis {
+    let traces = test(plane, e, 7);
+    let d = diagnose(&traces, &Options::default()).expect("diagnosis");
+    eprintln!("{}", vmt_ballbar::report::text(&d));
+    d
+}
+
+fn noisy() -> Errors {
+    Errors {
+        noise_um: 0.3,
+        ..Default::default()
+    }
+}
+
+/// Value of `key`, asserting it is within `tol` of `truth` and reported present iff `present`.
+fn check(d: &Diagnosis, key: &str, truth: f64, tol: f64, present: bool) {
+    let f = d.finding(key).unwrap_or_else(|| panic!("no finding {key}"));
+    assert!(
+        (f.value - truth).abs() <= tol,
+        "{key}: {} against the truth {truth} (tolerance {tol})",
+        f.value
+    );
+    assert_eq!(f.present, present, "{key} present: {f:?}");
+}
+
+/// Every fitted error stays below its threshold on a clean machine.
+#[test]
+fn a_perfect_machine_shows_nothing_but_noise() {
+    let d = run(Plane::Xy, &noisy());
+    for f in &d.findings {
+        assert!(!f.present, "false positive: {f:?}");
+    }
+    assert!((d.noise_um - 0.3).abs() < 0.03, "noise {}", d.noise_um);
+}
+
+#[test]
+fn backlash_of_each_axis_is_recovered_with_its_sides() {
+    let e = Errors {
+        backlash_um: [4.0, 1.5],
+        ..noisy()
+    };
+    // Start at 45° so that both reversals of each axis lie inside the runs.
+    let traces = vec![
+        common::trace(
+            Plane::Xy,
+            Sense::Cw,
+            150.0,
+            1000.0,
+            45.0,
+            360.0,
+            &e,
+            (0.0, 0.5),
+            3,
+        ),
+        common::trace(
+            Plane::Xy,
+            Sense::Ccw,
+            150.0,
+            1000.0,
+            45.0,
+            360.0,
+            &e,
+            (0.5, 1.0),
+            4,
+        ),
+    ];
+    let d = diagnose(&traces, &Options::default()).expect("diagnosis");
+    check(&d, "backlash_x", 4.0, 0.2, true);
+    check(&d, "backlash_y", 1.5, 0.2, true);
+    let sides = d.finding("backlash_x").expect("backlash");
+    assert_eq!(sides.details.len(), 2, "{sides:?}");
+    for (k, v) in &sides.details {
+        assert!((v - 4.0).abs() < 0.4, "{k} = {v}");
+    }
+}
+
+#[test]
+fn lateral_play_is_told_apart_from_backlash() {
+    let e = Errors {
+        lateral_um: [3.0, 0.0],
+        backlash_um: [0.0, 2.0],
+        ..noisy()
+    };
+    let d = run(Plane::Xy, &e);
+    check(&d, "lateral_play_x", 3.0, 0.2, true);
+    check(&d, "lateral_play_y", 0.0, 0.2, false);
+    check(&d, "backlash_y", 2.0, 0.2, true);
+    check(&d, "backlash_x", 0.0, 0.2, false);
+}
+
+#[test]
+fn scale_mismatch_squareness_and_servo_mismatch_are_separated_by_cw_and_ccw() {
+    for plane in Plane::ALL {
+        let e = Errors {
+            scale_ppm: [20.0, -10.0],
+            squareness_urad: 15.0,
+            lag_ms: [30.3e-3 + 0.5, 30.0e-3 + 0.5],
+            ..noisy()
+        };
+        let d = run(plane, &e);
+        let pl = plane.name().to_lowercase();
+        check(&d, &format!("scale_mismatch_{pl}"), 30.0, 1.5, true);
+        check(&d, &format!("squareness_{pl}"), 15.0, 1.0, true);
+        check(&d, &format!("servo_mismatch_{pl}"), 0.3e-3, 2e-3, false);
+    }
+    let e = Errors {
+        lag_ms: [0.08, 0.03],
+        ..noisy()
+    };
+    let d = run(Plane::Xy, &e);
+    check(&d, "servo_mismatch_xy", 0.05, 2e-3, true);
+    check(&d, "squareness_xy", 0.0, 1.0, false);
+}
+
+#[test]
+fn eccentricity_and_closing_error_follow_the_pivot() {
+    let e = Errors {
+        pivot_um: [25.0, -12.0],
+        pivot_drift_um: [3.0, 1.0],
+        ..noisy()
+    };
+    let d = run(Plane::Xy, &e);
+    check(&d, "eccentricity_x", 25.0, 0.3, true);
+    check(&d, "eccentricity_y", -12.0, 0.3, true);
+    // The CW run starts at 0°: the pivot moves by half the drift during it; the bar shortens
+    // by its X component at 0°.
+    check(&d, "closing_error_cw", -1.5, 0.3, true);
+    check(&d, "closing_error_ccw", -1.5, 0.3, true);
+}
+
+#[test]
+fn straightness_cyclic_error_and_vibration_are_found() {
+    let e = Errors {
+        straightness_um: [3.0, -2.0],
+        cyclic: Some((0, 10.0, 1.0)),
+        vibration: Some((37.0, 0.6)),
+        ..noisy()
+    };
+    let d = run(Plane::Xy, &e);
+    check(&d, "straightness_x", 3.0, 0.3, true);
+    check(&d, "straightness_y", -2.0, 0.3, true);
+    check(&d, "cyclic_x", 1.0, 0.15, true);
+    let pitch = d.finding("cyclic_x").unwrap().details[0].1;
+    assert!((pitch - 10.0).abs() < 0.3, "pitch {pitch}");
+    check(&d, "servo_vibration", 0.6, 0.1, true);
+    let hz = d.finding("servo_vibration").unwrap().details[0].1;
+    assert!((hz - 37.0).abs() < 0.1, "{hz} Hz");
+}

@@ -1,0 +1,1 @@
+//! Milling stability and chatter detection.
