@@ -1,6 +1,7 @@
 //! vmt-tools: the pieces behind the `vmt` command line — input files, maps, reports and plots.
 //! The binary in `main.rs` only parses arguments, calls these and the library crates, and prints.
 
+pub mod diagnose;
 pub mod error;
 pub mod formats;
 pub mod job;
@@ -9,5 +10,6 @@ pub mod plot;
 pub mod points;
 pub mod program;
 pub mod thermal;
+pub mod traces;
 
 pub use error::CliError;

@@ -58,6 +58,74 @@ enum Command {
     /// The built-in machine runs the ISO 230-4 XY test (150 mm, 1000 mm/min, CW and CCW);
     /// writes the MCAP, the Rerun recording and the polar plot, and prints a summary.
     Demo(RunArgs),
+    /// Diagnose ball-bar traces: ISO 230-4 figures and the machine errors behind them.
+    ///
+    /// FILE is a run of ours (run.mcap from `vmt run`; every circular test in it is diagnosed
+    /// and compared with the run's ground truth) or an instrument's CSV export with columns
+    /// angle_deg,deviation_um,direction (cw/ccw) and optionally time_s, whose set-up is given
+    /// with --radius-mm, --feed-mm-min and --plane.
+    ///
+    /// Examples:
+    ///   vmt diagnose out/run.mcap --out out/diagnosis
+    ///   vmt diagnose trace.csv --radius-mm 150 --feed-mm-min 1000 --plane XY
+    #[command(verbatim_doc_comment)]
+    Diagnose(DiagnoseArgs),
+}
+
+#[derive(Args)]
+struct DiagnoseArgs {
+    /// A run (MCAP) or a CSV trace file.
+    file: PathBuf,
+    /// Nominal radius (bar length) of a CSV trace, mm.
+    #[arg(long)]
+    radius_mm: Option<f64>,
+    /// Programmed feed of a CSV trace, mm/min.
+    #[arg(long)]
+    feed_mm_min: Option<f64>,
+    /// Test plane of a CSV trace: XY, ZX or YZ.
+    #[arg(long)]
+    plane: Option<String>,
+    /// Also write report.txt, report.md, report.json and the polar plots into this folder.
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// Print JSON instead of text.
+    #[arg(long)]
+    json: bool,
+    /// Also compute the minimum-zone circular deviation.
+    #[arg(long)]
+    minimum_zone: bool,
+}
+
+fn diagnose_cmd(args: DiagnoseArgs) -> Result<(), CliError> {
+    let csv = match (args.radius_mm, args.feed_mm_min, args.plane.as_deref()) {
+        (Some(radius_mm), Some(feed_mm_min), Some(plane)) => Some(vmt_tools::traces::CsvSetup {
+            plane,
+            radius_mm,
+            feed_mm_min,
+        }),
+        (None, None, None) => None,
+        _ => {
+            return Err(CliError::Argument(
+                "a CSV trace needs all of --radius-mm, --feed-mm-min and --plane".into(),
+            ));
+        }
+    };
+    let options = vmt_ballbar::Options {
+        minimum_zone: args.minimum_zone,
+        ..Default::default()
+    };
+    let d = vmt_tools::diagnose::diagnose_file(&args.file, csv, &options)?;
+    if args.json {
+        println!("{:#}", vmt_tools::diagnose::json(&d));
+    } else {
+        print!("{}", vmt_tools::diagnose::text(&d));
+    }
+    if let Some(dir) = &args.out {
+        for f in vmt_tools::diagnose::write(&d, dir)? {
+            eprintln!("wrote {}", f.display());
+        }
+    }
+    Ok(())
 }
 
 #[derive(Subcommand)]
@@ -188,6 +256,7 @@ fn main() -> ExitCode {
             scenario: None,
             ..args
         }),
+        Command::Diagnose(args) => diagnose_cmd(args),
         Command::Topologies => {
             topologies();
             Ok(())

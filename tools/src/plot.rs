@@ -534,17 +534,24 @@ impl Polar {
         t: &BallbarTrace,
         colour: RGBColor,
     ) -> DrawResult<DB> {
-        let points: Vec<(i32, i32)> = t
+        let mut points: Vec<(i32, i32)> = t
             .angle_deg
             .iter()
             .zip(&t.deviation_um)
             .filter(|(a, d)| a.is_finite() && d.is_finite())
             .map(|(a, d)| self.pixel(self.nominal_px + d * self.px_per_um, *a))
             .collect();
+        // A wide polyline turning back on itself (noise within a pixel or two) gets mitre joins
+        // that plotters draws as long spikes; zero-length segments have no direction at all.
+        // So: one point per pixel, and each segment drawn on its own, without joins.
+        points.dedup();
         if let Some(&start) = points.first() {
             root.draw(&Circle::new(start, 5, colour.filled()))?;
         }
-        root.draw(&PathElement::new(points, colour.stroke_width(2)))
+        for w in points.windows(2) {
+            root.draw(&PathElement::new(w.to_vec(), colour.stroke_width(2)))?;
+        }
+        Ok(())
     }
 
     /// The legend beside the plot; returns the y pixel below it.

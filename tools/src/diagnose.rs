@@ -1,0 +1,190 @@
+//! `vmt diagnose`: ball-bar traces in, a diagnosis report out (text, Markdown, JSON, polar
+//! plots), the same for a run of ours and for an instrument's CSV.
+
+use crate::error::CliError;
+use crate::plot::{self, Format};
+use crate::traces::{self, CsvSetup};
+use serde_json::{Value, json};
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+use vmt_ballbar::{Diagnosis, Options, Trace, diagnose, report};
+use vmt_sim::run::BallbarTrace;
+
+/// Diagnoses of every test in a file, with the run's ground truth when it has one.
+pub struct Diagnosed {
+    /// The file read.
+    pub file: String,
+    /// One diagnosis per circular test, in the order of the file.
+    pub tests: Vec<(Vec<Trace>, Diagnosis)>,
+    /// Ground truth of a simulated run.
+    pub ground_truth: Option<Value>,
+}
+
+/// Reads and diagnoses `path`.
+pub fn diagnose_file(
+    path: &Path,
+    csv: Option<CsvSetup>,
+    options: &Options,
+) -> Result<Diagnosed, CliError> {
+    let file = path.display().to_string();
+    let recorded = traces::read(path, csv)?;
+    let tests = recorded
+        .tests
+        .into_iter()
+        .map(|t| {
+            let d =
+                diagnose(&t, options).map_err(|e| CliError::input(&file, None, e.to_string()))?;
+            Ok((t, d))
+        })
+        .collect::<Result<Vec<_>, CliError>>()?;
+    Ok(Diagnosed {
+        file,
+        tests,
+        ground_truth: recorded.ground_truth,
+    })
+}
+
+/// The truth figures of test `i` of a run, as the simulator wrote them.
+pub fn truth_figures(truth: &Value, i: usize) -> Option<&serde_json::Map<String, Value>> {
+    truth["ballbar"]["tests"][i]["figures"].as_object()
+}
+
+/// The report as text: each test's diagnosis and, for a simulated run, the truth beside it.
+pub fn text(d: &Diagnosed) -> String {
+    let mut s = String::new();
+    for (i, (_, diag)) in d.tests.iter().enumerate() {
+        s.push_str(&report::text(diag));
+        if let Some(fig) = d.ground_truth.as_ref().and_then(|t| truth_figures(t, i)) {
+            let _ = writeln!(s, "\nAgainst the run's ground truth");
+            let _ = writeln!(
+                s,
+                "  {:<26} {:>12} {:>12} {:>10}",
+                "figure", "truth", "diagnosed", "error"
+            );
+            for (key, v) in fig {
+                let (Some(t), Some(f)) = (v.as_f64(), diag.finding(key)) else {
+                    continue;
+                };
+                let _ = writeln!(
+                    s,
+                    "  {key:<26} {t:>+12.4} {:>+12.4} {:>+10.4}",
+                    f.value,
+                    f.value - t
+                );
+            }
+        }
+        s.push('\n');
+    }
+    s
+}
+
+/// The report as JSON: the file, each test's diagnosis, and the truth when known.
+pub fn json(d: &Diagnosed) -> Value {
+    let tests: Vec<Value> = d
+        .tests
+        .iter()
+        .enumerate()
+        .map(|(i, (_, diag))| {
+            let mut v = report::json(diag);
+            if let Some(f) = d.ground_truth.as_ref().and_then(|t| truth_figures(t, i)) {
+                v["ground_truth"] = Value::Object(f.clone());
+            }
+            v
+        })
+        .collect();
+    json!({ "file": d.file, "tests": tests })
+}
+
+/// Writes `report.txt`, `report.md`, `report.json` and one polar plot per test into `dir`.
+pub fn write(d: &Diagnosed, dir: &Path) -> Result<Vec<PathBuf>, CliError> {
+    std::fs::create_dir_all(dir).map_err(|e| CliError::output(dir, e))?;
+    let mut files = Vec::new();
+    let mut put = |name: &str, text: String| -> Result<(), CliError> {
+        let p = dir.join(name);
+        std::fs::write(&p, text).map_err(|e| CliError::output(&p, e))?;
+        files.push(p);
+        Ok(())
+    };
+    put("report.txt", text(d))?;
+    let md: String = d
+        .tests
+        .iter()
+        .map(|(_, diag)| report::markdown(diag))
+        .collect::<Vec<_>>()
+        .join("\n");
+    put(
+        "report.md",
+        format!("# Ball-bar diagnosis of {}\n\n{md}", d.file),
+    )?;
+    let js = serde_json::to_string_pretty(&json(d)).map_err(|e| CliError::output(dir, e))?;
+    put("report.json", js)?;
+    for (i, (traces, diag)) in d.tests.iter().enumerate() {
+        let p = dir.join(format!("diagnosis_{}.png", i + 1));
+        plot::draw_polar(
+            &centred(traces, diag),
+            &p,
+            Format::Png,
+            Some(&figures_text(diag)),
+        )?;
+        files.push(p);
+    }
+    Ok(files)
+}
+
+/// The traces with the test's least-squares centre taken out (as ball-bar software plots
+/// them), in the plot's trace type.
+fn centred(traces: &[Trace], d: &Diagnosis) -> Vec<BallbarTrace> {
+    let c =
+        d.iso
+            .directions
+            .first()
+            .map(|dir| dir.circle)
+            .unwrap_or(vmt_ballbar::iso230_4::Circle {
+                centre_p_um: 0.0,
+                centre_q_um: 0.0,
+                radius_offset_um: 0.0,
+            });
+    traces
+        .iter()
+        .map(|t| BallbarTrace {
+            label: t.label.clone(),
+            plane: t.plane.name().into(),
+            direction: t.sense.name().into(),
+            radius_mm: t.radius_mm,
+            feed_mm_min: t.feed_mm_min,
+            times_s: t.time_s.clone().unwrap_or_default(),
+            angle_deg: t.angle_deg.clone(),
+            deviation_um: t
+                .angle_deg
+                .iter()
+                .zip(&t.deviation_um)
+                .map(|(a, v)| c.radial(a.to_radians(), *v))
+                .collect(),
+        })
+        .collect()
+}
+
+/// The text block printed beside the polar plot: ISO figures and the largest present errors.
+fn figures_text(d: &Diagnosis) -> String {
+    let mut s = String::from("ISO 230-4 (least-squares centre)\n");
+    for dir in &d.iso.directions {
+        let _ = writeln!(
+            s,
+            "G {} {:.2} µm",
+            dir.sense.to_uppercase(),
+            dir.circular_deviation_um
+        );
+    }
+    if let Some(h) = d.iso.hysteresis_um {
+        let _ = writeln!(s, "H {h:.2} µm");
+    }
+    if let Some(g) = d.iso.bidirectional_deviation_um {
+        let _ = writeln!(s, "G(b) {g:.2} µm");
+    }
+    let _ = writeln!(s, "\nLargest errors");
+    for f in d.findings.iter().filter(|f| f.present).take(8) {
+        let digits = if f.unit == "ms" { 4 } else { 2 };
+        let _ = writeln!(s, "{}: {:+.*} {}", f.key, digits, f.value, f.unit);
+    }
+    s
+}

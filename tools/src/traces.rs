@@ -1,0 +1,304 @@
+//! Ball-bar traces in: from a run of ours (the MCAP file `vmt run` writes) or from an
+//! instrument's CSV export, into the diagnosis' [`Trace`]s, one code path for both.
+//!
+//! # CSV format
+//!
+//! One row per sample, a header naming the columns (any order, extra columns ignored):
+//!
+//! | column | unit | meaning |
+//! |---|---|---|
+//! | `angle_deg` | deg | angle of the bar in the test plane from the plane's first axis (X for XY, Z for ZX, Y for YZ), unwrapped or in [0, 360) — it is unwrapped on reading |
+//! | `deviation_um` | µm | measured minus nominal bar length, positive outward |
+//! | `direction` | — | `cw` or `ccw`: which run of the test the row belongs to |
+//! | `time_s` | s | optional: sample time on one clock for the whole file |
+//!
+//! The radius, feed and plane come from the command line (`--radius-mm`, `--feed-mm-min`,
+//! `--plane`). Rows of one direction must be consecutive and in the order measured.
+
+use crate::error::CliError;
+use mcap::MessageStream;
+use serde_json::Value;
+use std::collections::BTreeMap;
+use std::path::Path;
+use vmt_ballbar::Trace;
+use vmt_sim::run::BallbarTrace;
+
+/// The set-up of a CSV trace, from the command line.
+#[derive(Clone, Copy, Debug)]
+pub struct CsvSetup<'a> {
+    /// Test plane name (`XY`, `ZX`, `YZ`).
+    pub plane: &'a str,
+    /// Nominal radius, mm.
+    pub radius_mm: f64,
+    /// Feed, mm/min.
+    pub feed_mm_min: f64,
+}
+
+/// The traces of a run, grouped by test (the traces of one circular test share plane, radius,
+/// feed and set-up), and the run's ground truth if it carries one.
+pub struct Recorded {
+    /// Tests, each one or two traces.
+    pub tests: Vec<Vec<Trace>>,
+    /// Ground truth of a simulated run.
+    pub ground_truth: Option<Value>,
+}
+
+/// A simulated trace as a diagnosis trace.
+pub fn from_run(t: &BallbarTrace, file: &str) -> Result<Trace, CliError> {
+    Trace::new(
+        &t.label,
+        &t.plane,
+        &t.direction,
+        t.radius_mm,
+        t.feed_mm_min,
+        t.angle_deg.clone(),
+        t.deviation_um.clone(),
+        Some(t.times_s.clone()),
+    )
+    .map_err(|e| CliError::input(file, None, e.to_string()))
+}
+
+/// Groups consecutive traces into tests: a new test starts when the plane, radius or feed
+/// changes or a direction repeats (the next test of a multi-step procedure).
+pub fn group_tests(traces: Vec<Trace>) -> Vec<Vec<Trace>> {
+    let mut tests: Vec<Vec<Trace>> = Vec::new();
+    for t in traces {
+        let joins = tests.last().is_some_and(|g: &Vec<Trace>| {
+            let f = &g[0];
+            g.len() < 2
+                && f.plane == t.plane
+                && f.radius_mm == t.radius_mm
+                && f.feed_mm_min == t.feed_mm_min
+                && f.sense != t.sense
+        });
+        match tests.last_mut() {
+            Some(g) if joins => g.push(t),
+            _ => tests.push(vec![t]),
+        }
+    }
+    tests
+}
+
+/// Reads `path`: an MCAP run (by its magic bytes) or a CSV trace file.
+pub fn read(path: &Path, csv: Option<CsvSetup>) -> Result<Recorded, CliError> {
+    let file = path.display().to_string();
+    let bytes = std::fs::read(path).map_err(|e| CliError::input(&file, None, e.to_string()))?;
+    if bytes.starts_with(mcap::MAGIC) {
+        return read_mcap(&bytes, &file);
+    }
+    let setup = csv.ok_or_else(|| {
+        CliError::Argument(format!(
+            "{file} is a CSV trace: give its set-up with --radius-mm, --feed-mm-min and --plane"
+        ))
+    })?;
+    let traces = read_csv(&bytes, &file, setup)?;
+    Ok(Recorded {
+        tests: group_tests(traces),
+        ground_truth: None,
+    })
+}
+
+/// One ball-bar channel being read: its metadata and samples.
+#[derive(Default)]
+struct Channel {
+    meta: BTreeMap<String, String>,
+    time: Vec<f64>,
+    angle: Vec<f64>,
+    deviation: Vec<f64>,
+}
+
+fn read_mcap(bytes: &[u8], file: &str) -> Result<Recorded, CliError> {
+    let bad = |m: String| CliError::input(file, None, m);
+    let mut channels: BTreeMap<u16, Channel> = BTreeMap::new();
+    let mut truth = None;
+    for message in
+        MessageStream::new(bytes).map_err(|e| bad(format!("not a readable MCAP file: {e}")))?
+    {
+        let m = message.map_err(|e| bad(format!("a damaged MCAP record: {e}")))?;
+        let topic = m.channel.topic.as_str();
+        if topic == "/ground_truth" {
+            truth = serde_json::from_slice(&m.data).ok();
+            continue;
+        }
+        if !topic.starts_with("/ballbar/") {
+            continue;
+        }
+        let c = channels.entry(m.channel.id).or_insert_with(|| Channel {
+            meta: m.channel.metadata.clone(),
+            ..Default::default()
+        });
+        let v: Value = serde_json::from_slice(&m.data)
+            .map_err(|e| bad(format!("{topic}: a message that is not JSON: {e}")))?;
+        let num = |k: &str| {
+            v[k].as_f64()
+                .ok_or_else(|| bad(format!("{topic}: a message without a number `{k}`")))
+        };
+        c.time.push(num("time_s")?);
+        c.angle.push(num("angle_deg")?);
+        c.deviation.push(num("deviation_um")?);
+    }
+    if channels.is_empty() {
+        return Err(bad(
+            "no /ballbar/ topics: not a ball-bar run (a run of a ballbar or kwon_seven_step job is needed)".into(),
+        ));
+    }
+    let traces = channels
+        .into_values()
+        .map(|c| {
+            let meta = |k: &str| {
+                c.meta
+                    .get(k)
+                    .cloned()
+                    .ok_or_else(|| bad(format!("a ball-bar channel without `{k}` metadata")))
+            };
+            let number = |k: &str| -> Result<f64, CliError> {
+                meta(k)?
+                    .parse()
+                    .map_err(|_| bad(format!("ball-bar channel metadata `{k}` is not a number")))
+            };
+            Trace::new(
+                &meta("label")?,
+                &meta("plane")?,
+                &meta("direction")?,
+                number("radius_mm")?,
+                number("feed_mm_min")?,
+                c.angle,
+                c.deviation,
+                Some(c.time),
+            )
+            .map_err(|e| bad(e.to_string()))
+        })
+        .collect::<Result<Vec<_>, _>>()?;
+    Ok(Recorded {
+        tests: group_tests(traces),
+        ground_truth: truth,
+    })
+}
+
+/// Column indices of a CSV header.
+struct Columns {
+    angle: usize,
+    deviation: usize,
+    direction: usize,
+    time: Option<usize>,
+}
+
+fn columns(header: &csv::StringRecord, file: &str) -> Result<Columns, CliError> {
+    let find = |name: &str| header.iter().position(|h| h.trim() == name);
+    let need = |name: &str| {
+        find(name).ok_or_else(|| {
+            CliError::input(
+                file,
+                Some(1),
+                format!(
+                    "no `{name}` column; the columns are angle_deg, deviation_um, direction (cw or ccw) and optionally time_s (found: {})",
+                    header.iter().collect::<Vec<_>>().join(", ")
+                ),
+            )
+        })
+    };
+    Ok(Columns {
+        angle: need("angle_deg")?,
+        deviation: need("deviation_um")?,
+        direction: need("direction")?,
+        time: find("time_s"),
+    })
+}
+
+/// Samples of one direction while reading.
+struct Run {
+    direction: String,
+    first_line: usize,
+    time: Vec<f64>,
+    angle: Vec<f64>,
+    deviation: Vec<f64>,
+}
+
+fn read_csv(bytes: &[u8], file: &str, setup: CsvSetup) -> Result<Vec<Trace>, CliError> {
+    let mut reader = csv::ReaderBuilder::new()
+        .trim(csv::Trim::All)
+        .from_reader(bytes);
+    let header = reader
+        .headers()
+        .map_err(|e| CliError::input(file, Some(1), e.to_string()))?
+        .clone();
+    let cols = columns(&header, file)?;
+    let mut runs: Vec<Run> = Vec::new();
+    for (i, record) in reader.records().enumerate() {
+        let line = i + 2;
+        let rec = record.map_err(|e| CliError::input(file, Some(line), e.to_string()))?;
+        let number = |k: usize, name: &str| -> Result<f64, CliError> {
+            let s = rec.get(k).unwrap_or("");
+            match s.parse::<f64>() {
+                Ok(v) if v.is_finite() => Ok(v),
+                _ => Err(CliError::input(
+                    file,
+                    Some(line),
+                    format!("{name} `{s}` is not accepted; a finite number"),
+                )),
+            }
+        };
+        let direction = rec.get(cols.direction).unwrap_or("").to_ascii_lowercase();
+        if direction != "cw" && direction != "ccw" {
+            return Err(CliError::input(
+                file,
+                Some(line),
+                format!("direction `{direction}` is not accepted; cw or ccw"),
+            ));
+        }
+        if runs.last().is_none_or(|r| r.direction != direction) {
+            if runs.iter().any(|r| r.direction == direction) {
+                return Err(CliError::input(
+                    file,
+                    Some(line),
+                    format!(
+                        "the {direction} rows resume after another direction; the rows of one direction must be consecutive"
+                    ),
+                ));
+            }
+            runs.push(Run {
+                direction: direction.clone(),
+                first_line: line,
+                time: Vec::new(),
+                angle: Vec::new(),
+                deviation: Vec::new(),
+            });
+        }
+        let run = runs.last_mut().expect("pushed above");
+        let mut angle = number(cols.angle, "angle_deg")?;
+        if let Some(last) = run.angle.last() {
+            // Unwrap: the nearest turn to the previous sample.
+            angle += 360.0 * ((last - angle) / 360.0).round();
+        }
+        run.angle.push(angle);
+        run.deviation.push(number(cols.deviation, "deviation_um")?);
+        if let Some(k) = cols.time {
+            run.time.push(number(k, "time_s")?);
+        }
+    }
+    if runs.is_empty() {
+        return Err(CliError::input(file, None, "no samples after the header"));
+    }
+    runs.into_iter()
+        .map(|r| {
+            let label = format!("{file} {}", r.direction.to_uppercase());
+            Trace::new(
+                &label,
+                setup.plane,
+                &r.direction,
+                setup.radius_mm,
+                setup.feed_mm_min,
+                r.angle,
+                r.deviation,
+                cols.time.map(|_| r.time),
+            )
+            .map_err(|e| {
+                CliError::input(
+                    file,
+                    Some(r.first_line),
+                    format!("{e} (the {} rows start here)", r.direction),
+                )
+            })
+        })
+        .collect()
+}
