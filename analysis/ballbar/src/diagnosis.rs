@@ -266,10 +266,11 @@ fn progress(traces: &[Trace]) -> Vec<Vec<f64>> {
 }
 
 fn residual<'a>(t: &'a Trace, s: &Samples, points: &'a [Point], fit: &Fit) -> Residual<'a> {
+    let model = fit.compiled(s.radius_um, s.feed_um_per_ms);
     let r = points
         .iter()
         .zip(&s.deviation_um)
-        .map(|(p, d)| d - fit.model(p, |_| false))
+        .map(|(p, d)| d - model.eval(p))
         .collect();
     let n = t.angle_deg.len();
     let dt_ms = match &t.time_s {
@@ -279,12 +280,7 @@ fn residual<'a>(t: &'a Trace, s: &Samples, points: &'a [Point], fit: &Fit) -> Re
             deg.to_radians() * s.radius_um / s.feed_um_per_ms
         }
     };
-    Residual {
-        angle_deg: &t.angle_deg,
-        points,
-        r,
-        dt_ms,
-    }
+    Residual::new(&t.angle_deg, points, r, dt_ms)
 }
 
 /// Key, name and unit of a fitted term in `plane`.

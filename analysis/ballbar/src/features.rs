@@ -42,6 +42,8 @@ pub struct Residual<'a> {
     pub points: &'a [Point],
     /// Residual per sample, µm.
     pub r: Vec<f64>,
+    /// The residual smoothed over [`SMOOTH_MS`] (see [`Residual::smooth`]).
+    pub smooth: Vec<f64>,
     /// Sample period, ms.
     pub dt_ms: f64,
 }
@@ -90,7 +92,19 @@ pub fn reversals(points: &[Point], axis: usize) -> Vec<usize> {
         .collect()
 }
 
-impl Residual<'_> {
+impl<'a> Residual<'a> {
+    /// The residual `r` of a trace with angles `angle_deg`, points and sample period `dt_ms`.
+    pub fn new(angle_deg: &'a [f64], points: &'a [Point], r: Vec<f64>, dt_ms: f64) -> Self {
+        let w = ((SMOOTH_MS / dt_ms).round() as usize).max(1);
+        Self {
+            angle_deg,
+            points,
+            smooth: moving_mean(&r, w),
+            r,
+            dt_ms,
+        }
+    }
+
     /// Samples per degree (mean).
     fn per_deg(&self) -> f64 {
         let n = self.angle_deg.len();
@@ -128,8 +142,7 @@ pub fn spike(res: &Residual, i: usize) -> Option<Spike> {
     if !res.has(i, -12.0, 12.0) {
         return None;
     }
-    let w = ((SMOOTH_MS / res.dt_ms).round() as usize).max(1);
-    let smooth = moving_mean(&res.r, w);
+    let smooth = &res.smooth;
     let around: Vec<f64> = res
         .window(i, -12.0, -2.0)
         .chain(res.window(i, SPIKE_ZONE_DEG + 2.0, 12.0))
@@ -212,14 +225,17 @@ pub fn stick_slip(residuals: &[Residual], axis: usize) -> Option<(f64, f64, f64)
 /// The strongest line of the residual's spectrum above `min_hz`: (frequency Hz, amplitude µm,
 /// median amplitude of the spectrum µm).
 pub fn vibration(res: &Residual, min_hz: f64) -> Option<(f64, f64, f64)> {
-    let n = res.r.len();
+    // The longest prefix whose length has only the factors 2, 3 and 5: a fast FFT size (the
+    // full length can be a product of large primes, which costs an order of magnitude more).
+    let n = smooth_length(res.r.len());
     if n < 64 {
         return None;
     }
     let mut planner = RealFftPlanner::<f64>::new();
     let fft = planner.plan_fft_forward(n);
-    let mean = res.r.iter().sum::<f64>() / n as f64;
-    let mut input: Vec<f64> = res.r.iter().map(|x| x - mean).collect();
+    let r = &res.r[..n];
+    let mean = r.iter().sum::<f64>() / n as f64;
+    let mut input: Vec<f64> = r.iter().map(|x| x - mean).collect();
     let mut spectrum = fft.make_output_vec();
     fft.process(&mut input, &mut spectrum).ok()?;
     let df = 1000.0 / (res.dt_ms * n as f64);
@@ -245,11 +261,23 @@ pub fn vibration(res: &Residual, min_hz: f64) -> Option<(f64, f64, f64)> {
     Some((k as f64 * df, a_line, median(band.to_vec())))
 }
 
+/// The largest m ≤ n of the form 2^a 3^b 5^c.
+fn smooth_length(n: usize) -> usize {
+    let smooth = |mut m: usize| {
+        for f in [2, 3, 5] {
+            while m > 1 && m.is_multiple_of(f) {
+                m /= f;
+            }
+        }
+        m == 1
+    };
+    (1..=n).rev().find(|&m| smooth(m)).unwrap_or(1)
+}
+
 /// The start transient of a trace: extreme of the smoothed residual in its first 5°, µm, and
 /// the robust noise of the smoothed residual elsewhere.
 pub fn start_transient(res: &Residual) -> Option<f64> {
-    let w = ((SMOOTH_MS / res.dt_ms).round() as usize).max(1);
-    let smooth = moving_mean(&res.r, w);
+    let smooth = &res.smooth;
     let zone = res.window(0, 0.0, 5.0);
     let rest = res.window(0, 10.0, 360.0);
     if zone.is_empty() || rest.len() < 10 {

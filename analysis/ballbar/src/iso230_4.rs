@@ -34,20 +34,53 @@ pub struct Circle {
 impl Circle {
     /// Radial deviation of a sample from this circle's centre (not its radius), µm.
     pub fn radial(&self, theta: f64, deviation_um: f64) -> f64 {
-        deviation_um - self.centre_p_um * theta.cos() - self.centre_q_um * theta.sin()
+        self.radial_cs(theta.cos(), theta.sin(), deviation_um)
+    }
+
+    /// [`Circle::radial`] with cos θ and sin θ given.
+    #[inline]
+    pub fn radial_cs(&self, cos: f64, sin: f64, deviation_um: f64) -> f64 {
+        deviation_um - self.centre_p_um * cos - self.centre_q_um * sin
+    }
+}
+
+/// A trace with cos θ and sin θ of its samples (computed once, see [`crate::samples::trig`]).
+struct Arc<'a> {
+    t: &'a Trace,
+    cos: Vec<f64>,
+    sin: Vec<f64>,
+}
+
+impl<'a> Arc<'a> {
+    fn new(t: &'a Trace) -> Self {
+        let (cos, sin) = crate::samples::trig(&t.angle_deg);
+        Self { t, cos, sin }
+    }
+
+    /// (cos θ, sin θ, deviation) of every sample.
+    fn samples(&self) -> impl Iterator<Item = (f64, f64, f64)> + '_ {
+        self.cos
+            .iter()
+            .zip(&self.sin)
+            .zip(&self.t.deviation_um)
+            .map(|((c, s), d)| (*c, *s, *d))
     }
 }
 
 /// The least-squares circle of one or more traces together.
 pub fn least_squares_circle(traces: &[&Trace]) -> Circle {
+    let arcs: Vec<Arc> = traces.iter().map(|t| Arc::new(t)).collect();
+    circle_of(&arcs.iter().collect::<Vec<_>>())
+}
+
+fn circle_of(arcs: &[&Arc]) -> Circle {
     let mut ata = nalgebra::Matrix3::<f64>::zeros();
     let mut aty = nalgebra::Vector3::<f64>::zeros();
-    for t in traces {
-        for (a, d) in t.angle_deg.iter().zip(&t.deviation_um) {
-            let (s, c) = a.to_radians().sin_cos();
+    for arc in arcs {
+        for (c, s, d) in arc.samples() {
             let row = nalgebra::Vector3::new(1.0, c, s);
             ata += row * row.transpose();
-            aty += row * *d;
+            aty += row * d;
         }
     }
     // A trace of at least a few degrees makes the 3×3 system regular; validation ensures it.
@@ -95,17 +128,15 @@ pub struct Figures {
 
 /// The figures of the traces of one test (one or two directions).
 pub fn figures(traces: &[&Trace], minimum_zone: bool) -> Figures {
-    let directions = traces
-        .iter()
-        .map(|t| directional(t, minimum_zone))
-        .collect();
+    let arcs: Vec<Arc> = traces.iter().map(|t| Arc::new(t)).collect();
+    let directions = arcs.iter().map(|a| directional(a, minimum_zone)).collect();
     let both = traces.len() == 2 && traces[0].sense != traces[1].sense;
     let (bidirectional, hysteresis) = if both {
-        let c = least_squares_circle(traces);
-        let e: Vec<f64> = traces.iter().flat_map(|t| radial(t, &c)).collect();
+        let c = circle_of(&[&arcs[0], &arcs[1]]);
+        let e: Vec<f64> = arcs.iter().flat_map(|a| radial(a, &c)).collect();
         (
             Some(span(&e)),
-            hysteresis(traces[0], traces[1], &c).filter(|h| h.is_finite()),
+            hysteresis(&arcs[0], &arcs[1], &c).filter(|h| h.is_finite()),
         )
     } else {
         (None, None)
@@ -117,9 +148,10 @@ pub fn figures(traces: &[&Trace], minimum_zone: bool) -> Figures {
     }
 }
 
-fn directional(t: &Trace, minimum_zone: bool) -> Directional {
-    let circle = least_squares_circle(&[t]);
-    let e = radial(t, &circle);
+fn directional(a: &Arc, minimum_zone: bool) -> Directional {
+    let t = a.t;
+    let circle = circle_of(&[a]);
+    let e = radial(a, &circle);
     let (lo, hi) = bounds(&e);
     Directional {
         label: t.label.clone(),
@@ -129,15 +161,13 @@ fn directional(t: &Trace, minimum_zone: bool) -> Directional {
         circular_deviation_um: hi - lo,
         radial_deviation_max_um: hi,
         radial_deviation_min_um: lo,
-        minimum_zone_um: minimum_zone.then(|| minimum_zone_deviation(t, &circle)),
+        minimum_zone_um: minimum_zone.then(|| minimum_zone_deviation(a, &circle)),
     }
 }
 
-fn radial(t: &Trace, c: &Circle) -> Vec<f64> {
-    t.angle_deg
-        .iter()
-        .zip(&t.deviation_um)
-        .map(|(a, d)| c.radial(a.to_radians(), *d))
+fn radial(a: &Arc, c: &Circle) -> Vec<f64> {
+    a.samples()
+        .map(|(co, s, d)| c.radial_cs(co, s, d))
         .collect()
 }
 
@@ -154,24 +184,24 @@ fn span(v: &[f64]) -> f64 {
 }
 
 /// The path of `t` about centre `c` as (angle in [0, 360), e) sorted by angle.
-fn sorted_path(t: &Trace, c: &Circle) -> Vec<(f64, f64)> {
-    let mut p: Vec<(f64, f64)> = t
-        .angle_deg
-        .iter()
-        .zip(radial(t, c))
-        .map(|(a, e)| (a.rem_euclid(360.0), e))
-        .collect();
+fn sorted_path(a: &Arc, c: &Circle) -> Vec<(f64, f64)> {
+    let mut p: Vec<(f64, f64)> =
+        a.t.angle_deg
+            .iter()
+            .zip(radial(a, c))
+            .map(|(x, e)| (x.rem_euclid(360.0), e))
+            .collect();
     p.sort_by(|x, y| x.0.total_cmp(&y.0));
     p
 }
 
 /// Largest |e_a(θ) − e_b(θ)| at the angles of `a` that `b` covers (linear interpolation of b).
-fn hysteresis(a: &Trace, b: &Trace, c: &Circle) -> Option<f64> {
+fn hysteresis(a: &Arc, b: &Arc, c: &Circle) -> Option<f64> {
     let pb = sorted_path(b, c);
     let ea = radial(a, c);
     let max_step = 2.0 * crate::trace::MAX_GAP_DEG;
     let mut worst: Option<f64> = None;
-    for (ang, e) in a.angle_deg.iter().zip(ea) {
+    for (ang, e) in a.t.angle_deg.iter().zip(ea) {
         let x = ang.rem_euclid(360.0);
         let k = pb.partition_point(|p| p.0 < x);
         let (lo, hi) = match (k.checked_sub(1).map(|i| pb[i]), pb.get(k)) {
@@ -193,17 +223,9 @@ fn hysteresis(a: &Trace, b: &Trace, c: &Circle) -> Option<f64> {
     worst
 }
 
-/// Minimum-zone circular deviation of `t`, µm, starting from the least-squares centre `c`.
-pub fn minimum_zone_deviation(t: &Trace, c: &Circle) -> f64 {
-    let trig: Vec<(f64, f64, f64)> = t
-        .angle_deg
-        .iter()
-        .zip(&t.deviation_um)
-        .map(|(a, d)| {
-            let (s, co) = a.to_radians().sin_cos();
-            (co, s, *d)
-        })
-        .collect();
+/// Minimum-zone circular deviation of an arc, µm, starting from the least-squares centre `c`.
+fn minimum_zone_deviation(a: &Arc, c: &Circle) -> f64 {
+    let trig: Vec<(f64, f64, f64)> = a.samples().collect();
     let zone = |x: [f64; 2]| {
         let (lo, hi) = trig.iter().fold(
             (f64::INFINITY, f64::NEG_INFINITY),
@@ -215,7 +237,7 @@ pub fn minimum_zone_deviation(t: &Trace, c: &Circle) -> f64 {
         hi - lo
     };
     let start = [c.centre_p_um, c.centre_q_um];
-    let scale = span(&radial(t, c)).max(1e-3);
+    let scale = span(&radial(a, c)).max(1e-3);
     nelder_mead(zone, start, 0.1 * scale, 1e-6)
 }
 
@@ -318,6 +340,7 @@ mod tests {
         let d = &f.directions[0];
         let z = d.minimum_zone_um.unwrap();
         let mut best = f64::INFINITY;
+        let arc = Arc::new(&t);
         for i in -300..=300 {
             for j in -300..=300 {
                 let c = Circle {
@@ -325,7 +348,7 @@ mod tests {
                     centre_q_um: d.circle.centre_q_um + j as f64 * 4e-3,
                     radius_offset_um: 0.0,
                 };
-                best = best.min(span(&radial(&t, &c)));
+                best = best.min(span(&radial(&arc, &c)));
             }
         }
         assert!(

@@ -9,7 +9,8 @@
 //! - [`features`]: reversal spikes, per-side backlash, stick-slip, vibration, start transient and
 //!   cyclic errors in the residual;
 //! - [`diagnosis`]: one test diagnosed into ranked findings;
-//! - [`report`]: the diagnosis as text, Markdown and JSON.
+//! - [`report`]: the diagnosis as text, Markdown and JSON;
+//! - [`synthetic`]: traces from displacement laws, for tests and what-if studies.
 
 pub mod diagnosis;
 pub mod features;
@@ -18,6 +19,7 @@ pub mod model;
 pub mod report;
 pub mod samples;
 pub mod signatures;
+pub mod synthetic;
 pub mod trace;
 
 pub use diagnosis::{Diagnosis, DiagnosisError, Finding, Options, diagnose};

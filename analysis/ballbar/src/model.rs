@@ -48,7 +48,63 @@ pub enum Term {
     Straightness(usize),
 }
 
+/// Number of shape functions of [`Compiled`].
+pub const SHAPES: usize = 15;
+
+/// The model as weights of 15 shape functions of a sample, so that the deviation of a sample
+/// is one dot product:
+/// `[1, c, s, c²−s², sc, σ sgn(s) c, σ sgn(c) s, σ|s|, σ|c|, c²s, s²c, u, u c, u s, σ sc]`
+/// with c = cos θ, s = sin θ, σ the sense and u the progress. [`Term::basis`] is the reference;
+/// a test checks that both agree.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Compiled {
+    w: [f64; SHAPES],
+}
+
+impl Compiled {
+    /// The model's deviation at `pt`, µm.
+    #[inline]
+    pub fn eval(&self, pt: &Point) -> f64 {
+        let (c, s, g, u) = (pt.cos, pt.sin, pt.sense.sign(), pt.progress);
+        let sgn = |x: f64| {
+            if x > 0.0 {
+                1.0
+            } else if x < 0.0 {
+                -1.0
+            } else {
+                0.0
+            }
+        };
+        let w = &self.w;
+        w[0] + w[1] * c
+            + w[2] * s
+            + w[3] * (c * c - s * s)
+            + w[4] * s * c
+            + g * (w[5] * sgn(s) * c + w[6] * sgn(c) * s + w[7] * s.abs() + w[8] * c.abs())
+            + w[9] * c * c * s
+            + w[10] * s * s * c
+            + u * (w[11] + w[12] * c + w[13] * s)
+            + w[14] * g * s * c
+    }
+}
+
 impl Term {
+    /// The shape function (index in [`Compiled`]) and its weight per unit of this term.
+    fn shape(self, plane: Plane, radius_um: f64, feed_um_per_ms: f64) -> (usize, f64) {
+        match self {
+            Term::Radius => (0, 1.0),
+            Term::Pivot(i) => (1 + i, -1.0),
+            Term::ScaleMismatch => (3, 0.5 * radius_um * 1e-6),
+            Term::Squareness => (4, signatures::squareness_sign(plane) * radius_um * 1e-6),
+            Term::Backlash(i) => (5 + i, if i == 0 { 0.5 } else { -0.5 }),
+            Term::LateralPlay(i) => (7 + i, if i == 0 { 0.5 } else { -0.5 }),
+            Term::Straightness(i) => (9 + i, -1.0),
+            Term::RadialDrift => (11, 1.0),
+            Term::PivotDrift(i) => (12 + i, -1.0),
+            Term::ServoMismatch => (14, feed_um_per_ms),
+        }
+    }
+
     /// Δr per unit of this term at `pt` in `plane`, µm.
     pub fn basis(self, pt: &Point, plane: Plane) -> f64 {
         match self {
@@ -248,6 +304,17 @@ impl Fit {
             .sum()
     }
 
+    /// The fitted model folded into one weight per shape function, for evaluation at every
+    /// sample (see [`Compiled`]).
+    pub fn compiled(&self, radius_um: f64, feed_um_per_ms: f64) -> Compiled {
+        let mut w = [0.0; SHAPES];
+        for (term, v) in self.terms.iter().zip(&self.values) {
+            let (i, k) = term.shape(self.plane, radius_um, feed_um_per_ms);
+            w[i] += v * k;
+        }
+        Compiled { w }
+    }
+
     /// Peak-to-valley (µm) of one term's signature over the samples of the test.
     pub fn contribution_um(&self, term: Term, samples: &[&Samples]) -> f64 {
         let Some((v, _)) = self.get(term) else {
@@ -261,5 +328,56 @@ impl Fit {
                 (lo.min(x), hi.max(x))
             });
         if hi >= lo { hi - lo } else { 0.0 }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::trace::Sense;
+    use proptest::prelude::*;
+
+    const ALL: [Term; 15] = [
+        Term::Radius,
+        Term::Pivot(0),
+        Term::Pivot(1),
+        Term::RadialDrift,
+        Term::PivotDrift(0),
+        Term::PivotDrift(1),
+        Term::ScaleMismatch,
+        Term::Squareness,
+        Term::ServoMismatch,
+        Term::Backlash(0),
+        Term::Backlash(1),
+        Term::LateralPlay(0),
+        Term::LateralPlay(1),
+        Term::Straightness(0),
+        Term::Straightness(1),
+    ];
+
+    proptest! {
+        /// The compiled model and the sum of the terms' signatures agree at every point.
+        #[test]
+        fn compiled_model_equals_the_sum_of_signatures(
+            theta in -7.0..7.0f64, u in 0.0..1.0f64, ccw: bool, plane in 0usize..3,
+            values in proptest::collection::vec(-50.0..50.0f64, 15),
+        ) {
+            let plane = Plane::ALL[plane];
+            let pt = Point {
+                cos: theta.cos(), sin: theta.sin(),
+                sense: if ccw { Sense::Ccw } else { Sense::Cw },
+                progress: u, radius_um: 123e3, feed_um_per_ms: 25.0,
+            };
+            let fit = Fit {
+                plane,
+                terms: ALL.to_vec(),
+                values: values.clone(),
+                std_errors: vec![0.0; 15],
+                sample_sigma_um: 0.0,
+            };
+            let direct: f64 = ALL.iter().zip(&values).map(|(t, v)| v * t.basis(&pt, plane)).sum();
+            let compiled = fit.compiled(123e3, 25.0).eval(&pt);
+            prop_assert!((direct - compiled).abs() < 1e-9 * (1.0 + direct.abs()));
+        }
     }
 }

@@ -1,9 +1,7 @@
 //! One injected error at a time, recovered against its truth, on traces computed from the
 //! displacement laws with exact geometry, 0.3 µm noise and 0.1 µm resolution.
 
-mod common;
-
-use common::{Errors, test};
+use vmt_ballbar::synthetic::{self as common, Errors, test};
 use vmt_ballbar::{Diagnosis, Options, Plane, Sense, diagnose};
 
 fn run(plane: Plane, e: &Errors) -> Diagnosis {
@@ -153,4 +151,96 @@ fn straightness_cyclic_error_and_vibration_are_found() {
     check(&d, "servo_vibration", 0.6, 0.1, true);
     let hz = d.finding("servo_vibration").unwrap().details[0].1;
     assert!((hz - 37.0).abs() < 0.1, "{hz} Hz");
+}
+
+/// Partial arcs: a 180° half circle through the top (Z reverses inside it, X at its ends)
+/// gives the Z backlash, and says which figures it cannot give and why; a 220° arc gives the
+/// squareness where the figure is defined.
+#[test]
+fn partial_arcs_give_what_they_define_and_say_what_they_cannot() {
+    let e = Errors {
+        backlash_um: [2.5, 0.0],
+        squareness_urad: 20.0,
+        ..noisy()
+    };
+    // ZX plane: p = Z; the half circle from +X (90°) over +Z (0°) to -X (-90°) CW, back CCW.
+    let half = |sense, start, seed| {
+        common::trace(
+            Plane::Zx,
+            sense,
+            150.0,
+            500.0,
+            start,
+            180.0,
+            &e,
+            (0.0, 1.0),
+            seed,
+        )
+    };
+    let traces = vec![half(Sense::Cw, 90.0, 1), half(Sense::Ccw, -90.0, 2)];
+    let d = diagnose(&traces, &Options::default()).expect("diagnosis");
+    eprintln!("{}", vmt_ballbar::report::text(&d));
+    check(&d, "backlash_z", 2.5, 0.3, true);
+    let missing = |key: &str| {
+        d.not_computed
+            .iter()
+            .find(|n| n.key == key)
+            .unwrap_or_else(|| panic!("{key} should be reported as not computed"))
+            .reason
+            .clone()
+    };
+    assert!(missing("backlash_x").contains("reversal"));
+    assert!(missing("closing_error").contains("full circles"));
+    assert!(missing("straightness_x").contains("270"));
+    assert!(d.finding("backlash_x").is_none());
+    // 220° (the usual vertical-plane arc) from -20°: squareness is defined and recovered.
+    let arc = |sense, start, seed| {
+        common::trace(
+            Plane::Zx,
+            sense,
+            150.0,
+            1000.0,
+            start,
+            220.0,
+            &e,
+            (0.0, 1.0),
+            seed,
+        )
+    };
+    let traces = vec![arc(Sense::Ccw, -20.0, 3), arc(Sense::Cw, 200.0, 4)];
+    let d = diagnose(&traces, &Options::default()).expect("diagnosis");
+    check(&d, "squareness_zx", 20.0, 1.0, true);
+    check(&d, "backlash_z", 2.5, 0.3, true);
+}
+
+/// A test of mismatched traces, a repeated direction or a trace with a NaN is refused with
+/// the offending trace, value and what is accepted.
+#[test]
+fn inconsistent_tests_are_refused_naming_the_mismatch() {
+    let e = noisy();
+    let mut traces = test(Plane::Xy, &e, 1);
+    traces[1].radius_mm = 100.0;
+    let err = diagnose(&traces, &Options::default())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("radius_mm 100") && err.contains("150"),
+        "{err}"
+    );
+    let mut traces = test(Plane::Xy, &e, 1);
+    traces[1].sense = Sense::Cw;
+    traces[1].angle_deg.iter_mut().for_each(|a| *a = -*a);
+    let err = diagnose(&traces, &Options::default())
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("at most one CW and one CCW"), "{err}");
+    let mut traces = test(Plane::Xy, &e, 1);
+    traces[0].deviation_um[17] = f64::NAN;
+    let err = diagnose(&traces, &Options::default())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("sample 17") && err.contains("deviation_um is NaN"),
+        "{err}"
+    );
 }

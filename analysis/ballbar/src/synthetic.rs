@@ -1,42 +1,42 @@
-//! Synthetic ball-bar traces computed from displacement laws with exact geometry (not from the
-//! first-order signatures the diagnosis fits), with seeded Gaussian noise and 0.1 µm resolution.
+//! Synthetic ball-bar traces from physical displacement laws with exact geometry (not from the
+//! first-order signatures the diagnosis fits), with seeded Gaussian noise and 0.1 µm resolution:
+//! traces that did not come from the simulator, for tests, benchmarks and what-if studies.
+//!
+//! The tool moves on the nominal circle at the feed, sampled at 1 kHz; it is displaced by
+//! `δp = ε_p p − τ_p v_p − (b_p/2) sign v_p − (l_q/2) sign v_q + S_q (1 − (q/R)²) [− γ q]
+//! + A sin(2π p/P + 0.3)` and likewise for q (see [`crate::signatures`] for each law); the bar
+//! reads `|tool − pivot(t)| − R` plus a sine vibration and N(0, σ²) noise, rounded to 0.1 µm.
 
-use vmt_ballbar::{Plane, Sense, Trace};
+use crate::trace::{Plane, Sense, Trace};
+use rand::SeedableRng;
+use rand::rngs::StdRng;
+use rand_distr::{Distribution, StandardNormal};
 
-/// Physical errors of a synthetic test, µm, ppm, µrad, ms.
+/// Physical errors of a synthetic test: `[p, q]` pairs for the plane's axes.
 #[derive(Clone, Copy, Debug, Default)]
 pub struct Errors {
+    /// Pivot offset from the programmed centre, µm.
     pub pivot_um: [f64; 2],
+    /// Pivot drift over the whole test, µm.
     pub pivot_drift_um: [f64; 2],
+    /// Scale error of each axis, ppm.
     pub scale_ppm: [f64; 2],
+    /// ISO squareness of the plane, µrad.
     pub squareness_urad: f64,
+    /// Servo lag of each axis, ms.
     pub lag_ms: [f64; 2],
+    /// Backlash of each axis, µm.
     pub backlash_um: [f64; 2],
+    /// Lateral play of each axis (across it, flipping when it reverses), µm.
     pub lateral_um: [f64; 2],
+    /// Straightness bow of each axis over the diameter, µm.
     pub straightness_um: [f64; 2],
+    /// Cyclic error: axis (0 p, 1 q), pitch mm, amplitude µm.
     pub cyclic: Option<(usize, f64, f64)>,
+    /// Vibration: frequency Hz, amplitude µm.
     pub vibration: Option<(f64, f64)>,
+    /// Reading noise σ, µm.
     pub noise_um: f64,
-}
-
-/// A deterministic Gaussian sequence (Box–Muller on a 64-bit LCG).
-pub struct Gauss(u64);
-
-impl Gauss {
-    pub fn new(seed: u64) -> Self {
-        Self(seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1)
-    }
-    fn uniform(&mut self) -> f64 {
-        self.0 = self
-            .0
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        ((self.0 >> 11) as f64 + 0.5) / (1u64 << 53) as f64
-    }
-    pub fn next(&mut self) -> f64 {
-        let (u, v) = (self.uniform(), self.uniform());
-        (-2.0 * u.ln()).sqrt() * (std::f64::consts::TAU * v).cos()
-    }
 }
 
 /// One trace: 360° (or `sweep_deg`) from `start_deg` in `sense`, sampled at 1 kHz, the tool
@@ -57,7 +57,7 @@ pub fn trace(
     let f = feed_mm_min / 60.0; // µm/ms
     let duration_ms = sweep_deg.to_radians() * r_um / f;
     let n = duration_ms as usize;
-    let mut g = Gauss::new(seed);
+    let mut rng = StdRng::seed_from_u64(seed);
     let offset_ms = progress.0 * duration_ms / (progress.1 - progress.0);
     let sg = sense.sign();
     let mut angle_deg = Vec::with_capacity(n);
@@ -102,7 +102,8 @@ pub fn trace(
         if let Some((hz, amp)) = e.vibration {
             d += amp * (std::f64::consts::TAU * hz * t_ms * 1e-3).sin();
         }
-        d += e.noise_um * g.next();
+        let n: f64 = StandardNormal.sample(&mut rng);
+        d += e.noise_um * n;
         angle_deg.push(th.to_degrees());
         deviation_um.push((d / 0.1).round() * 0.1);
         time_s.push((t_ms + offset_ms) * 1e-3);

@@ -1,0 +1,40 @@
+//! Diagnoses per second of one ISO 230-4 test: a 150 mm circle at 1000 mm/min, CW and CCW, 360°
+//! each, sampled at 1 kHz (2 × 56 549 samples), with backlash, scale, squareness, servo mismatch
+//! and 0.3 µm noise. One core. Goal (issue 4): at least 1000 diagnoses per second.
+//! Run: `cargo bench -p vmt-ballbar --bench diagnose` (criterion's elem/s are diagnoses/s).
+
+use criterion::{Criterion, Throughput, criterion_group, criterion_main};
+use vmt_ballbar::synthetic::{Errors, test};
+use vmt_ballbar::{Options, Plane, diagnose};
+
+fn bench(c: &mut Criterion) {
+    let e = Errors {
+        backlash_um: [3.0, 1.0],
+        scale_ppm: [20.0, -5.0],
+        squareness_urad: 10.0,
+        lag_ms: [30.3, 30.0],
+        noise_um: 0.3,
+        ..Default::default()
+    };
+    let traces = test(Plane::Xy, &e, 1);
+    let mut g = c.benchmark_group("diagnose_iso230_4_150mm_1000mm_min");
+    g.throughput(Throughput::Elements(1));
+    for (name, options) in [
+        ("full", Options::default()),
+        (
+            "without_cyclic_search",
+            Options {
+                cyclic: false,
+                ..Options::default()
+            },
+        ),
+    ] {
+        g.bench_function(name, |b| {
+            b.iter(|| diagnose(&traces, &options).expect("diagnosis"))
+        });
+    }
+    g.finish();
+}
+
+criterion_group!(benches, bench);
+criterion_main!(benches);
