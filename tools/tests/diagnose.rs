@@ -1,0 +1,229 @@
+//! `vmt diagnose` end to end: CSV traces that did not come from the simulator (written from
+//! displacement laws), a run of ours read back from its MCAP file, and one clear error per bad
+//! input.
+
+mod common;
+
+use common::{stderr, vmt};
+use std::path::{Path, PathBuf};
+use vmt_ballbar::synthetic::{Errors, test};
+use vmt_ballbar::{Plane, Trace};
+
+/// Writes `traces` as the documented CSV (angle_deg, deviation_um, direction, time_s).
+fn write_csv(dir: &Path, name: &str, traces: &[Trace]) -> PathBuf {
+    let mut s = String::from("time_s,angle_deg,deviation_um,direction\n");
+    for t in traces {
+        let times = t.time_s.as_ref().expect("synthetic traces have times");
+        for i in 0..t.angle_deg.len() {
+            s += &format!(
+                "{},{},{},{}\n",
+                times[i],
+                t.angle_deg[i].rem_euclid(360.0),
+                t.deviation_um[i],
+                t.sense.name()
+            );
+        }
+    }
+    let p = dir.join(name);
+    std::fs::write(&p, s).unwrap();
+    p
+}
+
+const SETUP: [&str; 6] = [
+    "--radius-mm",
+    "150",
+    "--feed-mm-min",
+    "1000",
+    "--plane",
+    "XY",
+];
+
+fn diagnose_json(file: &Path) -> serde_json::Value {
+    let mut args = vec!["diagnose", file.to_str().unwrap(), "--json"];
+    args.extend(SETUP);
+    let o = vmt(&args);
+    assert!(o.status.success(), "{}", stderr(&o));
+    serde_json::from_slice(&o.stdout).unwrap()
+}
+
+fn finding<'a>(report: &'a serde_json::Value, key: &str) -> &'a serde_json::Value {
+    report["tests"][0]["findings"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|f| f["key"] == key)
+        .unwrap_or_else(|| panic!("no {key}"))
+}
+
+/// A CSV written from a formula (3 µm X backlash, 12 µm/m squareness, angles wrapped to
+/// [0, 360) as instruments export them) is diagnosed with the injected values.
+#[test]
+fn a_csv_trace_from_a_formula_is_diagnosed_with_its_injected_errors() {
+    let dir = tempfile::tempdir().unwrap();
+    let e = Errors {
+        backlash_um: [3.0, 0.0],
+        squareness_urad: 12.0,
+        noise_um: 0.3,
+        ..Default::default()
+    };
+    let csv = write_csv(dir.path(), "t.csv", &test(Plane::Xy, &e, 5));
+    let r = diagnose_json(&csv);
+    let b = finding(&r, "backlash_x");
+    assert!((b["value"].as_f64().unwrap() - 3.0).abs() < 0.3, "{b}");
+    assert_eq!(b["present"], true);
+    let s = finding(&r, "squareness_xy");
+    assert!((s["value"].as_f64().unwrap() - 12.0).abs() < 1.0, "{s}");
+    assert!(r["tests"][0]["iso"]["hysteresis_um"].as_f64().unwrap() > 2.0);
+    // The files of --out: text, Markdown, JSON and the polar plot.
+    let out = dir.path().join("report");
+    let mut args = vec![
+        "diagnose",
+        csv.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ];
+    args.extend(SETUP);
+    let o = vmt(&args);
+    assert!(o.status.success(), "{}", stderr(&o));
+    for f in ["report.txt", "report.md", "report.json", "diagnosis_1.png"] {
+        assert!(out.join(f).metadata().unwrap().len() > 100, "{f}");
+    }
+}
+
+/// Runs `vmt diagnose` on a CSV of `text`; returns (success, stderr).
+fn diagnose_text(text: &str) -> (bool, String) {
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("bad.csv");
+    std::fs::write(&p, text).unwrap();
+    let mut args = vec!["diagnose", p.to_str().unwrap()];
+    args.extend(SETUP);
+    let o = vmt(&args);
+    (o.status.success(), stderr(&o))
+}
+
+/// A CCW trace of `n` samples 0.5° apart starting at `start`, with `edit` applied to the rows.
+fn rows(n: usize, edit: impl Fn(usize, f64) -> (f64, String)) -> String {
+    let mut s = String::from("angle_deg,deviation_um,direction\n");
+    for i in 0..n {
+        let (a, d) = edit(i, i as f64 * 0.5);
+        s += &format!("{a},{d},ccw\n");
+    }
+    s
+}
+
+#[test]
+fn a_missing_column_is_named_with_the_accepted_columns() {
+    let (ok, e) = diagnose_text("angle_deg,dev,direction\n0,1,ccw\n");
+    assert!(!ok);
+    assert!(
+        e.contains("bad.csv:1") && e.contains("no `deviation_um` column"),
+        "{e}"
+    );
+    assert!(e.contains("angle_deg, deviation_um, direction"), "{e}");
+}
+
+#[test]
+fn angles_that_go_backwards_are_refused_at_their_sample() {
+    let (ok, e) = diagnose_text(&rows(720, |i, a| {
+        (if i == 300 { a - 3.0 } else { a }, "0.1".into())
+    }));
+    assert!(!ok);
+    assert!(
+        e.contains("sample 300") && e.contains("against the CCW sense"),
+        "{e}"
+    );
+}
+
+#[test]
+fn a_gap_in_the_angles_is_refused_with_its_place() {
+    let (ok, e) = diagnose_text(&rows(720, |i, a| {
+        (if i >= 400 { a + 5.0 } else { a }, "0.1".into())
+    }));
+    assert!(!ok);
+    assert!(
+        e.contains("a gap of 5.50 deg") && e.contains("largest accepted gap is 2.00"),
+        "{e}"
+    );
+}
+
+#[test]
+fn a_nan_is_refused_with_its_line() {
+    let (ok, e) = diagnose_text(&rows(720, |i, a| {
+        (a, if i == 10 { "NaN".into() } else { "0.1".into() })
+    }));
+    assert!(!ok);
+    assert!(
+        e.contains("bad.csv:12") && e.contains("deviation_um `NaN` is not accepted"),
+        "{e}"
+    );
+}
+
+/// Less than 300° where full circles are needed: the report says which figures it could not
+/// compute and why, and gives the others.
+#[test]
+fn an_arc_shorter_than_a_circle_reports_what_it_cannot_compute() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("arc.csv");
+    std::fs::write(
+        &p,
+        rows(400, |_, a| (a, format!("{}", (a.to_radians() * 2.0).cos()))),
+    )
+    .unwrap();
+    let mut args = vec!["diagnose", p.to_str().unwrap()];
+    args.extend(SETUP);
+    let o = vmt(&args);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(text.contains("Not determined by this test"), "{text}");
+    assert!(
+        text.contains("closing_error") && text.contains("needs full circles"),
+        "{text}"
+    );
+    assert!(
+        text.contains("servo_mismatch_xy") && text.contains("both a CW and a CCW"),
+        "{text}"
+    );
+    assert!(
+        text.contains("Circular deviation G CCW (200 deg)"),
+        "{text}"
+    );
+}
+
+/// A run of ours, read back from its MCAP: every figure of the truth is printed beside the
+/// diagnosis.
+#[test]
+fn a_simulated_run_is_read_back_from_its_mcap_and_compared_with_its_truth() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = vmt_scenario::BUILTIN_DEFAULT;
+    let cut = text.find("[job]").unwrap();
+    let job = "[job]\nkind = \"ballbar\"\nplane = \"XY\"\ncenter_mm = [250.0, 200.0, 200.0]\n\
+               radius_mm = 50.0\nfeed_mm_min = 3000.0\narc_deg = 360.0\ndirections = [\"cw\", \"ccw\"]\n";
+    let s = dir.path().join("s.toml");
+    std::fs::write(&s, format!("{}{job}", &text[..cut])).unwrap();
+    let out = dir.path().join("run");
+    let o = vmt(&[
+        "run",
+        s.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--quiet",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = vmt(&["diagnose", out.join("run.mcap").to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let report = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        report.contains("Against the run's ground truth"),
+        "{report}"
+    );
+    let line = report
+        .lines()
+        .find(|l| l.trim_start().starts_with("backlash_x "))
+        .expect("a backlash_x row");
+    let v: Vec<f64> = line
+        .split_whitespace()
+        .skip(1)
+        .map(|x| x.parse().unwrap())
+        .collect();
+    assert!((v[0] - v[1]).abs() < 0.3, "truth against diagnosis: {line}");
+}
