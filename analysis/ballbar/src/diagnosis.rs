@@ -514,13 +514,32 @@ fn local_findings(
     for (t, res) in traces.iter().zip(residuals) {
         if let Some(h) = features::start_transient(res) {
             let floor = 6.0 * noise / ((features::SMOOTH_MS / res.dt_ms).max(1.0)).sqrt();
+            // A run starting at an axis reversal shows that axis' spike in its first degrees:
+            // the two cannot be told apart there, and the spike is reported on its own.
+            let at_reversal = res.points.first().is_some_and(|p| {
+                p.sin.abs().min(p.cos.abs()) < features::SPIKE_ZONE_DEG.to_radians().sin() * 2.0
+            });
+            let (name, floor) = if at_reversal {
+                (
+                    format!(
+                        "Transient at the start, {} (starts at an axis reversal: not separable from its spike)",
+                        t.sense.name().to_uppercase()
+                    ),
+                    f64::INFINITY,
+                )
+            } else {
+                (
+                    format!("Transient at the start, {}", t.sense.name().to_uppercase()),
+                    floor,
+                )
+            };
             out.push(Finding {
                 key: format!("start_transient_{}", t.sense.name()),
-                name: format!("Transient at the start, {}", t.sense.name().to_uppercase()),
+                name,
                 value: h,
                 unit: "µm",
                 ci95: 1.96 * noise,
-                contribution_um: h.abs(),
+                contribution_um: if at_reversal { 0.0 } else { h.abs() },
                 threshold: MIN_CONTRIBUTION_UM.max(floor),
                 present: h.abs() >= MIN_CONTRIBUTION_UM.max(floor),
                 details: Vec::new(),
