@@ -7,7 +7,7 @@ use crate::traces::{self, CsvSetup};
 use serde_json::{Value, json};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
-use vmt_ballbar::{Diagnosis, Options, Trace, diagnose, report};
+use vmt_ballbar::{Diagnosis, Options, Trace, diagnose, kwon, report};
 use vmt_sim::run::BallbarTrace;
 
 /// Diagnoses of every test in a file, with the run's ground truth when it has one.
@@ -75,7 +75,19 @@ pub fn text(d: &Diagnosed) -> String {
         }
         s.push('\n');
     }
+    if let Some(k) = kwon(d) {
+        s.push_str(&kwon::text(&k));
+    }
     s
+}
+
+/// Kwon's machine report, when the file holds steps of the seven-step procedure.
+pub fn kwon(d: &Diagnosed) -> Option<kwon::MachineReport> {
+    let diags: Vec<Diagnosis> = d.tests.iter().map(|(_, x)| x.clone()).collect();
+    diags
+        .iter()
+        .any(|x| kwon::step_of(x).is_some())
+        .then(|| kwon::machine_report(&diags))
 }
 
 /// The report as JSON: the file, each test's diagnosis, and the truth when known.
@@ -92,7 +104,7 @@ pub fn json(d: &Diagnosed) -> Value {
             v
         })
         .collect();
-    json!({ "file": d.file, "tests": tests })
+    json!({ "file": d.file, "tests": tests, "kwon_machine_report": kwon(d) })
 }
 
 /// Writes `report.txt`, `report.md`, `report.json` and one polar plot per test into `dir`.

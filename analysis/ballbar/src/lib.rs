@@ -9,12 +9,14 @@
 //! - [`features`]: reversal spikes, per-side backlash, stick-slip, vibration, start transient and
 //!   cyclic errors in the residual;
 //! - [`diagnosis`]: one test diagnosed into ranked findings;
+//! - [`kwon`]: Kwon's seven-step procedure analysed into one machine report;
 //! - [`report`]: the diagnosis as text, Markdown and JSON;
 //! - [`synthetic`]: traces from displacement laws, for tests and what-if studies.
 
 pub mod diagnosis;
 pub mod features;
 pub mod iso230_4;
+pub mod kwon;
 pub mod model;
 pub mod report;
 pub mod samples;

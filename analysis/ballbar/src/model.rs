@@ -244,7 +244,7 @@ impl Fit {
     ) -> Result<Self, FitError> {
         let groups: Vec<(Point, f64, usize)> = traces
             .iter()
-            .flat_map(|(t, s)| s.groups(&t.angle_deg))
+            .flat_map(|(t, s)| s.fit_groups(&t.angle_deg))
             .collect();
         let (m, n) = (groups.len(), terms.len());
         if m <= n {

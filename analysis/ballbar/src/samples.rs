@@ -94,6 +94,43 @@ impl Samples {
     }
 }
 
+/// The start and end of a run the model is not fitted to, s: the acceleration from rest (or
+/// the feed-in) and the deceleration at the end excite the servo loops, whose transients last a
+/// few position-loop time constants (1/K_v ≈ 30 ms); the residual keeps them for the start
+/// transient finding.
+pub const TRANSIENT_S: f64 = 0.15;
+/// The least angle left out at each end, deg.
+pub const TRANSIENT_MIN_DEG: f64 = 3.0;
+
+impl Samples {
+    /// The angle left out of the fit at each end of the trace, deg: [`TRANSIENT_S`] of travel
+    /// at the feed, at least [`TRANSIENT_MIN_DEG`].
+    pub fn transient_deg(&self) -> f64 {
+        let travel_um = self.feed_um_per_ms * TRANSIENT_S * 1e3;
+        (travel_um / self.radius_um)
+            .to_degrees()
+            .max(TRANSIENT_MIN_DEG)
+    }
+
+    /// [`Samples::groups`] without those within [`Samples::transient_deg`] of either end.
+    pub fn fit_groups(&self, angle_deg: &[f64]) -> Vec<(Point, f64, usize)> {
+        let skip = self.transient_deg();
+        let (a, b) = (angle_deg[0], angle_deg[angle_deg.len() - 1]);
+        let (lo, hi) = (a.min(b) + skip, a.max(b) - skip);
+        let n = self.len();
+        let size = n.div_ceil(MAX_GROUPS).max(1);
+        self.groups(angle_deg)
+            .into_iter()
+            .enumerate()
+            .filter(|(k, _)| {
+                let mid = (k * size + size / 2).min(n - 1);
+                (lo..=hi).contains(&angle_deg[mid])
+            })
+            .map(|(_, g)| g)
+            .collect()
+    }
+}
+
 /// cos and sin of every angle (deg), by rotation from the previous sample.
 pub fn trig(angle_deg: &[f64]) -> (Vec<f64>, Vec<f64>) {
     let n = angle_deg.len();

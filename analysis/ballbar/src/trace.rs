@@ -155,7 +155,7 @@ pub enum TraceError {
     },
     /// The angle does not move in the trace's sense.
     #[error(
-        "{label}: sample {index}: the angle goes from {from} to {to} deg, against the {sense} sense of the trace (angles must increase for CCW and decrease for CW)"
+        "{label}: sample {index}: the angle goes from {from} to {to} deg, against the {sense} sense of the trace (angles must increase for CCW and decrease for CW, to within 0.05 deg)"
     )]
     Backwards {
         /// Trace label.
@@ -227,6 +227,10 @@ pub enum TraceError {
 
 /// The largest angular gap between samples accepted by [`Trace::validate`], deg.
 pub const MAX_GAP_DEG: f64 = 2.0;
+/// How far (deg) the angle may step back against the trace's sense: a real tool point jitters
+/// about the path by its following error and noise, most at the start of a run; a larger step
+/// back is a broken log.
+pub const MAX_BACKWARD_DEG: f64 = 0.05;
 /// The fewest samples a trace may have.
 pub const MIN_SAMPLES: usize = 16;
 
@@ -353,7 +357,7 @@ impl Trace {
         let s = self.sense.sign();
         for (i, w) in self.angle_deg.windows(2).enumerate() {
             let step = (w[1] - w[0]) * s;
-            if step < 0.0 {
+            if step < -MAX_BACKWARD_DEG {
                 return Err(TraceError::Backwards {
                     label: self.label.clone(),
                     index: i + 1,
