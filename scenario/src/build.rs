@@ -139,6 +139,14 @@ fn execution(
         log_rate_hz: 1000.0,
     };
     let settings = dynamics::simulation(raw.simulation.as_ref().unwrap_or(&default), substeps)?;
+    // A step beyond a drive's stability limit is refused here, where the error can name the
+    // file and line of the key as well as the largest stable step.
+    vmt_sim::simulate::check_step(&axes, controller.servo_period_s, substeps).map_err(|e| {
+        Invalid::new(
+            KeyPath::of(&["controller", "plant_substeps"]),
+            e.to_string(),
+        )
+    })?;
     let tool = machine.volumetric.kinematics.tool_offset;
     let program_file = match (job, base_dir) {
         (dynamics::JobToml::Program { program }, Some(dir)) => {

@@ -55,7 +55,8 @@ fn travel_beyond_the_stroke_is_refused_before_the_run_naming_the_line() {
 /// Semi-implicit Euler on a mode `m x'' = -k x - c x'` is stable for
 /// h < (2/ω)(√(1+ζ²) - ζ), ω = √(k/m), ζ = c / (2√(k m)). Bristles of 1e11 N/m (a very stiff
 /// contact) under the 250 kg X carriage with σ1 + σ2 = 3.02e4 N·s/m: 99.7 µs, so the 125 µs
-/// step of one substep per servo period is refused and two substeps (62.5 µs) are accepted.
+/// step of one substep per servo period is refused, naming the scenario key and the two
+/// substeps (62.5 µs) that are needed, and two substeps are accepted.
 #[test]
 fn a_step_too_coarse_for_the_stiffest_mode_is_refused_stating_the_largest_stable_step() {
     let mut a = axes();
@@ -69,7 +70,8 @@ fn a_step_too_coarse_for_the_stiffest_mode_is_refused_stating_the_largest_stable
     let msg = e.to_string();
     let expected = format!(
         "a plant step of 125.00 µs is too coarse for the guideway friction bristles of the X \
-         drive: the largest stable step is {limit_us:.2} µs; raise plant_substeps"
+         drive: the largest stable step is {limit_us:.2} µs; raise plant_substeps (scenario key \
+         controller.plant_substeps) to 2 or more"
     );
     assert_eq!(msg, expected);
     // Two substeps are within the limit: the check passes and the (short) job runs.
@@ -87,4 +89,35 @@ fn a_step_too_coarse_for_the_stiffest_mode_is_refused_stating_the_largest_stable
     };
     let ipo = InterpolatorConfig::new(Limits::default());
     assert!(simulate(&machine, &a, &ipo, &job, &settings, "", &mut |_| {}).is_ok());
+}
+
+/// A scenario file whose plant step is too coarse is refused when it loads, the error naming
+/// the file, the line and the key `controller.plant_substeps` besides the largest stable step.
+#[test]
+fn a_scenario_with_a_step_too_coarse_names_the_file_and_the_substeps_key() {
+    let text = vmt_scenario::BUILTIN_DEFAULT
+        .replace("servo_period_us = 125.0", "servo_period_us = 2500.0")
+        .replace("ipo_period_ms = 1.0", "ipo_period_ms = 2.5")
+        .replace("plant_substeps = 2", "plant_substeps = 1");
+    let line = 1 + text
+        .lines()
+        .position(|l| l.starts_with("plant_substeps = 1"))
+        .unwrap();
+    // The position is the value's.
+    let column = "plant_substeps = ".len() + 1;
+    let e = match vmt_scenario::parse(&text, "coarse.toml", None) {
+        Err(e) => e.to_string(),
+        Ok(_) => panic!("a 2.5 ms step was accepted"),
+    };
+    assert!(
+        e.starts_with(&format!(
+            "coarse.toml:{line}:{column}: key `controller.plant_substeps`: a plant step of 2500.00 µs \
+             is too coarse for the screw axial mode of the X drive: the largest stable step is"
+        )),
+        "{e}"
+    );
+    assert!(
+        e.contains("; raise plant_substeps (scenario key controller.plant_substeps) to "),
+        "{e}"
+    );
 }

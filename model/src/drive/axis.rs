@@ -20,7 +20,9 @@
 //! bristles are integrated exactly over the step. For a mode of frequency ω and damping ratio ζ
 //! this is stable for `h < (2/ω)(√(1+ζ²) - ζ)`; [`DriveParams::largest_stable_step_s`] applies it
 //! to the screw mode (k on the reduced mass of motor and carriage) and to the stuck bristles of
-//! both contacts (σ0 on the mass they hold), and a step beyond it is refused.
+//! both contacts (σ0 on the mass they hold), and a step beyond it is refused. The constants of
+//! a step (the current-lag factor `1 - exp(-h/Tc)` and the reflected motor mass) are computed
+//! once per step size and parameter set, not every step.
 
 use super::friction::{LuGre, LuGreParams};
 use super::servo::{AxisCommand, ServoController, ServoParams};
@@ -157,6 +159,46 @@ pub struct Drive {
     pub screw_friction_force_n: f64,
     /// Force the screw exerted on the carriage in the last step, N.
     pub screw_force_n: f64,
+    /// Constants of the last step size.
+    step: MotorStep,
+}
+
+/// The constants of a motor-side step of `h` seconds: the current-lag factor
+/// `1 - exp(-h/Tc)` and the reflected motor mass `M_m`, kg. Kept with the values they were
+/// computed from (`h`, `Tc`, `J`, lead), so that a change of any of them recomputes them.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct MotorStep {
+    key: Option<[f64; 4]>,
+    lag: f64,
+    motor_mass_kg: f64,
+}
+
+impl MotorStep {
+    /// Not computed yet.
+    const NONE: MotorStep = MotorStep {
+        key: None,
+        lag: 0.0,
+        motor_mass_kg: 0.0,
+    };
+
+    /// The constants for a step of `h` (s), recomputed only if `h` or a parameter changed.
+    #[inline]
+    fn get(&mut self, h: f64, params: &DriveParams, servo: &ServoParams) -> (f64, f64) {
+        let key = Some([
+            h,
+            servo.current_time_constant_s,
+            params.motor_inertia_kg_m2,
+            params.screw.lead_m,
+        ]);
+        if key != self.key {
+            *self = MotorStep {
+                key,
+                lag: 1.0 - (-h / servo.current_time_constant_s).exp(),
+                motor_mass_kg: params.reflected_motor_mass_kg(),
+            };
+        }
+        (self.lag, self.motor_mass_kg)
+    }
 }
 
 impl Drive {
@@ -172,6 +214,7 @@ impl Drive {
             screw_friction: LuGre::default(),
             screw_friction_force_n: 0.0,
             screw_force_n: 0.0,
+            step: MotorStep::NONE,
         }
     }
 
@@ -208,6 +251,7 @@ impl Drive {
     }
 
     /// The force the screw exerts on `carriage` now, N.
+    #[inline]
     pub fn screw_force(&self, carriage: &CarriageState) -> f64 {
         self.params.screw.force(
             self.motor_position_m,
@@ -219,13 +263,13 @@ impl Drive {
 
     /// Advances the motor side by `h` (s) against the screw force `screw_force_n` (N, the force
     /// on the carriage; the motor feels its reaction).
+    #[inline]
     pub fn step_motor(&mut self, h: f64, screw_force_n: f64) {
-        let lag = 1.0 - (-h / self.servo.current_time_constant_s).exp();
+        let (lag, mm) = self.step.get(h, &self.params, &self.servo);
         self.motor_force_n += (self.controller.force_reference_n - self.motor_force_n) * lag;
         let friction =
             self.screw_friction
                 .step(&self.params.screw_friction, self.motor_velocity_m_s, h);
-        let mm = self.params.reflected_motor_mass_kg();
         self.motor_velocity_m_s += h * (self.motor_force_n - screw_force_n - friction) / mm;
         self.motor_position_m += h * self.motor_velocity_m_s;
         self.screw_friction_force_n = friction;
@@ -235,6 +279,7 @@ impl Drive {
 
 /// The net force on a carriage over a step of `h` (s): screw force, guideway friction (its
 /// bristles advance) and the external force, N.
+#[inline]
 pub fn carriage_force(
     params: &DriveParams,
     carriage: &mut CarriageState,
@@ -276,12 +321,14 @@ impl ReducedAxis {
     }
 
     /// Advances motor and carriage by `h` (s) with `external_n` (N) on the carriage.
+    #[inline]
     pub fn step(&mut self, h: f64, external_n: f64) {
         let screw = self.drive.screw_force(&self.carriage);
-        let p = self.drive.params;
-        let force = carriage_force(&p, &mut self.carriage, screw, external_n, h);
+        let p = &self.drive.params;
+        let force = carriage_force(p, &mut self.carriage, screw, external_n, h);
+        let mass = p.carriage_mass_kg;
         self.drive.step_motor(h, screw);
-        self.carriage.velocity_m_s += h * force / p.carriage_mass_kg;
+        self.carriage.velocity_m_s += h * force / mass;
         self.carriage.position_m += h * self.carriage.velocity_m_s;
     }
 }

@@ -67,7 +67,13 @@ impl LuGreParams {
         } else {
             x.powf(self.stribeck_exponent)
         };
-        self.coulomb_n + (self.static_n - self.coulomb_n) * (-r).exp()
+        let rise = self.static_n - self.coulomb_n;
+        // Far above vs the Stribeck term is below half an ulp of Fc, so the sum is Fc exactly:
+        // exp(-50) < 2e-22, and rise < 1e5 Fc makes the term < 2e-17 Fc < 2^-54 Fc.
+        if r > 50.0 && rise < 1e5 * self.coulomb_n {
+            return self.coulomb_n;
+        }
+        self.coulomb_n + rise * (-r).exp()
     }
 
     /// Steady sliding friction at constant velocity `v`, N (signed, opposing `v`'s direction).

@@ -136,6 +136,27 @@ pub struct Interpolator {
     window_s: f64,
 }
 
+/// Where the last setpoint was found: its item and segment.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Cursor {
+    item: usize,
+    segment: usize,
+}
+
+/// The first index in `0..len` at which the monotone predicate `below` (true, then false) is
+/// false, searched from `guess` in both directions: the same index as a bisection, found in a
+/// step or two when the guess is the last answer and the queries advance slowly.
+fn partition_from(len: usize, guess: usize, below: impl Fn(usize) -> bool) -> usize {
+    let mut i = guess.min(len);
+    while i < len && below(i) {
+        i += 1;
+    }
+    while i > 0 && !below(i - 1) {
+        i -= 1;
+    }
+    i
+}
+
 /// Collects steps into timeline items.
 struct Builder<'a> {
     config: &'a InterpolatorConfig,
@@ -303,12 +324,20 @@ impl Interpolator {
 
     /// The setpoint of the `k`-th servo tick (`t = k·T_s`); `None` after the end.
     pub fn setpoint(&self, k: usize) -> Option<Setpoint> {
+        self.setpoint_from(k, &mut Cursor::default())
+    }
+
+    /// [`Interpolator::setpoint`], searching the item and segment from where `cursor` found the
+    /// last one (for ticks taken in order, the same or the next) instead of bisecting; the
+    /// result is the same.
+    pub fn setpoint_from(&self, k: usize, cursor: &mut Cursor) -> Option<Setpoint> {
         if k >= self.servo_ticks() {
             return None;
         }
         let (m, r) = (k / self.ticks_per_ipo, k % self.ticks_per_ipo);
         let time_s = k as f64 * self.servo_period_s;
-        let Some(item) = self.item_at(m) else {
+        cursor.item = partition_from(self.items.len(), cursor.item, |i| self.items[i].end <= m);
+        let Some(item) = self.items.get(cursor.item).or(self.items.last()) else {
             return Some(self.rest(time_s, self.start, None, Spindle::Stopped));
         };
         match &item.activity {
@@ -324,14 +353,16 @@ impl Interpolator {
                 let mut state = self.samples.at(m, tau);
                 let s_end = s_start + profile.length;
                 state.s = state.s.clamp(*s_start, s_end);
-                Some(self.on_path(time_s, segments.clone(), state, state.s >= s_end))
+                let at_end = state.s >= s_end;
+                Some(self.on_path(time_s, segments.clone(), state, at_end, cursor))
             }
         }
     }
 
     /// All setpoints from `t = 0` to the end, at the servo rate.
     pub fn iter(&self) -> impl Iterator<Item = Setpoint> + '_ {
-        (0..self.servo_ticks()).filter_map(|k| self.setpoint(k))
+        let mut cursor = Cursor::default();
+        (0..self.servo_ticks()).filter_map(move |k| self.setpoint_from(k, &mut cursor))
     }
 
     /// For every executed block, in order: its index, and the times (s) at which the setpoint
@@ -364,12 +395,6 @@ impl Interpolator {
         self.items.last().map_or(0, |item| item.end)
     }
 
-    /// The item running at IPO tick `m` (the last one at the final tick).
-    fn item_at(&self, m: usize) -> Option<&Item> {
-        let i = self.items.partition_point(|item| item.end <= m);
-        self.items.get(i).or(self.items.last())
-    }
-
     fn rest(
         &self,
         time_s: f64,
@@ -395,11 +420,13 @@ impl Interpolator {
         segments: Range<usize>,
         state: PathState,
         at_end: bool,
+        cursor: &mut Cursor,
     ) -> Setpoint {
+        let first = segments.start;
         let run = &self.segments[segments];
-        let i = run
-            .partition_point(|seg| seg.s_end() <= state.s)
-            .min(run.len() - 1);
+        let guess = cursor.segment.saturating_sub(first);
+        let i = partition_from(run.len(), guess, |j| run[j].s_end() <= state.s).min(run.len() - 1);
+        cursor.segment = first + i;
         let seg = &run[i];
         let local = if at_end {
             seg.geometry.length()
