@@ -585,6 +585,7 @@ pub fn job(
                 plane,
                 feed_m_s: test.feed_m_s,
                 data,
+                circle: None,
             }];
             Ok(Job {
                 program,
@@ -785,6 +786,7 @@ fn kwon_job(pivot_mm: &[f64; 3], steps: &[u8], instruments: &InstrumentsToml) ->
             radius_m: step.link_length_m,
             plane: t.plane,
             feed_m_s: t.feed_m_s,
+            circle: Some((t.center, t.radius_m)),
             data: data
                 .into_iter()
                 .map(|(d, r)| (d, r.start + blocks..r.end + blocks))

@@ -16,7 +16,7 @@
 //! run's clock.
 
 use crate::ballbar::{Ballbar, BallbarSpec};
-use crate::interpolator::{Interpolator, InterpolatorConfig, InterpolatorError, Setpoint};
+use crate::interpolator::{Cursor, Interpolator, InterpolatorConfig, InterpolatorError, Setpoint};
 use crate::laser::{Laser, LaserSetup};
 use crate::nc::program::{ArcDirection, Plane, Program, Spindle};
 use crate::plant::{Fidelity, MultibodyPlant, Plant, PlantError, ReducedPlant, layout};
@@ -60,7 +60,7 @@ pub struct BallbarSetup {
     pub name: Option<String>,
     /// The instrument.
     pub spec: BallbarSpec,
-    /// Nominal centre of the circle, m.
+    /// Nominal position of the centre ball (the pivot), m.
     pub center: Vector3<f64>,
     /// Nominal bar length, m.
     pub radius_m: f64,
@@ -70,6 +70,17 @@ pub struct BallbarSetup {
     pub feed_m_s: f64,
     /// Data arcs: direction and the program blocks they span.
     pub data: Vec<(ArcDirection, Range<usize>)>,
+    /// The tool's circle (centre, m, and radius, m) when the bar does not lie in its plane
+    /// (an inclined link, Kwon's step 4); `None`: the circle about the pivot of the bar's
+    /// length.
+    pub circle: Option<(Vector3<f64>, f64)>,
+}
+
+impl BallbarSetup {
+    /// Centre (m) and radius (m) of the tool's circle.
+    pub fn tool_circle(&self) -> (Vector3<f64>, f64) {
+        self.circle.unwrap_or((self.center, self.radius_m))
+    }
 }
 
 /// A job: a program and the instruments watching it.
@@ -121,7 +132,7 @@ pub enum SimError {
     },
     /// The plant step is beyond the stability limit of a drive mode.
     #[error(
-        "a plant step of {step_us:.2} µs is too coarse for the {mode} of the {axis} drive: the largest stable step is {limit_us:.2} µs; raise plant_substeps"
+        "a plant step of {step_us:.2} µs is too coarse for the {mode} of the {axis} drive: the largest stable step is {limit_us:.2} µs; raise plant_substeps (scenario key controller.plant_substeps) to {substeps_needed} or more"
     )]
     StepTooCoarse {
         /// The axis.
@@ -132,6 +143,8 @@ pub enum SimError {
         step_us: f64,
         /// Largest stable step, µs.
         limit_us: f64,
+        /// The fewest plant steps per servo period that are stable.
+        substeps_needed: usize,
     },
     /// Settings out of range.
     #[error("{0}")]
@@ -161,7 +174,7 @@ pub fn simulate(
     let period = interpolator.servo_period_s();
     let substeps = settings.plant_substeps.max(1);
     let h = period / substeps as f64;
-    check_step(axes, h)?;
+    check_step(axes, period, substeps)?;
     if !(settings.log_rate_hz > 0.0 && settings.log_rate_hz <= 1.0 / period) {
         return Err(SimError::Settings(format!(
             "log rate {} Hz: from 0 to the servo rate {} Hz is accepted",
@@ -171,16 +184,17 @@ pub fn simulate(
     }
     let start = job.program.start - tcp;
     let mut plant = build_plant(machine, axes, &start, settings.fidelity, h)?;
-    let mut recorder = Recorder::new(job, settings, period, &interpolator.block_times());
+    let ticks = interpolator.servo_ticks();
+    let mut recorder = Recorder::new(job, settings, period, &interpolator.block_times(), ticks);
     let mut heat = HeatTracker::new(machine)?;
     // Link and joint matrices of the current thermal state, rebuilt only when it changes.
     let mut evaluator = machine.volumetric.evaluator(&heat.deformation);
     let initial_deformation = heat.deformation;
-    let ticks = interpolator.servo_ticks();
     let mut trackers =
         Axis::ALL.map(|a| DirectionTracker::new(start[a.index()], Direction::Forward, 0.05e-6));
+    let mut cursor = Cursor::default();
     for k in 0..ticks {
-        let Some(sp) = interpolator.setpoint(k) else {
+        let Some(sp) = interpolator.setpoint_from(k, &mut cursor) else {
             break;
         };
         let commands: [AxisCommand; 3] = std::array::from_fn(|i| AxisCommand {
@@ -250,15 +264,27 @@ fn check_strokes(
     Ok(())
 }
 
-fn check_step(axes: &[AxisDynamics; 3], h: f64) -> Result<(), SimError> {
+/// Checks the plant step `period_s / substeps` against the largest stable step of every
+/// drive ([`DriveParams::largest_stable_step_s`]).
+pub fn check_step(
+    axes: &[AxisDynamics; 3],
+    period_s: f64,
+    substeps: usize,
+) -> Result<(), SimError> {
+    let h = period_s / substeps.max(1) as f64;
     for (a, d) in Axis::ALL.into_iter().zip(axes) {
         let (limit, mode) = d.drive.largest_stable_step_s();
         if h > limit {
+            let mut needed = (period_s / limit).ceil() as usize;
+            if period_s / needed as f64 > limit {
+                needed += 1;
+            }
             return Err(SimError::StepTooCoarse {
                 axis: a,
                 mode,
                 step_us: h * 1e6,
                 limit_us: limit * 1e6,
+                substeps_needed: needed,
             });
         }
     }
@@ -418,12 +444,14 @@ impl Closing {
 }
 
 impl Recorder {
-    /// `block_times` as [`Interpolator::block_times`] gives them.
+    /// `block_times` as [`Interpolator::block_times`] gives them; `ticks` servo ticks to come
+    /// (the logs are allocated for them at once).
     fn new(
         job: &Job,
         settings: &SimSettings,
         period: f64,
         block_times: &[(usize, f64, f64)],
+        ticks: usize,
     ) -> Self {
         let every = |rate_hz: f64| ((1.0 / rate_hz) / period).round().max(1.0) as usize;
         let log_every = every(settings.log_rate_hz);
@@ -457,12 +485,14 @@ impl Recorder {
             let seed = settings.seed.wrapping_add(0x006c_6173_6572);
             Laser::new(l, block_times, period, seed)
         });
+        let logged = ticks.div_ceil(log_every);
+        let log = || Vec::with_capacity(logged);
         Self {
             log_every,
             bar_every,
-            times: Vec::new(),
-            servo: vec![Vec::new(); SERVO_CHANNELS.len() * 3],
-            tool: Default::default(),
+            times: log(),
+            servo: (0..SERVO_CHANNELS.len() * 3).map(|_| log()).collect(),
+            tool: std::array::from_fn(|_| log()),
             ballbar,
             data,
             closing: vec![None; traces.len()],
@@ -583,11 +613,11 @@ impl Recorder {
                 });
             }
         }
-        for (i, axis) in names.iter().enumerate() {
+        for (axis, values) in names.iter().zip(self.tool) {
             channels.push(Channel {
                 name: format!("tool_{axis}"),
                 unit: "m".into(),
-                values: self.tool[i].clone(),
+                values,
             });
         }
         let stream = Stream {

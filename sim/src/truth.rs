@@ -206,8 +206,9 @@ fn lag_s(d: &AxisDynamics) -> f64 {
 /// The figures a ball-bar diagnosis of circular test `b` reports, in its keys and units.
 ///
 /// From the error chain at the job's start (the tool-point error field `δ` on the nominal
-/// circle, averaged over the approach directions of the two plane axes): its radial component
-/// `δ·u(θ)` is expanded in Fourier series `A_k cos kθ + B_k sin kθ` over the full circle, and
+/// circle, averaged over the approach directions of the two plane axes): its component along
+/// the bar `δ·u(θ)` (u from the pivot to the tool; in the plane unless the link is inclined)
+/// is expanded in Fourier series `A_k cos kθ + B_k sin kθ` over the full circle, and
 /// the signatures of the diagnosis read off it (see `vmt-ballbar`'s signatures):
 /// straightness `S_p = -4 B_3`, `S_q = 4 A_3` (µm over the diameter); scale mismatch
 /// `2 A_2 / R` (ppm); squareness `2 B_2 / (k R)` (µm/m, k = -1 XY and YZ, +1 ZX); the pivot
@@ -220,12 +221,15 @@ pub fn test_figures(inputs: &TruthInputs, b: &BallbarSetup) -> serde_json::Map<S
     let (pa, qa) = plane_axes(b.plane);
     let (ep, eq) = (unit(pa), unit(qa));
     let r_um = b.radius_m * 1e6;
+    let (centre, radius) = b.tool_circle();
     let field = |th: f64| mean_error(inputs, b, th, pa, qa);
     let n = 720;
     let (mut a, mut bb) = ([0.0; 4], [0.0; 4]);
     for i in 0..n {
         let th = TAU * i as f64 / n as f64;
-        let u = ep * th.cos() + eq * th.sin();
+        // Along the bar, from the pivot to the tool on its circle.
+        let tool = centre + (ep * th.cos() + eq * th.sin()) * radius;
+        let u = (tool - b.center).normalize();
         let dr = field(th).dot(&u) * 1e6;
         for k in 1..4 {
             a[k] += 2.0 / n as f64 * dr * (k as f64 * th).cos();
@@ -234,8 +238,11 @@ pub fn test_figures(inputs: &TruthInputs, b: &BallbarSetup) -> serde_json::Map<S
     }
     let s_p = -4.0 * bb[3];
     let s_q = 4.0 * a[3];
-    let k = if b.plane == Plane::Zx { 1.0 } else { -1.0 };
-    let e = b.spec.setup_eccentricity_m * 1e6;
+    let sign = if b.plane == Plane::Zx { 1.0 } else { -1.0 };
+    // An inclined bar reads in-plane displacements (the pivot's, the lags', the drives') times
+    // its in-plane share; the chain's share is already projected on the bar.
+    let k = radius / b.radius_m;
+    let e = b.spec.setup_eccentricity_m * 1e6 * k;
     let (lp, lq) = (pa.to_string().to_lowercase(), qa.to_string().to_lowercase());
     let pl = format!("{lp}{lq}");
     let mut m = serde_json::Map::new();
@@ -253,18 +260,18 @@ pub fn test_figures(inputs: &TruthInputs, b: &BallbarSetup) -> serde_json::Map<S
     put(format!("straightness_{lp}"), s_p);
     put(format!("straightness_{lq}"), s_q);
     put(format!("scale_mismatch_{pl}"), 2.0 * a[2] / r_um * 1e6);
-    put(format!("squareness_{pl}"), 2.0 * bb[2] / (k * r_um) * 1e6);
+    put(format!("squareness_{pl}"), 2.0 * bb[2] / (sign * r_um) * 1e6);
     let axes = inputs.axes;
     put(
         format!("servo_mismatch_{pl}"),
-        (lag_s(&axes[pa.index()]) - lag_s(&axes[qa.index()])) * 1e3,
+        (lag_s(&axes[pa.index()]) - lag_s(&axes[qa.index()])) * 1e3 * k,
     );
     for (axis, other) in [(pa, qa), (qa, pa)] {
         let (along, across) = reversal_change(inputs, b, axis, other);
         let drive = backlash_seen_m(&axes[axis.index()], b.feed_m_s) * 1e6;
         let l = axis.to_string().to_lowercase();
-        put(format!("backlash_{l}"), drive + along);
-        put(format!("lateral_play_{l}"), across);
+        put(format!("backlash_{l}"), (drive + along) * k);
+        put(format!("lateral_play_{l}"), across * k);
     }
     m
 }
@@ -287,7 +294,8 @@ fn state(inputs: &TruthInputs, tool: Vector3<f64>, dirs: [(Axis, Direction); 2])
 /// The tool-point error (m) at angle `th` of the circle, averaged over the four approach
 /// directions of the plane's axes.
 fn mean_error(inputs: &TruthInputs, b: &BallbarSetup, th: f64, pa: Axis, qa: Axis) -> Vector3<f64> {
-    let tool = b.center + (unit(pa) * th.cos() + unit(qa) * th.sin()) * b.radius_m;
+    let (centre, radius) = b.tool_circle();
+    let tool = centre + (unit(pa) * th.cos() + unit(qa) * th.sin()) * radius;
     let dirs = [Direction::Forward, Direction::Backward];
     let mut sum = Vector3::zeros();
     for dp in dirs {
@@ -305,8 +313,9 @@ fn mean_error(inputs: &TruthInputs, b: &BallbarSetup, th: f64, pa: Axis, qa: Axi
 fn reversal_change(inputs: &TruthInputs, b: &BallbarSetup, axis: Axis, other: Axis) -> (f64, f64) {
     let dirs = [Direction::Forward, Direction::Backward];
     let mut change = Vector3::zeros();
+    let (centre, radius) = b.tool_circle();
     for side in [1.0, -1.0] {
-        let tool = b.center + unit(axis) * (side * b.radius_m);
+        let tool = centre + unit(axis) * (side * radius);
         for d in dirs {
             let at = |dir| {
                 inputs

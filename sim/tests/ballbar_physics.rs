@@ -36,6 +36,7 @@ fn circle_run(axes: [AxisDynamics; 3], feed_mm_min: f64, fidelity: Fidelity) -> 
             plane: Plane::Xy,
             feed_m_s: test.feed_m_s,
             data,
+            circle: None,
         }],
         laser: None,
     };

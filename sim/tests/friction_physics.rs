@@ -158,6 +158,7 @@ fn reversal_arc(axes: &[AxisDynamics; 3], feed_mm_min: f64) -> BallbarTrace {
         plane: Plane::Xy,
         feed_m_s: test.feed_m_s,
         data: test.data_blocks(&program).unwrap(),
+        circle: None,
     };
     let r = run(axes, &text, test.start_point(), vec![bar]);
     r.ballbar.into_iter().next().unwrap()

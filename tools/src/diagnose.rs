@@ -76,9 +76,28 @@ pub fn text(d: &Diagnosed) -> String {
         s.push('\n');
     }
     if let Some(k) = kwon(d) {
-        s.push_str(&kwon::text(&k));
+        s.push_str(&kwon::text(&k, kwon_truth(d).as_ref()));
     }
     s
+}
+
+/// Kwon's machine report computed from the run's truth figures, by the same formulas.
+pub fn kwon_truth(d: &Diagnosed) -> Option<kwon::MachineReport> {
+    let truth = d.ground_truth.as_ref()?;
+    let index = |n: u32| {
+        d.tests
+            .iter()
+            .position(|(_, x)| kwon::step_of(x) == Some(n))
+    };
+    let figures = |n: u32| index(n).and_then(|i| truth_figures(truth, i));
+    Some(kwon::report_from(
+        |n, key| figures(n)?.get(key)?.as_f64(),
+        |n| {
+            figures(n)
+                .map(|f| f.keys().map(|k| (k.clone(), k.clone(), "")).collect())
+                .unwrap_or_default()
+        },
+    ))
 }
 
 /// Kwon's machine report, when the file holds steps of the seven-step procedure.

@@ -79,6 +79,27 @@ fn value(d: &Diagnosis, key: &str) -> Option<f64> {
 /// in `missing`).
 pub fn machine_report(tests: &[Diagnosis]) -> MachineReport {
     let step = |n: u32| tests.iter().find(|d| step_of(d) == Some(n));
+    report_from(
+        |n, key| step(n).and_then(|d| value(d, key)),
+        |n| {
+            step(n)
+                .map(|d| {
+                    d.findings
+                        .iter()
+                        .map(|f| (f.key.clone(), f.name.clone(), f.unit))
+                        .collect()
+                })
+                .unwrap_or_default()
+        },
+    )
+}
+
+/// The machine report from the figures of each step: `value(step, key)` and the (key, name,
+/// unit) of every figure of a step (the same formulas serve a diagnosis and a ground truth).
+pub fn report_from(
+    value: impl Fn(u32, &str) -> Option<f64>,
+    keys: impl Fn(u32) -> Vec<(String, String, &'static str)>,
+) -> MachineReport {
     let mut figures = Vec::new();
     let mut missing = Vec::new();
     let mut push = |key: &str, name: &str, value: f64, unit, steps: &str| {
@@ -90,26 +111,30 @@ pub fn machine_report(tests: &[Diagnosis]) -> MachineReport {
             steps: steps.into(),
         })
     };
-    match step(1) {
-        Some(d) => {
-            for f in d.findings.iter().filter(|f| {
-                f.key.starts_with("closing_error")
-                    || f.key.starts_with("backlash_")
-                    || f.key.starts_with("scale_mismatch")
-                    || f.key.starts_with("squareness")
-                    || f.key.starts_with("stick_slip")
-            }) {
-                push(&f.key, &f.name, f.value, f.unit, "1");
-            }
-        }
-        None => missing.push("step 1 (closing, backlash X/Y, scale, XY squareness)".into()),
+    let step1: Vec<_> = keys(1)
+        .into_iter()
+        .filter(|(k, _, _)| {
+            [
+                "closing_error",
+                "backlash_",
+                "scale_mismatch",
+                "squareness",
+                "stick_slip",
+            ]
+            .iter()
+            .any(|p| k.starts_with(p))
+        })
+        .collect();
+    if step1.is_empty() {
+        missing.push("step 1 (closing, backlash X/Y, scale, XY squareness)".into());
     }
-    let eccentricity =
-        |d: &Diagnosis| Some([value(d, "eccentricity_x")?, value(d, "eccentricity_y")?]);
-    match (
-        step(1).and_then(eccentricity),
-        step(2).and_then(eccentricity),
-    ) {
+    for (k, name, unit) in step1 {
+        if let Some(v) = value(1, &k) {
+            push(&k, &name, v, unit, "1");
+        }
+    }
+    let eccentricity = |n: u32| Some([value(n, "eccentricity_x")?, value(n, "eccentricity_y")?]);
+    match (eccentricity(1), eccentricity(2)) {
         (Some(e1), Some(e2)) => {
             let per_m = 1e3 / RAISE_MM;
             push(
@@ -129,10 +154,7 @@ pub fn machine_report(tests: &[Diagnosis]) -> MachineReport {
         }
         _ => missing.push("pitch: needs steps 1 and 2".into()),
     }
-    match (
-        step(3).and_then(eccentricity),
-        step(4).and_then(eccentricity),
-    ) {
+    match (eccentricity(3), eccentricity(4)) {
         (Some(e3), Some(e4)) => {
             let sin = SMALL_CIRCLE_MM / INCLINED_LINK_MM;
             let shift = [e3[0] - e4[0] / sin, e3[1] - e4[1] / sin];
@@ -154,13 +176,19 @@ pub fn machine_report(tests: &[Diagnosis]) -> MachineReport {
         }
         _ => missing.push("XZ/YZ squareness: needs steps 3 and 4".into()),
     }
-    match step(5).and_then(|d| d.finding("servo_mismatch_xy")) {
-        Some(f) => push(&f.key, &f.name, f.value, f.unit, "5"),
+    match value(5, "servo_mismatch_xy") {
+        Some(v) => push(
+            "servo_mismatch_xy",
+            "Servo mismatch X lag - Y lag",
+            v,
+            "ms",
+            "5",
+        ),
         None => missing.push("servo mismatch: needs step 5 in both directions".into()),
     }
     let z: Vec<f64> = [6, 7]
         .into_iter()
-        .filter_map(|n| step(n).and_then(|d| value(d, "backlash_z")))
+        .filter_map(|n| value(n, "backlash_z"))
         .collect();
     if z.is_empty() {
         missing.push("Z backlash: needs step 6 or 7".into());
@@ -176,13 +204,18 @@ pub fn machine_report(tests: &[Diagnosis]) -> MachineReport {
     MachineReport { figures, missing }
 }
 
-/// The machine report as text.
-pub fn text(r: &MachineReport) -> String {
+/// The machine report as text, with the same figures of `truth` beside when given.
+pub fn text(r: &MachineReport, truth: Option<&MachineReport>) -> String {
     let mut s = String::from("Kwon's seven-step procedure: machine report\n");
     for f in &r.figures {
         let digits = if f.unit == "ms" { 4 } else { 2 };
+        let t = truth
+            .and_then(|t| t.figures.iter().find(|g| g.key == f.key))
+            .map_or(String::new(), |g| {
+                format!("  truth {:+.*}", digits, g.value)
+            });
         s += &format!(
-            "  {:<58} {:>+10.*} {:<5} (step {})\n",
+            "  {:<58} {:>+10.*} {:<5} (step {}){t}\n",
             f.name, digits, f.value, f.unit, f.steps
         );
     }
