@@ -6,6 +6,7 @@
 //! NaN, tables whose positions do not increase. See `scenarios/vmc500.toml` for the format.
 
 mod build;
+pub mod dataset;
 mod dynamics;
 mod error;
 mod schema;
@@ -57,7 +58,7 @@ pub fn parse(text: &str, file: &str, base_dir: Option<&Path>) -> Result<Scenario
 
 /// Deserialises the document, naming the key of a wrong or unknown value
 /// (serde_path_to_error tracks the path the deserializer had reached).
-fn read_toml(text: &str, file: &str) -> Result<schema::ScenarioFile, ScenarioError> {
+pub(crate) fn read_toml(text: &str, file: &str) -> Result<schema::ScenarioFile, ScenarioError> {
     let toml_error = |e: toml::de::Error, key: Option<String>| ScenarioError {
         file: file.to_string(),
         position: e.span().map(|s| error::line_col(text, s.start)),

@@ -48,6 +48,8 @@ pub struct ScenarioFile {
     pub job: Option<crate::dynamics::JobToml>,
     #[serde(default)]
     pub instruments: crate::dynamics::InstrumentsToml,
+    /// Distributions for `vmt dataset`; a run ignores them.
+    pub dataset: Option<crate::dataset::DatasetToml>,
 }
 
 #[derive(Debug, Deserialize)]

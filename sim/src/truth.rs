@@ -260,7 +260,10 @@ pub fn test_figures(inputs: &TruthInputs, b: &BallbarSetup) -> serde_json::Map<S
     put(format!("straightness_{lp}"), s_p);
     put(format!("straightness_{lq}"), s_q);
     put(format!("scale_mismatch_{pl}"), 2.0 * a[2] / r_um * 1e6);
-    put(format!("squareness_{pl}"), 2.0 * bb[2] / (sign * r_um) * 1e6);
+    put(
+        format!("squareness_{pl}"),
+        2.0 * bb[2] / (sign * r_um) * 1e6,
+    );
     let axes = inputs.axes;
     put(
         format!("servo_mismatch_{pl}"),

@@ -1,6 +1,8 @@
 //! vmt-tools: the pieces behind the `vmt` command line — input files, maps, reports and plots.
 //! The binary in `main.rs` only parses arguments, calls these and the library crates, and prints.
 
+pub mod accuracy;
+pub mod dataset;
 pub mod diagnose;
 pub mod error;
 pub mod formats;

@@ -56,7 +56,8 @@ enum Command {
     /// chain; writes run.mcap, run.rrd, ballbar_polar.png and ground_truth.json.
     Run(RunArgs),
     /// The built-in machine runs the ISO 230-4 XY test (150 mm, 1000 mm/min, CW and CCW);
-    /// writes the MCAP, the Rerun recording and the polar plot, and prints a summary.
+    /// writes the MCAP, the Rerun recording and the polar plot, diagnoses the traces and prints
+    /// the diagnosis beside the run's ground truth.
     Demo(RunArgs),
     /// Diagnose ball-bar traces: ISO 230-4 figures and the machine errors behind them.
     ///
@@ -70,6 +71,45 @@ enum Command {
     ///   vmt diagnose trace.csv --radius-mm 150 --feed-mm-min 1000 --plane XY
     #[command(verbatim_doc_comment)]
     Diagnose(DiagnoseArgs),
+    /// Simulate N random machines drawn from the scenario's [dataset] distributions: writes
+    /// OUT/runs/<id>/{run.mcap,labels.json,scenario.toml} and OUT/manifest.{csv,parquet};
+    /// continues where an interrupted invocation stopped.
+    ///
+    /// Example:
+    ///   vmt dataset --scenario scenarios/dataset_xy.toml --count 500 --seed 1 --out ds
+    #[command(verbatim_doc_comment)]
+    Dataset(DatasetArgs),
+    /// Diagnose every run of a dataset and compare with its truth: bias, RMS, 95th percentile,
+    /// worst, share within tolerance and false positives per figure (DIR/accuracy.{md,json}).
+    Accuracy(AccuracyArgs),
+}
+
+#[derive(Args)]
+struct DatasetArgs {
+    /// Scenario file with a [dataset] section.
+    #[arg(long)]
+    scenario: PathBuf,
+    /// Number of runs.
+    #[arg(long)]
+    count: u64,
+    /// Seed of the dataset; run i's seed is derived from it and i.
+    #[arg(long)]
+    seed: u64,
+    /// Output folder.
+    #[arg(long)]
+    out: PathBuf,
+    /// No progress bar.
+    #[arg(long)]
+    quiet: bool,
+    /// Diagnose the ball-bar traces of the run afterwards (`vmt diagnose` on its MCAP).
+    #[arg(long)]
+    diagnose: bool,
+}
+
+#[derive(Args)]
+struct AccuracyArgs {
+    /// A dataset folder written by `vmt dataset`.
+    dir: PathBuf,
 }
 
 #[derive(Args)]
@@ -203,6 +243,9 @@ struct RunArgs {
     /// No progress bar.
     #[arg(long)]
     quiet: bool,
+    /// Diagnose the ball-bar traces of the run afterwards (`vmt diagnose` on its MCAP).
+    #[arg(long)]
+    diagnose: bool,
 }
 
 fn run_job(args: RunArgs) -> Result<(), CliError> {
@@ -232,15 +275,24 @@ fn run_job(args: RunArgs) -> Result<(), CliError> {
     let truth = &run.ground_truth["drives"];
     for a in ["x", "y", "z"] {
         println!(
-            "  truth {}: backlash {:.2} um (seen by a ball bar {:.2} um), Kv {} 1/s",
+            "  truth {}: drive backlash {:.2} um, Kv {} 1/s",
             a.to_uppercase(),
             truth[a]["backlash_um"].as_f64().unwrap_or(f64::NAN),
-            truth[a]["backlash_seen_um"].as_f64().unwrap_or(f64::NAN),
             truth[a]["kv_per_s"]
         );
     }
-    for f in written.files {
+    for f in &written.files {
         println!("wrote {}", f.display());
+    }
+    if args.diagnose && !run.ballbar.is_empty() {
+        // The diagnosis reads the traces back from the MCAP file, as it would a real log.
+        let mcap = args.out.join("run.mcap");
+        let d = vmt_tools::diagnose::diagnose_file(&mcap, None, &vmt_ballbar::Options::default())?;
+        println!();
+        print!("{}", vmt_tools::diagnose::text(&d));
+        for f in vmt_tools::diagnose::write(&d, &args.out.join("diagnosis"))? {
+            println!("wrote {}", f.display());
+        }
     }
     Ok(())
 }
@@ -254,9 +306,14 @@ fn main() -> ExitCode {
         Command::Run(args) => run_job(args),
         Command::Demo(args) => run_job(RunArgs {
             scenario: None,
+            diagnose: true,
             ..args
         }),
         Command::Diagnose(args) => diagnose_cmd(args),
+        Command::Dataset(a) => {
+            vmt_tools::dataset::command(&a.scenario, a.count, a.seed, &a.out, a.quiet)
+        }
+        Command::Accuracy(a) => vmt_tools::accuracy::command(&a.dir),
         Command::Topologies => {
             topologies();
             Ok(())

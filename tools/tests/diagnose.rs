@@ -14,14 +14,8 @@ fn write_csv(dir: &Path, name: &str, traces: &[Trace]) -> PathBuf {
     let mut s = String::from("time_s,angle_deg,deviation_um,direction\n");
     for t in traces {
         let times = t.time_s.as_ref().expect("synthetic traces have times");
-        for i in 0..t.angle_deg.len() {
-            s += &format!(
-                "{},{},{},{}\n",
-                times[i],
-                t.angle_deg[i].rem_euclid(360.0),
-                t.deviation_um[i],
-                t.sense.name()
-            );
+        for ((time, a), d) in times.iter().zip(&t.angle_deg).zip(&t.deviation_um) {
+            s += &format!("{time},{},{d},{}\n", a.rem_euclid(360.0), t.sense.name());
         }
     }
     let p = dir.join(name);
