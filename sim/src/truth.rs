@@ -211,7 +211,8 @@ fn lag_s(d: &AxisDynamics) -> f64 {
 /// is expanded in Fourier series `A_k cos kθ + B_k sin kθ` over the full circle, and
 /// the signatures of the diagnosis read off it (see `vmt-ballbar`'s signatures):
 /// straightness `S_p = -4 B_3`, `S_q = 4 A_3` (µm over the diameter); scale mismatch
-/// `2 A_2 / R` (ppm); squareness `2 B_2 / (k R)` (µm/m, k = -1 XY and YZ, +1 ZX); the pivot
+/// `2 A_2 / R` (ppm) plus the dynamic share `-(ω²/2)(τ_p² - τ_q²)` of unequal servo lags τ at
+/// ω = F/r (each axis' amplitude falls short by (ωτ)²/2); squareness `2 B_2 / (k R)` (µm/m, k = -1 XY and YZ, +1 ZX); the pivot
 /// offset equivalent `e_p = -A_1 - S_q/4`, `e_q = -B_1 - S_p/4`, added to the bar's set-up
 /// eccentricity. Backlash and lateral play of an axis: the change of `δ` along and across the
 /// axis when it reverses (backward minus forward) at its two reversal points on the circle,
@@ -259,7 +260,15 @@ pub fn test_figures(inputs: &TruthInputs, b: &BallbarSetup) -> serde_json::Map<S
     );
     put(format!("straightness_{lp}"), s_p);
     put(format!("straightness_{lq}"), s_q);
-    put(format!("scale_mismatch_{pl}"), 2.0 * a[2] / r_um * 1e6);
+    // A position loop following a circle at ω = F/r lets each axis' amplitude fall short by
+    // (ωτ)²/2 (first-order lag τ): unequal lags read as a scale mismatch on the bar.
+    let omega = b.feed_m_s / radius;
+    let dynamic = |a: Axis| -0.5 * (omega * lag_s(&inputs.axes[a.index()])).powi(2);
+    let dynamic_ppm = (dynamic(pa) - dynamic(qa)) * 1e6 * k * k;
+    put(
+        format!("scale_mismatch_{pl}"),
+        2.0 * a[2] / r_um * 1e6 + dynamic_ppm,
+    );
     put(
         format!("squareness_{pl}"),
         2.0 * bb[2] / (sign * r_um) * 1e6,
