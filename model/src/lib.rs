@@ -2,6 +2,7 @@
 //! machines. No files, no clocks, no global state.
 //!
 //! - [`axis`]: the axes and their direction states.
+//! - [`cutting`]: milling: the end mill, cutting-force coefficients, the tool point's modes.
 //! - [`drive`]: feed drives: cascaded servo control, ball screw with backlash, LuGre friction.
 //! - [`geometric`]: the 21 direction-dependent geometric errors of ISO 230-1.
 //! - [`machine`]: a whole machine: axes, error chain, thermal model.
@@ -13,6 +14,7 @@
 //! Units are SI throughout (m, rad, s, K, W); conversions happen at the edges.
 
 pub mod axis;
+pub mod cutting;
 pub mod drive;
 pub mod geometric;
 pub mod kinematics;
