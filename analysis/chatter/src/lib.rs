@@ -1,1 +1,3 @@
-//! Milling stability and chatter detection.
+//! vmt-chatter: milling stability and chatter detection. It reads the tool's modal parameters
+//! and cutting coefficients (vmt-model's `cutting`) and measured or simulated signals; it never
+//! calls the simulator.
