@@ -1,0 +1,173 @@
+//! A measured ball-bar trace beside the simulation of the same test.
+//!
+//! The residual is `r(θ) = measured(θ) - simulated(θ)` (µm) at each measured angle θ, the
+//! simulated deviation linearly interpolated in angle. Both traces must be the same test: same
+//! plane, sense, bar length (to 1e-6 relative) and feed (to 0.1 %), and the measured angles
+//! must lie within the simulated ones.
+
+use thiserror::Error;
+use vmt_ballbar::{Plane, Sense, Trace, TraceError};
+
+/// Why a measured run cannot be compared with its simulation.
+#[derive(Debug, Error, PartialEq)]
+pub enum GapError {
+    /// A trace failed its checks.
+    #[error(transparent)]
+    Trace(#[from] TraceError),
+    /// The measured run is not the simulated test.
+    #[error(
+        "{label}: the measured {what} is {measured} but the model's job has {model}; measure the job the model runs, or change the scenario's job to match"
+    )]
+    Mismatch {
+        /// The measured trace's label.
+        label: String,
+        /// Which setting differs (`plane`, `direction`, `radius_mm`, `feed_mm_min`, `arc`).
+        what: &'static str,
+        /// The measured value.
+        measured: String,
+        /// The model's value.
+        model: String,
+    },
+    /// Nothing to localise.
+    #[error("no measured run to compare")]
+    Empty,
+}
+
+/// One measured trace and its residual against the simulation.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TracePair {
+    /// The measured trace's label.
+    pub label: String,
+    /// Test plane.
+    pub plane: Plane,
+    /// Sense of travel.
+    pub sense: Sense,
+    /// Bar length, mm.
+    pub radius_mm: f64,
+    /// Feed, mm/min.
+    pub feed_mm_min: f64,
+    /// Measured angles, deg.
+    pub angle_deg: Vec<f64>,
+    /// Sample times, s (from the measured trace, else from the angle at the feed).
+    pub time_s: Vec<f64>,
+    /// Measured minus simulated deviation, µm.
+    pub residual_um: Vec<f64>,
+}
+
+impl TracePair {
+    /// Aligns `measured` with `simulated` and forms the residual.
+    pub fn align(measured: &Trace, simulated: &Trace) -> Result<Self, GapError> {
+        measured.validate()?;
+        simulated.validate()?;
+        check_same_test(measured, simulated)?;
+        let sim = Monotone::new(&simulated.angle_deg, &simulated.deviation_um);
+        let residual_um = measured
+            .angle_deg
+            .iter()
+            .zip(&measured.deviation_um)
+            .map(|(a, d)| d - sim.at(*a))
+            .collect();
+        let time_s = measured.time_s.clone().unwrap_or_else(|| {
+            let deg_per_s = (measured.feed_mm_min / 60.0 / measured.radius_mm).to_degrees();
+            let a0 = measured.angle_deg[0];
+            measured
+                .angle_deg
+                .iter()
+                .map(|a| (a - a0).abs() / deg_per_s)
+                .collect()
+        });
+        Ok(Self {
+            label: measured.label.clone(),
+            plane: measured.plane,
+            sense: measured.sense,
+            radius_mm: measured.radius_mm,
+            feed_mm_min: measured.feed_mm_min,
+            angle_deg: measured.angle_deg.clone(),
+            time_s,
+            residual_um,
+        })
+    }
+
+    /// Mean square of the residual, µm².
+    pub fn mean_square(&self) -> f64 {
+        self.residual_um.iter().map(|r| r * r).sum::<f64>() / self.residual_um.len() as f64
+    }
+}
+
+fn check_same_test(m: &Trace, s: &Trace) -> Result<(), GapError> {
+    let mismatch = |what, measured: String, model: String| GapError::Mismatch {
+        label: m.label.clone(),
+        what,
+        measured,
+        model,
+    };
+    if m.plane != s.plane {
+        return Err(mismatch("plane", m.plane.to_string(), s.plane.to_string()));
+    }
+    if m.sense != s.sense {
+        return Err(mismatch(
+            "direction",
+            m.sense.name().into(),
+            s.sense.name().into(),
+        ));
+    }
+    if (m.radius_mm - s.radius_mm).abs() > 1e-6 * s.radius_mm {
+        return Err(mismatch(
+            "radius_mm",
+            m.radius_mm.to_string(),
+            s.radius_mm.to_string(),
+        ));
+    }
+    if (m.feed_mm_min - s.feed_mm_min).abs() > 1e-3 * s.feed_mm_min {
+        return Err(mismatch(
+            "feed_mm_min",
+            m.feed_mm_min.to_string(),
+            s.feed_mm_min.to_string(),
+        ));
+    }
+    let range = |a: &[f64]| {
+        let (x, y) = (a[0], a[a.len() - 1]);
+        (x.min(y), x.max(y))
+    };
+    let ((m0, m1), (s0, s1)) = (range(&m.angle_deg), range(&s.angle_deg));
+    // Half a degree of slack: the two may start a sample apart.
+    if m0 < s0 - 0.5 || m1 > s1 + 0.5 {
+        return Err(mismatch(
+            "arc",
+            format!("{m0:.1}..{m1:.1} deg"),
+            format!("{s0:.1}..{s1:.1} deg"),
+        ));
+    }
+    Ok(())
+}
+
+/// A piecewise-linear function of an angle that moves one way (either way).
+struct Monotone {
+    x: Vec<f64>,
+    y: Vec<f64>,
+}
+
+impl Monotone {
+    fn new(x: &[f64], y: &[f64]) -> Self {
+        let (mut x, mut y) = (x.to_vec(), y.to_vec());
+        if x[0] > x[x.len() - 1] {
+            x.reverse();
+            y.reverse();
+        }
+        Self { x, y }
+    }
+
+    /// Linear interpolation, held at the ends.
+    fn at(&self, a: f64) -> f64 {
+        let i = self.x.partition_point(|v| *v <= a);
+        if i == 0 {
+            return self.y[0];
+        }
+        if i == self.x.len() {
+            return self.y[i - 1];
+        }
+        let (x0, x1) = (self.x[i - 1], self.x[i]);
+        let t = if x1 > x0 { (a - x0) / (x1 - x0) } else { 0.0 };
+        self.y[i - 1] + t * (self.y[i] - self.y[i - 1])
+    }
+}
