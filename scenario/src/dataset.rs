@@ -262,7 +262,7 @@ fn distribution(p: &ParameterToml) -> Result<Dist, Refusal> {
 }
 
 /// Parses `a.b."c-d".e[2]` into its segments.
-fn key_path(key: &str) -> Result<KeyPath, String> {
+pub(crate) fn key_path(key: &str) -> Result<KeyPath, String> {
     let bad =
         || format!("`{key}`: a dotted key path is accepted, with quoted keys and [index] elements");
     let mut segs = Vec::new();
@@ -295,7 +295,7 @@ fn key_path(key: &str) -> Result<KeyPath, String> {
 }
 
 /// The number at `path`, if the document sets one there.
-fn number<'a>(doc: &'a DocumentMut, path: &KeyPath) -> Option<&'a Value> {
+pub(crate) fn number<'a>(doc: &'a DocumentMut, path: &KeyPath) -> Option<&'a Value> {
     let mut item: &Item = doc.as_item();
     for seg in &path.0 {
         item = match seg {
@@ -306,7 +306,7 @@ fn number<'a>(doc: &'a DocumentMut, path: &KeyPath) -> Option<&'a Value> {
     item.as_value().filter(|v| v.is_float() || v.is_integer())
 }
 
-fn number_mut<'a>(doc: &'a mut DocumentMut, path: &KeyPath) -> Option<&'a mut Value> {
+pub(crate) fn number_mut<'a>(doc: &'a mut DocumentMut, path: &KeyPath) -> Option<&'a mut Value> {
     let mut item: &mut Item = doc.as_item_mut();
     for seg in &path.0 {
         item = match seg {

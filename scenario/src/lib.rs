@@ -7,6 +7,7 @@
 
 mod build;
 pub mod dataset;
+pub mod edit;
 mod dynamics;
 mod error;
 mod schema;

@@ -31,6 +31,27 @@ pub enum GapError {
     /// Nothing to localise.
     #[error("no measured run to compare")]
     Empty,
+    /// The model could not be built or simulated.
+    #[error("model: {0}")]
+    Model(String),
+    /// A measured trace has no simulated counterpart in the model's job.
+    #[error(
+        "{label}: the model's job has no {plane} test of {radius_mm} mm at {feed_mm_min} mm/min {direction}; its tests are: {tests}"
+    )]
+    NotInJob {
+        /// The measured trace.
+        label: String,
+        /// Its plane.
+        plane: String,
+        /// Its radius, mm.
+        radius_mm: f64,
+        /// Its feed, mm/min.
+        feed_mm_min: f64,
+        /// Its direction.
+        direction: String,
+        /// The model's tests.
+        tests: String,
+    },
 }
 
 /// One measured trace and its residual against the simulation.

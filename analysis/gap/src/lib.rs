@@ -5,10 +5,16 @@
 //! - [`align`]: a measured trace beside the simulation of the same test, refused when the two
 //!   are not the same test;
 //! - [`localise`]: where the residual's energy sits, and where it concentrates;
-//! - [`whiteness`]: the Ljung–Box test of the residual left after the structured parts.
+//! - [`whiteness`]: the Ljung–Box test of the residual left after the structured parts;
+//! - [`effects`]: the library of candidate effects, as the scenario keys they change;
+//! - [`model`]: a scenario re-simulated with parameter offsets (the forward model);
+//! - [`select`]: which effects explain the gap, by forward selection judged on held-out runs.
 
 pub mod align;
+pub mod effects;
 pub mod localise;
+pub mod model;
+pub mod select;
 pub mod whiteness;
 
 pub use align::{GapError, TracePair};

@@ -1,0 +1,183 @@
+//! The library of candidate effects: each a switch of the model with its free parameters,
+//! written as the scenario keys it changes. A parameter's value is an offset added to what the
+//! model file sets at each of its keys, so a candidate at zero is the model unchanged.
+//!
+//! The keys follow the scenario format of `scenarios/vmc500.toml`; a candidate whose keys the
+//! model file does not set is reported as unavailable rather than invented.
+
+/// One free parameter of a candidate.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Param {
+    /// Name, e.g. `backlash X`.
+    pub name: String,
+    /// Unit of the offset (the keys' unit).
+    pub unit: &'static str,
+    /// The keys that take the offset (all the same).
+    pub keys: Vec<String>,
+    /// Finite-difference step for its sensitivity, in `unit`: large enough to stand above the
+    /// simulator's round-off, small enough to stay linear.
+    pub step: f64,
+}
+
+/// One candidate effect.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Effect {
+    /// Short key, e.g. `backlash_x`.
+    pub key: String,
+    /// What the physics is.
+    pub description: String,
+    /// Its free parameters.
+    pub params: Vec<Param>,
+}
+
+fn param(name: &str, unit: &'static str, keys: &[String], step: f64) -> Param {
+    Param {
+        name: name.into(),
+        unit,
+        keys: keys.to_vec(),
+        step,
+    }
+}
+
+fn effect(key: &str, description: &str, params: Vec<Param>) -> Effect {
+    Effect {
+        key: key.into(),
+        description: description.into(),
+        params,
+    }
+}
+
+/// The built-in library for the axes of a test plane (`p`, `q` axis letters, lower case).
+pub fn library(p: char, q: char) -> Vec<Effect> {
+    let mut out = Vec::new();
+    for a in [p, q] {
+        let up = a.to_ascii_uppercase();
+        let axis = format!("machine.axes.{a}");
+        let errors = format!("machine.errors.{a}");
+        out.push(effect(
+            &format!("backlash_{a}"),
+            &format!("lost motion in the {up} screw-nut (drive backlash)"),
+            vec![param(
+                &format!("backlash {up}"),
+                "um",
+                &[format!("{axis}.drive.backlash_um")],
+                1.0,
+            )],
+        ));
+        out.push(effect(
+            &format!("scale_{a}"),
+            &format!("linear positioning (scale) error of {up}: E{up}{up} slope"),
+            vec![param(
+                &format!("E{up}{up} c1 (half the change over the stroke)"),
+                "um",
+                &[
+                    format!("{errors}.forward.E{up}{up}_um[1]"),
+                    format!("{errors}.backward.E{up}{up}_um[1]"),
+                ],
+                2.0,
+            )],
+        ));
+        out.push(effect(
+            &format!("servo_gain_{a}"),
+            &format!("position-loop gain of {up} (servo mismatch with the other axis)"),
+            vec![param(
+                &format!("Kv {up}"),
+                "1/s",
+                &[format!("{axis}.servo.kv_per_s")],
+                1.0,
+            )],
+        ));
+        out.push(effect(
+            &format!("friction_{a}"),
+            &format!("Coulomb friction of the {up} guides (reversal spikes)"),
+            vec![param(
+                &format!("Coulomb force {up}"),
+                "N",
+                &[format!("{axis}.drive.guide_friction.coulomb_n")],
+                20.0,
+            )],
+        ));
+        out.push(effect(
+            &format!("stick_slip_{a}"),
+            &format!("static friction peak of the {up} guides over Coulomb (stick-slip)"),
+            vec![param(
+                &format!("static force {up}"),
+                "N",
+                &[format!("{axis}.drive.guide_friction.static_n")],
+                20.0,
+            )],
+        ));
+        let other = if a == p { q } else { p }.to_ascii_uppercase();
+        out.push(effect(
+            &format!("lateral_play_{a}"),
+            &format!("lateral play of {up}: the {other} offset of the backward approach"),
+            vec![param(
+                &format!("E{other}{up} backward c0"),
+                "um",
+                &[format!("{errors}.backward.E{other}{up}_um[0]")],
+                1.0,
+            )],
+        ));
+        out.push(effect(
+            &format!("straightness_{a}"),
+            &format!("straightness of {up} in {other}: the bow (Legendre c2) of E{other}{up}"),
+            vec![param(
+                &format!("E{other}{up} c2"),
+                "um",
+                &[format!("{errors}.forward.E{other}{up}_um[2]")],
+                2.0,
+            )],
+        ));
+    }
+    out.push(effect(
+        "squareness",
+        "out-of-squareness of the plane's axes",
+        vec![param("squareness", "urad", &[squareness_key(p, q)], 10.0)],
+    ));
+    out.push(effect(
+        "setup",
+        "ball-bar pivot set-up offset (eccentricity)",
+        (0..2)
+            .map(|i| {
+                param(
+                    &format!("pivot offset {}", ['X', 'Y', 'Z'][i]),
+                    "um",
+                    &[format!(
+                        "instruments.ballbar.setup_eccentricity_um[{}]",
+                        axis_index(if i == 0 { p } else { q })
+                    )],
+                    5.0,
+                )
+            })
+            .collect(),
+    ));
+    out.push(effect(
+        "bar_length",
+        "bar length error (bar temperature against its calibration)",
+        vec![param(
+            "bar temperature",
+            "K",
+            &["instruments.ballbar.bar_temperature_c".to_string()],
+            1.0,
+        )],
+    ));
+    out
+}
+
+fn axis_index(a: char) -> usize {
+    match a {
+        'x' => 0,
+        'y' => 1,
+        _ => 2,
+    }
+}
+
+/// The ISO squareness key of a plane: EC0Y for XY, EB0Z for ZX, EA0Z for YZ.
+fn squareness_key(p: char, q: char) -> String {
+    match (p, q) {
+        ('x', 'y') => "machine.errors.squareness.EC0Y_urad",
+        ('z', 'x') => "machine.errors.squareness.EB0Z_urad",
+        _ => "machine.errors.squareness.EA0Z_urad",
+    }
+    .to_string()
+}

@@ -1,0 +1,103 @@
+//! The model side of the gap: a scenario whose parameters can be offset by key and whose job is
+//! re-simulated (vmt-sim, the scenario's own fidelity and controller) to give the traces the
+//! model predicts. The ball bar is simulated without noise and without resolution rounding, so
+//! that the model's traces and their sensitivities are smooth; the measured traces keep theirs.
+
+use crate::align::GapError;
+use std::path::PathBuf;
+use vmt_ballbar::Trace;
+use vmt_scenario::edit::Template;
+
+/// Simulates a model's job with parameter offsets.
+pub trait Forward: Sync {
+    /// The model's value at `key`, if the model sets a number there.
+    fn value(&self, key: &str) -> Option<f64>;
+    /// The traces of the job with `(key, value)` written into the model.
+    fn traces(&self, values: &[(String, f64)]) -> Result<Vec<Trace>, GapError>;
+}
+
+/// A scenario file as a forward model.
+pub struct ScenarioModel {
+    template: Template,
+    file: String,
+    base_dir: Option<PathBuf>,
+}
+
+impl ScenarioModel {
+    /// The model of scenario `text` (named `file`; table files resolved in `base_dir`).
+    pub fn new(text: &str, file: &str, base_dir: Option<PathBuf>) -> Result<Self, GapError> {
+        let quiet = Template::parse(text, file)
+            .and_then(|t| {
+                t.with_inserted(&[
+                    ("instruments.ballbar.noise_um", 0.0),
+                    ("instruments.ballbar.resolution_um", 0.0),
+                ])
+            })
+            .map_err(|e| GapError::Model(e.to_string()))?;
+        let template = Template::parse(&quiet, file).map_err(|e| GapError::Model(e.to_string()))?;
+        let model = Self {
+            template,
+            file: file.to_string(),
+            base_dir,
+        };
+        // Parse once now, so a bad model is refused before any fitting.
+        model.scenario(&quiet)?;
+        Ok(model)
+    }
+
+    fn scenario(&self, text: &str) -> Result<vmt_scenario::Scenario, GapError> {
+        let s = vmt_scenario::parse(text, &self.file, self.base_dir.as_deref())
+            .map_err(|e| GapError::Model(e.to_string()))?;
+        if s.execution.is_none() {
+            return Err(GapError::Model(format!(
+                "{}: the model has no job to simulate ([controller], [job] and every axis' drive and servo are needed)",
+                self.file
+            )));
+        }
+        Ok(s)
+    }
+}
+
+impl Forward for ScenarioModel {
+    fn value(&self, key: &str) -> Option<f64> {
+        self.template.value(key).ok().flatten()
+    }
+
+    fn traces(&self, values: &[(String, f64)]) -> Result<Vec<Trace>, GapError> {
+        let pairs: Vec<(&str, f64)> = values.iter().map(|(k, v)| (k.as_str(), *v)).collect();
+        let text = self
+            .template
+            .with(&pairs)
+            .map_err(|e| GapError::Model(e.to_string()))?;
+        let s = self.scenario(&text)?;
+        let Some(exec) = &s.execution else {
+            return Err(GapError::Model("no job".into()));
+        };
+        let run = vmt_sim::simulate::simulate(
+            &s.machine,
+            &exec.axes,
+            &exec.controller,
+            &exec.job,
+            &exec.settings,
+            &text,
+            &mut |_| {},
+        )
+        .map_err(|e| GapError::Model(format!("{}: {e}", self.file)))?;
+        run.ballbar
+            .iter()
+            .map(|t| {
+                Trace::new(
+                    &t.label,
+                    &t.plane,
+                    &t.direction,
+                    t.radius_mm,
+                    t.feed_mm_min,
+                    t.angle_deg.clone(),
+                    t.deviation_um.clone(),
+                    Some(t.times_s.clone()),
+                )
+                .map_err(GapError::Trace)
+            })
+            .collect()
+    }
+}

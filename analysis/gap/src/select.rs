@@ -1,0 +1,570 @@
+//! Which unmodelled effect explains the gap, and how much adding it buys.
+//!
+//! The measured traces are split into calibration and held-out runs ([`Split`]). Every free
+//! parameter `β_p` of every available candidate gets its sensitivity by a finite difference
+//! through the simulator, `J_p = (m(β₀ + h_p e_p) − m(β₀)) / h_p`, where `m` is the model's
+//! deviation at the measured angles averaged into bins (1° by default). Effects are then added
+//! by forward selection:
+//!
+//! 1. for each candidate `c` not yet chosen, the parameters of the chosen effects and of `c`
+//!    are fitted jointly to the calibration residual, `min ‖r_cal − J_cal β‖²` (Gauss–Newton
+//!    step from the model as given, the effects being near-linear at the micrometre level), and
+//!    scored on the held-out residual the linear model predicts;
+//! 2. the candidate with the smallest predicted held-out residual among those that lower the
+//!    calibration BIC `n ln(RSS/n) + k ln n` is simulated with its fitted values (the
+//!    nonlinear check) and accepted when the simulated BIC drops by at least
+//!    [`Options::min_bic_drop`] and the held-out mean square shrinks by at least
+//!    [`Options::min_held_out_shrink`] of what is left;
+//! 3. one more Gauss–Newton step from the simulated residual refines the values.
+//!
+//! Selection stops when no candidate passes; what is left is reported as unexplained.
+
+use crate::align::{GapError, TracePair};
+use crate::effects::Effect;
+use crate::model::Forward;
+use nalgebra::{DMatrix, DVector};
+use rayon::prelude::*;
+use vmt_ballbar::Trace;
+
+/// Settings of the selection.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Options {
+    /// Bin width of the residual vectors, deg.
+    pub bin_deg: f64,
+    /// Least drop of the calibration BIC for an effect to be added.
+    pub min_bic_drop: f64,
+    /// Least shrink of the held-out mean square, as a fraction of what is left.
+    pub min_held_out_shrink: f64,
+    /// Most effects added.
+    pub max_effects: usize,
+}
+
+impl Default for Options {
+    fn default() -> Self {
+        Self {
+            bin_deg: 1.0,
+            min_bic_drop: 10.0,
+            min_held_out_shrink: 0.3,
+            max_effects: 4,
+        }
+    }
+}
+
+/// Which measured traces fit the effects and which judge them (indices into the measured list).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Split {
+    /// Calibration traces.
+    pub calibration: Vec<usize>,
+    /// Held-out traces.
+    pub held_out: Vec<usize>,
+    /// How the split was made, for the report.
+    pub rule: String,
+}
+
+impl Split {
+    /// With several tests (plane, radius, feed), every other test is held out; with one test
+    /// of two directions, CW fits and CCW judges.
+    pub fn automatic(measured: &[Trace]) -> Result<Self, GapError> {
+        let mut tests: Vec<(String, f64, f64)> = Vec::new();
+        let test_of: Vec<usize> = measured
+            .iter()
+            .map(|t| {
+                let key = (t.plane.to_string(), t.radius_mm, t.feed_mm_min);
+                tests.iter().position(|k| *k == key).unwrap_or_else(|| {
+                    tests.push(key);
+                    tests.len() - 1
+                })
+            })
+            .collect();
+        let (calibration, held_out, rule): (Vec<usize>, Vec<usize>, String) = if tests.len() >= 2 {
+            let (c, h) = (0..measured.len()).partition(|i| test_of[*i].is_multiple_of(2));
+            (
+                c,
+                h,
+                "every other test (plane, radius, feed) held out".into(),
+            )
+        } else {
+            let (c, h) =
+                (0..measured.len()).partition(|i| measured[*i].sense == vmt_ballbar::Sense::Cw);
+            (c, h, "CW fits, CCW judges".into())
+        };
+        if calibration.is_empty() || held_out.is_empty() {
+            return Err(GapError::Model(
+                "the gap analysis needs runs to fit and other runs to judge: give two directions or two tests".into(),
+            ));
+        }
+        Ok(Self {
+            calibration,
+            held_out,
+            rule,
+        })
+    }
+}
+
+/// A fitted parameter.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct Fitted {
+    /// Parameter name.
+    pub name: String,
+    /// Offset from the model's value.
+    pub value: f64,
+    /// Unit.
+    pub unit: String,
+}
+
+/// One accepted effect.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct Step {
+    /// Effect key.
+    pub effect: String,
+    /// What it is.
+    pub description: String,
+    /// Its parameters' offsets (with those of the effects before it, refitted).
+    pub values: Vec<Fitted>,
+    /// RMS of the calibration residual after it, µm.
+    pub calibration_rms_um: f64,
+    /// RMS of the held-out residual after it, µm.
+    pub held_out_rms_um: f64,
+    /// Shrink of the held-out mean square from before this effect, fraction.
+    pub held_out_shrink: f64,
+}
+
+/// A candidate's score in the last round, for the report.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct Score {
+    /// Effect key.
+    pub effect: String,
+    /// Predicted held-out RMS with it, µm.
+    pub held_out_rms_um: f64,
+    /// Predicted change of the calibration BIC.
+    pub bic_change: f64,
+}
+
+/// The outcome of the selection.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Selection {
+    /// The split used.
+    pub split: Split,
+    /// Held-out RMS of the model as given, µm.
+    pub held_out_before_um: f64,
+    /// Calibration RMS of the model as given, µm.
+    pub calibration_before_um: f64,
+    /// The effects added, in order.
+    pub steps: Vec<Step>,
+    /// Candidates the model file cannot express (effect, missing key).
+    pub unavailable: Vec<(String, String)>,
+    /// Scores of the round that stopped the selection.
+    pub last_round: Vec<Score>,
+    /// The final simulated traces' residuals against the measured ones.
+    pub final_pairs: Vec<TracePair>,
+    /// The model's residuals before any effect.
+    pub initial_pairs: Vec<TracePair>,
+    /// Simulations run.
+    pub simulations: usize,
+}
+
+impl Selection {
+    /// The fraction of the held-out mean square removed by all the effects.
+    pub fn held_out_shrink(&self) -> f64 {
+        let after = self
+            .steps
+            .last()
+            .map_or(self.held_out_before_um, |s| s.held_out_rms_um);
+        1.0 - (after / self.held_out_before_um).powi(2)
+    }
+}
+
+/// A parameter available in the model.
+struct Available {
+    effect: usize,
+    name: String,
+    unit: &'static str,
+    keys: Vec<(String, f64)>,
+    step: f64,
+}
+
+/// The simulated traces matched to the measured ones, aligned and binned.
+fn residuals(
+    measured: &[Trace],
+    simulated: &[Trace],
+    bin_deg: f64,
+) -> Result<(Vec<TracePair>, Vec<Vec<f64>>), GapError> {
+    let mut pairs = Vec::with_capacity(measured.len());
+    for m in measured {
+        let s = simulated
+            .iter()
+            .find(|s| {
+                s.plane == m.plane
+                    && s.sense == m.sense
+                    && (s.radius_mm - m.radius_mm).abs() <= 1e-6 * s.radius_mm
+                    && (s.feed_mm_min - m.feed_mm_min).abs() <= 1e-3 * s.feed_mm_min
+            })
+            .ok_or_else(|| not_in_job(m, simulated))?;
+        pairs.push(TracePair::align(m, s)?);
+    }
+    let bins = pairs.iter().map(|p| bin(p, bin_deg)).collect();
+    Ok((pairs, bins))
+}
+
+fn not_in_job(m: &Trace, simulated: &[Trace]) -> GapError {
+    let tests: Vec<String> = simulated
+        .iter()
+        .map(|s| {
+            format!(
+                "{} {} mm {} mm/min {}",
+                s.plane,
+                s.radius_mm,
+                s.feed_mm_min,
+                s.sense.name()
+            )
+        })
+        .collect();
+    GapError::NotInJob {
+        label: m.label.clone(),
+        plane: m.plane.to_string(),
+        radius_mm: m.radius_mm,
+        feed_mm_min: m.feed_mm_min,
+        direction: m.sense.name().into(),
+        tests: tests.join(", "),
+    }
+}
+
+/// Residual averaged into bins of the measured angle, in the run's order.
+fn bin(p: &TracePair, width: f64) -> Vec<f64> {
+    let mut out = Vec::new();
+    let (mut sum, mut n, mut cur) = (0.0, 0usize, None);
+    for (a, r) in p.angle_deg.iter().zip(&p.residual_um) {
+        let b = (a / width).floor() as i64;
+        if cur.is_some_and(|c| c != b) {
+            out.push(sum / n as f64);
+            (sum, n) = (0.0, 0);
+        }
+        cur = Some(b);
+        sum += r;
+        n += 1;
+    }
+    if n > 0 {
+        out.push(sum / n as f64);
+    }
+    out
+}
+
+fn stack(bins: &[Vec<f64>], rows: &[usize]) -> Vec<f64> {
+    rows.iter().flat_map(|i| bins[*i].iter().copied()).collect()
+}
+
+fn rss(v: &[f64]) -> f64 {
+    v.iter().map(|x| x * x).sum()
+}
+
+fn bic(rss: f64, n: usize, k: usize) -> f64 {
+    let n_f = n as f64;
+    n_f * (rss / n_f).max(1e-300).ln() + k as f64 * n_f.ln()
+}
+
+/// Least squares `min ‖y − A β‖²` by QR-free normal equations with a tiny ridge for safety.
+fn solve(columns: &[&[f64]], y: &[f64]) -> Option<Vec<f64>> {
+    let k = columns.len();
+    let ata = DMatrix::from_fn(k, k, |i, j| {
+        columns[i]
+            .iter()
+            .zip(columns[j])
+            .map(|(a, b)| a * b)
+            .sum::<f64>()
+    });
+    let aty = DVector::from_fn(k, |i, _| {
+        columns[i].iter().zip(y).map(|(a, b)| a * b).sum::<f64>()
+    });
+    let scale = (0..k).map(|i| ata[(i, i)]).fold(0.0, f64::max);
+    let ridge = DMatrix::identity(k, k) * (scale * 1e-12);
+    (ata + ridge)
+        .cholesky()
+        .map(|c| c.solve(&aty).iter().copied().collect())
+}
+
+fn minus(y: &[f64], columns: &[&[f64]], beta: &[f64]) -> Vec<f64> {
+    (0..y.len())
+        .map(|i| y[i] - columns.iter().zip(beta).map(|(c, b)| c[i] * b).sum::<f64>())
+        .collect()
+}
+
+/// A candidate's linear fit in one round.
+struct Candidate {
+    effect: usize,
+    params: Vec<usize>,
+    beta: Vec<f64>,
+    bic_change: f64,
+    held_rss: f64,
+}
+
+/// The residual bins of a simulation: per measured trace.
+type Simulated = (Vec<TracePair>, Vec<Vec<f64>>);
+
+/// The state of a forward selection.
+struct Selector<'a> {
+    model: &'a dyn Forward,
+    measured: &'a [Trace],
+    library: &'a [Effect],
+    split: &'a Split,
+    o: &'a Options,
+    available: Vec<Available>,
+    /// Per available parameter, per measured trace: the model's binned sensitivity.
+    sensitivities: Vec<Vec<Vec<f64>>>,
+    cal0: Vec<f64>,
+    held0: Vec<f64>,
+    simulations: usize,
+}
+
+impl Selector<'_> {
+    fn column(&self, p: usize, rows: &[usize]) -> Vec<f64> {
+        stack(&self.sensitivities[p], rows)
+    }
+
+    fn columns(&self, params: &[usize], rows: &[usize]) -> Vec<Vec<f64>> {
+        params.iter().map(|p| self.column(*p, rows)).collect()
+    }
+
+    /// Every candidate not yet chosen, fitted jointly with the chosen ones.
+    fn candidates(&self, chosen: &[usize], cur_bic: f64) -> Vec<Candidate> {
+        let n_cal = self.cal0.len();
+        (0..self.library.len())
+            .filter(|e| !chosen.contains(e) && self.available.iter().any(|p| p.effect == *e))
+            .filter_map(|e| {
+                let params: Vec<usize> = (0..self.available.len())
+                    .filter(|i| {
+                        let owner = self.available[*i].effect;
+                        chosen.contains(&owner) || owner == e
+                    })
+                    .collect();
+                let cal = self.columns(&params, &self.split.calibration);
+                let held = self.columns(&params, &self.split.held_out);
+                let cal: Vec<&[f64]> = cal.iter().map(Vec::as_slice).collect();
+                let held: Vec<&[f64]> = held.iter().map(Vec::as_slice).collect();
+                let beta = solve(&cal, &self.cal0)?;
+                let cal_rss = rss(&minus(&self.cal0, &cal, &beta));
+                let held_rss = rss(&minus(&self.held0, &held, &beta));
+                let bic_change = bic(cal_rss, n_cal, params.len()) - cur_bic;
+                Some(Candidate {
+                    effect: e,
+                    params,
+                    beta,
+                    bic_change,
+                    held_rss,
+                })
+            })
+            .collect()
+    }
+
+    /// Simulates the candidate at its fitted values, then once more after a Gauss–Newton step
+    /// from the simulated residual, and keeps the better of the two.
+    fn verify(&mut self, c: &mut Candidate) -> Result<Simulated, GapError> {
+        let first = simulate_at(
+            self.model,
+            self.measured,
+            &self.available,
+            &c.params,
+            &c.beta,
+            self.o,
+        )?;
+        self.simulations += 1;
+        let cal = self.columns(&c.params, &self.split.calibration);
+        let cal: Vec<&[f64]> = cal.iter().map(Vec::as_slice).collect();
+        let cal_rss = |s: &Simulated| rss(&stack(&s.1, &self.split.calibration));
+        let Some(delta) = solve(&cal, &stack(&first.1, &self.split.calibration)) else {
+            return Ok(first);
+        };
+        let refined: Vec<f64> = c.beta.iter().zip(&delta).map(|(b, d)| b + d).collect();
+        let second = simulate_at(
+            self.model,
+            self.measured,
+            &self.available,
+            &c.params,
+            &refined,
+            self.o,
+        )?;
+        self.simulations += 1;
+        if cal_rss(&second) < cal_rss(&first) {
+            c.beta = refined;
+            Ok(second)
+        } else {
+            Ok(first)
+        }
+    }
+
+    fn score(&self, c: &Candidate) -> Score {
+        Score {
+            effect: self.library[c.effect].key.clone(),
+            held_out_rms_um: (c.held_rss / self.held0.len() as f64).sqrt(),
+            bic_change: c.bic_change,
+        }
+    }
+
+    fn step(&self, c: &Candidate, cal: f64, held: f64, shrink: f64) -> Step {
+        let effect = &self.library[c.effect];
+        Step {
+            effect: effect.key.clone(),
+            description: effect.description.clone(),
+            values: c
+                .params
+                .iter()
+                .zip(&c.beta)
+                .map(|(p, b)| Fitted {
+                    name: self.available[*p].name.clone(),
+                    value: *b,
+                    unit: self.available[*p].unit.into(),
+                })
+                .collect(),
+            calibration_rms_um: (cal / self.cal0.len() as f64).sqrt(),
+            held_out_rms_um: (held / self.held0.len() as f64).sqrt(),
+            held_out_shrink: shrink,
+        }
+    }
+}
+
+/// The library's parameters the model can express, and the effects it cannot (with the first
+/// missing key).
+fn availability(
+    model: &dyn Forward,
+    library: &[Effect],
+) -> (Vec<Available>, Vec<(String, String)>) {
+    let (mut available, mut unavailable) = (Vec::new(), Vec::new());
+    for (e, effect) in library.iter().enumerate() {
+        let missing = effect
+            .params
+            .iter()
+            .flat_map(|p| &p.keys)
+            .find(|k| model.value(k).is_none());
+        if let Some(key) = missing {
+            unavailable.push((effect.key.clone(), key.clone()));
+            continue;
+        }
+        available.extend(effect.params.iter().map(|p| {
+            Available {
+                effect: e,
+                name: p.name.clone(),
+                unit: p.unit,
+                keys: p
+                    .keys
+                    .iter()
+                    .map(|k| (k.clone(), model.value(k).unwrap_or_default()))
+                    .collect(),
+                step: p.step,
+            }
+        }));
+    }
+    (available, unavailable)
+}
+
+/// Every available parameter's binned sensitivity, one simulation each (in parallel).
+fn sensitivities(
+    model: &dyn Forward,
+    measured: &[Trace],
+    available: &[Available],
+    base: &[Vec<f64>],
+    o: &Options,
+) -> Result<Vec<Vec<Vec<f64>>>, GapError> {
+    available
+        .par_iter()
+        .map(|p| {
+            let values: Vec<(String, f64)> = p
+                .keys
+                .iter()
+                .map(|(k, v)| (k.clone(), v + p.step))
+                .collect();
+            let (_, bins) = residuals(measured, &model.traces(&values)?, o.bin_deg)?;
+            // Residual = measured − model, so the model's sensitivity is the residual's drop.
+            Ok(base
+                .iter()
+                .zip(&bins)
+                .map(|(b0, b1)| b0.iter().zip(b1).map(|(x, y)| (x - y) / p.step).collect())
+                .collect())
+        })
+        .collect()
+}
+
+/// Runs the forward selection of `library` effects on `model` against `measured`.
+pub fn select(
+    model: &dyn Forward,
+    measured: &[Trace],
+    library: &[Effect],
+    split: Split,
+    o: &Options,
+) -> Result<Selection, GapError> {
+    let (available, unavailable) = availability(model, library);
+    let (initial_pairs, base_bins) = residuals(measured, &model.traces(&[])?, o.bin_deg)?;
+    let sensitivities = sensitivities(model, measured, &available, &base_bins, o)?;
+    let mut sel = Selector {
+        model,
+        measured,
+        library,
+        split: &split,
+        o,
+        simulations: 1 + available.len(),
+        available,
+        sensitivities,
+        cal0: stack(&base_bins, &split.calibration),
+        held0: stack(&base_bins, &split.held_out),
+    };
+    let (mut cur_held, n_cal) = (rss(&sel.held0), sel.cal0.len());
+    let mut cur_bic = bic(rss(&sel.cal0), n_cal, 0);
+    let calibration_before_um = (rss(&sel.cal0) / n_cal as f64).sqrt();
+    let held_out_before_um = (cur_held / sel.held0.len() as f64).sqrt();
+    let (mut chosen, mut steps, mut last_round) = (Vec::new(), Vec::new(), Vec::new());
+    let mut final_pairs = initial_pairs.clone();
+    while chosen.len() < o.max_effects {
+        let candidates = sel.candidates(&chosen, cur_bic);
+        last_round = candidates.iter().map(|c| sel.score(c)).collect();
+        last_round.sort_by(|a, b| a.held_out_rms_um.total_cmp(&b.held_out_rms_um));
+        let Some(mut best) = candidates
+            .into_iter()
+            .filter(|c| c.bic_change < -o.min_bic_drop)
+            .min_by(|a, b| a.held_rss.total_cmp(&b.held_rss))
+        else {
+            break;
+        };
+        let (pairs, bins) = sel.verify(&mut best)?;
+        let cal = rss(&stack(&bins, &split.calibration));
+        let held = rss(&stack(&bins, &split.held_out));
+        let new_bic = bic(cal, n_cal, best.params.len());
+        let shrink = 1.0 - held / cur_held;
+        if new_bic > cur_bic - o.min_bic_drop || shrink < o.min_held_out_shrink {
+            break;
+        }
+        steps.push(sel.step(&best, cal, held, shrink));
+        chosen.push(best.effect);
+        (cur_held, cur_bic, final_pairs) = (held, new_bic, pairs);
+    }
+    Ok(Selection {
+        held_out_before_um,
+        calibration_before_um,
+        steps,
+        unavailable,
+        last_round,
+        final_pairs,
+        initial_pairs,
+        simulations: sel.simulations,
+        split,
+    })
+}
+
+fn simulate_at(
+    model: &dyn Forward,
+    measured: &[Trace],
+    available: &[Available],
+    params: &[usize],
+    beta: &[f64],
+    o: &Options,
+) -> Result<Simulated, GapError> {
+    let values: Vec<(String, f64)> = params
+        .iter()
+        .zip(beta)
+        .flat_map(|(p, b)| {
+            available[*p]
+                .keys
+                .iter()
+                .map(move |(k, v)| (k.clone(), v + b))
+        })
+        .collect();
+    let traces = model.traces(&values)?;
+    residuals(measured, &traces, o.bin_deg)
+}

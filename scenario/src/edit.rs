@@ -1,0 +1,116 @@
+//! A scenario as an editable template: read the numbers it sets and write new ones by dotted
+//! key path (`machine.axes.x.drive.backlash_um`, `machine.errors.x.forward.EXX_um[1]`), keeping
+//! every other byte of the file. The sim-to-real gap analysis fits model parameters this way,
+//! through the same parser and checks as any scenario.
+
+use crate::dataset::{key_path, number, number_mut};
+use crate::error::ScenarioError;
+use toml_edit::{DocumentMut, Value};
+
+/// A parsed scenario text that can be edited by key path.
+#[derive(Debug, Clone)]
+pub struct Template {
+    doc: DocumentMut,
+    file: String,
+}
+
+impl Template {
+    /// Parses `text` (named `file` in errors).
+    pub fn parse(text: &str, file: &str) -> Result<Self, ScenarioError> {
+        let doc: DocumentMut = text
+            .parse()
+            .map_err(|e: toml_edit::TomlError| ScenarioError {
+                file: file.to_string(),
+                position: e.span().map(|s| crate::error::line_col(text, s.start)),
+                key: None,
+                message: e.message().to_string(),
+            })?;
+        Ok(Self {
+            doc,
+            file: file.to_string(),
+        })
+    }
+
+    /// The number the scenario sets at `key`, if any; an error for a malformed key.
+    pub fn value(&self, key: &str) -> Result<Option<f64>, ScenarioError> {
+        let path = key_path(key).map_err(|m| self.error(key, m))?;
+        Ok(
+            number(&self.doc, &path)
+                .and_then(|v| v.as_float().or(v.as_integer().map(|i| i as f64))),
+        )
+    }
+
+    /// The scenario text with each `(key, value)` written in. Every key must already hold a
+    /// number (a template does not invent structure): an error names the first that does not.
+    pub fn with(&self, values: &[(&str, f64)]) -> Result<String, ScenarioError> {
+        let mut doc = self.doc.clone();
+        for (key, v) in values {
+            let path = key_path(key).map_err(|m| self.error(key, m))?;
+            let slot = number_mut(&mut doc, &path)
+                .filter(|v| v.is_float() || v.is_integer())
+                .ok_or_else(|| self.error(key, "the scenario sets no number at this key".into()))?;
+            let decor = slot.decor().clone();
+            // An integer key (a seed, a count) stays an integer when the value is whole.
+            *slot = if slot.is_integer() && v.fract() == 0.0 && v.abs() < 9e15 {
+                Value::from(*v as i64)
+            } else {
+                Value::from(*v)
+            };
+            *slot.decor_mut() = decor;
+        }
+        Ok(doc.to_string())
+    }
+
+    /// The scenario text with each plain dotted `(key, value)` (no `[i]` elements) set,
+    /// creating the tables on its way when the scenario has none (e.g. an instrument setting the
+    /// file leaves at its default).
+    pub fn with_inserted(&self, values: &[(&str, f64)]) -> Result<String, ScenarioError> {
+        let mut doc = self.doc.clone();
+        for (key, v) in values {
+            let parts: Vec<&str> = key.split('.').collect();
+            let Some((last, tables)) = parts.split_last() else {
+                return Err(self.error(key, "an empty key".into()));
+            };
+            let mut table = doc.as_table_mut();
+            for t in tables {
+                let item = table.entry(t).or_insert_with(toml_edit::table);
+                table = item
+                    .as_table_mut()
+                    .ok_or_else(|| self.error(key, format!("`{t}` is not a table")))?;
+            }
+            table[*last] = toml_edit::value(*v);
+        }
+        Ok(doc.to_string())
+    }
+
+    fn error(&self, key: &str, message: String) -> ScenarioError {
+        ScenarioError {
+            file: self.file.clone(),
+            position: None,
+            key: Some(key.to_string()),
+            message,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn values_are_read_and_written_by_key_path_keeping_the_rest() {
+        let text = "[a]\nx = 1.5 # comment\ny = [1, 2.0, 3]\nf = { c = 4.0 }\n";
+        let t = Template::parse(text, "t.toml").unwrap();
+        assert_eq!(t.value("a.y[1]").unwrap(), Some(2.0));
+        assert_eq!(t.value("a.f.c").unwrap(), Some(4.0));
+        let out = t
+            .with(&[("a.x", 2.5), ("a.y[0]", -1.0), ("a.f.c", 5.0)])
+            .unwrap();
+        assert_eq!(
+            out,
+            "[a]\nx = 2.5 # comment\ny = [-1.0, 2.0, 3]\nf = { c = 5.0 }\n"
+        );
+        let e = t.with(&[("a.z", 1.0)]).unwrap_err();
+        assert!(e.to_string().contains("a.z"), "{e}");
+    }
+}
