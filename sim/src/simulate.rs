@@ -674,7 +674,8 @@ fn new_trace(b: &BallbarSetup, d: ArcDirection) -> BallbarTrace {
     }
 }
 
-fn summary(machine: &Machine) -> MachineSummary {
+/// The machine as viewers draw it.
+pub fn summary(machine: &Machine) -> MachineSummary {
     MachineSummary {
         name: machine.name.clone(),
         topology: machine.volumetric.kinematics.topology.to_string(),

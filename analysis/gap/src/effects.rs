@@ -17,6 +17,11 @@ pub struct Param {
     /// Finite-difference step for its sensitivity, in `unit`: large enough to stand above the
     /// simulator's round-off, small enough to stay linear.
     pub step: f64,
+    /// A typical size on a real machine of the class, in `unit` (what `vmt gap-bench` injects,
+    /// times 1, 2 and 3).
+    pub typical: f64,
+    /// Whether only increases are physical (a backlash, a friction force above the model's).
+    pub increase_only: bool,
 }
 
 /// One candidate effect.
@@ -28,14 +33,27 @@ pub struct Effect {
     pub description: String,
     /// Its free parameters.
     pub params: Vec<Param>,
+    /// A property of the measurement rather than of the machine (the bar's set-up): fitted
+    /// with every candidate and before any, never attributed.
+    pub baseline: bool,
 }
 
-fn param(name: &str, unit: &'static str, keys: &[String], step: f64) -> Param {
+fn param(name: &str, unit: &'static str, keys: &[String], (step, typical): (f64, f64)) -> Param {
     Param {
         name: name.into(),
         unit,
         keys: keys.to_vec(),
         step,
+        typical,
+        increase_only: false,
+    }
+}
+
+/// A parameter that can only grow (a negative gap or friction force is not physical).
+fn growing(p: Param) -> Param {
+    Param {
+        increase_only: true,
+        ..p
     }
 }
 
@@ -44,6 +62,7 @@ fn effect(key: &str, description: &str, params: Vec<Param>) -> Effect {
         key: key.into(),
         description: description.into(),
         params,
+        baseline: false,
     }
 }
 
@@ -57,55 +76,37 @@ pub fn library(p: char, q: char) -> Vec<Effect> {
         out.push(effect(
             &format!("backlash_{a}"),
             &format!("lost motion in the {up} screw-nut (drive backlash)"),
-            vec![param(
+            vec![growing(param(
                 &format!("backlash {up}"),
                 "um",
                 &[format!("{axis}.drive.backlash_um")],
-                1.0,
-            )],
-        ));
-        out.push(effect(
-            &format!("scale_{a}"),
-            &format!("linear positioning (scale) error of {up}: E{up}{up} slope"),
-            vec![param(
-                &format!("E{up}{up} c1 (half the change over the stroke)"),
-                "um",
-                &[
-                    format!("{errors}.forward.E{up}{up}_um[1]"),
-                    format!("{errors}.backward.E{up}{up}_um[1]"),
-                ],
-                2.0,
-            )],
-        ));
-        out.push(effect(
-            &format!("servo_gain_{a}"),
-            &format!("position-loop gain of {up} (servo mismatch with the other axis)"),
-            vec![param(
-                &format!("Kv {up}"),
-                "1/s",
-                &[format!("{axis}.servo.kv_per_s")],
-                1.0,
-            )],
+                (1.0, 2.0),
+            ))],
         ));
         out.push(effect(
             &format!("friction_{a}"),
-            &format!("Coulomb friction of the {up} guides (reversal spikes)"),
-            vec![param(
+            &format!(
+                "friction level of the {up} guides, Coulomb and static alike (reversal spikes)"
+            ),
+            vec![growing(param(
                 &format!("Coulomb force {up}"),
                 "N",
-                &[format!("{axis}.drive.guide_friction.coulomb_n")],
-                20.0,
-            )],
+                &[
+                    format!("{axis}.drive.guide_friction.coulomb_n"),
+                    format!("{axis}.drive.guide_friction.static_n"),
+                ],
+                (20.0, 60.0),
+            ))],
         ));
         out.push(effect(
             &format!("stick_slip_{a}"),
             &format!("static friction peak of the {up} guides over Coulomb (stick-slip)"),
-            vec![param(
+            vec![growing(param(
                 &format!("static force {up}"),
                 "N",
                 &[format!("{axis}.drive.guide_friction.static_n")],
-                20.0,
-            )],
+                (50.0, 150.0),
+            ))],
         ));
         let other = if a == p { q } else { p }.to_ascii_uppercase();
         out.push(effect(
@@ -115,7 +116,7 @@ pub fn library(p: char, q: char) -> Vec<Effect> {
                 &format!("E{other}{up} backward c0"),
                 "um",
                 &[format!("{errors}.backward.E{other}{up}_um[0]")],
-                1.0,
+                (1.0, 1.5),
             )],
         ));
         out.push(effect(
@@ -125,42 +126,86 @@ pub fn library(p: char, q: char) -> Vec<Effect> {
                 &format!("E{other}{up} c2"),
                 "um",
                 &[format!("{errors}.forward.E{other}{up}_um[2]")],
-                2.0,
+                (2.0, 4.0),
             )],
         ));
     }
+    // A ball bar sees only the difference of the two lags, so one gain carries the mismatch.
+    let (pu, qu) = (p.to_ascii_uppercase(), q.to_ascii_uppercase());
+    // Likewise the scales: with the mean radius a baseline, only their difference shows.
+    let e = format!("machine.errors.{p}");
+    out.push(effect(
+        "scale_mismatch",
+        &format!(
+            "scale mismatch: the linear positioning error (E{pu}{pu} slope) of {pu} against {qu}'s"
+        ),
+        vec![param(
+            &format!("E{pu}{pu} c1 (half the change over the stroke)"),
+            "um",
+            &[
+                format!("{e}.forward.E{pu}{pu}_um[1]"),
+                format!("{e}.backward.E{pu}{pu}_um[1]"),
+            ],
+            (2.0, 3.0),
+        )],
+    ));
+    out.push(effect(
+        "servo_mismatch",
+        &format!("servo mismatch: the position-loop gain of {pu} against {qu}'s"),
+        vec![param(
+            &format!("Kv {pu}"),
+            "1/s",
+            &[format!("machine.axes.{p}.servo.kv_per_s")],
+            // 0.1/s at Kv = 33/s is a lag change of ΔKv/Kv² ≈ 0.09 ms.
+            (0.1, 0.1),
+        )],
+    ));
     out.push(effect(
         "squareness",
         "out-of-squareness of the plane's axes",
-        vec![param("squareness", "urad", &[squareness_key(p, q)], 10.0)],
-    ));
-    out.push(effect(
-        "setup",
-        "ball-bar pivot set-up offset (eccentricity)",
-        (0..2)
-            .map(|i| {
-                param(
-                    &format!("pivot offset {}", ['X', 'Y', 'Z'][i]),
-                    "um",
-                    &[format!(
-                        "instruments.ballbar.setup_eccentricity_um[{}]",
-                        axis_index(if i == 0 { p } else { q })
-                    )],
-                    5.0,
-                )
-            })
-            .collect(),
-    ));
-    out.push(effect(
-        "bar_length",
-        "bar length error (bar temperature against its calibration)",
         vec![param(
-            "bar temperature",
-            "K",
-            &["instruments.ballbar.bar_temperature_c".to_string()],
-            1.0,
+            "squareness",
+            "urad",
+            &[squareness_key(p, q)],
+            (10.0, 15.0),
         )],
     ));
+    out.push(Effect {
+        baseline: true,
+        ..effect(
+            "setup",
+            "ball-bar pivot set-up offset (eccentricity)",
+            (0..2)
+                .map(|i| {
+                    let a = if i == 0 { p } else { q };
+                    param(
+                        &format!("pivot offset {}", a.to_ascii_uppercase()),
+                        "um",
+                        &[format!(
+                            "instruments.ballbar.setup_eccentricity_um[{}]",
+                            axis_index(a)
+                        )],
+                        (5.0, 8.0),
+                    )
+                })
+                .collect(),
+        )
+    });
+    // The mean radius is the bar's calibration as much as the machine's: a baseline, as in
+    // ball-bar practice, where scale is judged by the difference between the axes.
+    out.push(Effect {
+        baseline: true,
+        ..effect(
+            "bar_length",
+            "bar length error (bar temperature against its calibration)",
+            vec![param(
+                "bar temperature",
+                "K",
+                &["instruments.ballbar.bar_temperature_c".to_string()],
+                (1.0, 1.5),
+            )],
+        )
+    });
     out
 }
 

@@ -8,9 +8,11 @@
 //! - [`whiteness`]: the Ljung–Box test of the residual left after the structured parts;
 //! - [`effects`]: the library of candidate effects, as the scenario keys they change;
 //! - [`model`]: a scenario re-simulated with parameter offsets (the forward model);
-//! - [`select`]: which effects explain the gap, by forward selection judged on held-out runs.
+//! - [`select`]: which effects explain the gap, by forward selection judged on held-out runs;
+//! - [`bench`]: the withheld-effect check: effects switched off in the model, found again.
 
 pub mod align;
+pub mod bench;
 pub mod effects;
 pub mod localise;
 pub mod model;

@@ -24,7 +24,8 @@ pub struct ScenarioModel {
 }
 
 impl ScenarioModel {
-    /// The model of scenario `text` (named `file`; table files resolved in `base_dir`).
+    /// The model of scenario `text` (named `file`; table files resolved in `base_dir`), its
+    /// ball bar without noise or rounding.
     pub fn new(text: &str, file: &str, base_dir: Option<PathBuf>) -> Result<Self, GapError> {
         let quiet = Template::parse(text, file)
             .and_then(|t| {
@@ -34,14 +35,24 @@ impl ScenarioModel {
                 ])
             })
             .map_err(|e| GapError::Model(e.to_string()))?;
-        let template = Template::parse(&quiet, file).map_err(|e| GapError::Model(e.to_string()))?;
+        Self::instrumented(&quiet, file, base_dir)
+    }
+
+    /// The scenario as written, instrument noise and resolution included: a stand-in for a
+    /// real machine in closed-loop studies.
+    pub fn instrumented(
+        text: &str,
+        file: &str,
+        base_dir: Option<PathBuf>,
+    ) -> Result<Self, GapError> {
+        let template = Template::parse(text, file).map_err(|e| GapError::Model(e.to_string()))?;
         let model = Self {
             template,
             file: file.to_string(),
             base_dir,
         };
         // Parse once now, so a bad model is refused before any fitting.
-        model.scenario(&quiet)?;
+        model.scenario(text)?;
         Ok(model)
     }
 

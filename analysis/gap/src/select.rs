@@ -37,6 +37,15 @@ pub struct Options {
     pub min_held_out_shrink: f64,
     /// Most effects added.
     pub max_effects: usize,
+    /// Least RMS change an effect must make to the held-out residual, µm: below the ball
+    /// bar's resolution (0.1 µm) a difference is not a finding.
+    pub min_effect_um: f64,
+    /// The gap counts as explained when what the chosen effects leave on the held-out runs
+    /// is at most this RMS, µm (the level of a model's other small mismatches)…
+    pub explained_floor_um: f64,
+    /// …or at most this fraction of the gap's RMS before them. Otherwise the chosen effects
+    /// are reported as partial candidates and the gap as unexplained.
+    pub explained_fraction: f64,
 }
 
 impl Default for Options {
@@ -46,6 +55,9 @@ impl Default for Options {
             min_bic_drop: 10.0,
             min_held_out_shrink: 0.3,
             max_effects: 4,
+            min_effect_um: 0.1,
+            explained_floor_um: 0.2,
+            explained_fraction: 0.25,
         }
     }
 }
@@ -145,10 +157,12 @@ pub struct Score {
 pub struct Selection {
     /// The split used.
     pub split: Split,
-    /// Held-out RMS of the model as given, µm.
+    /// Held-out RMS of the model as given (with the baseline fitted), µm.
     pub held_out_before_um: f64,
-    /// Calibration RMS of the model as given, µm.
+    /// Calibration RMS of the model as given (with the baseline fitted), µm.
     pub calibration_before_um: f64,
+    /// The baseline parameters (the bar's set-up), fitted before any effect and with each.
+    pub baseline: Vec<Fitted>,
     /// The effects added, in order.
     pub steps: Vec<Step>,
     /// Candidates the model file cannot express (effect, missing key).
@@ -157,13 +171,29 @@ pub struct Selection {
     pub last_round: Vec<Score>,
     /// The final simulated traces' residuals against the measured ones.
     pub final_pairs: Vec<TracePair>,
-    /// The model's residuals before any effect.
+    /// The model's residuals before any effect (with the baseline fitted).
     pub initial_pairs: Vec<TracePair>,
-    /// Simulations run.
+    /// Simulations run for the selection (besides the linearisation's).
     pub simulations: usize,
 }
 
 impl Selection {
+    /// Held-out RMS after the chosen effects, µm.
+    pub fn held_out_after_um(&self) -> f64 {
+        self.steps
+            .last()
+            .map_or(self.held_out_before_um, |s| s.held_out_rms_um)
+    }
+
+    /// Whether the chosen effects explain the gap ([`Options::explained_floor_um`],
+    /// [`Options::explained_fraction`]); a gap with no effect chosen is not explained.
+    pub fn explained(&self, o: &Options) -> bool {
+        let after = self.held_out_after_um();
+        !self.steps.is_empty()
+            && (after <= o.explained_floor_um
+                || after <= o.explained_fraction * self.held_out_before_um)
+    }
+
     /// The fraction of the held-out mean square removed by all the effects.
     pub fn held_out_shrink(&self) -> f64 {
         let after = self
@@ -175,6 +205,7 @@ impl Selection {
 }
 
 /// A parameter available in the model.
+#[derive(Clone)]
 struct Available {
     effect: usize,
     name: String,
@@ -316,6 +347,17 @@ struct Selector<'a> {
 }
 
 impl Selector<'_> {
+    /// The parameters fitted with `chosen` effects and `extra`: the baseline's, then the
+    /// effects', in library order.
+    fn params(&self, chosen: &[usize], extra: Option<usize>) -> Vec<usize> {
+        (0..self.available.len())
+            .filter(|i| {
+                let owner = self.available[*i].effect;
+                self.library[owner].baseline || chosen.contains(&owner) || Some(owner) == extra
+            })
+            .collect()
+    }
+
     fn column(&self, p: usize, rows: &[usize]) -> Vec<f64> {
         stack(&self.sensitivities[p], rows)
     }
@@ -328,14 +370,13 @@ impl Selector<'_> {
     fn candidates(&self, chosen: &[usize], cur_bic: f64) -> Vec<Candidate> {
         let n_cal = self.cal0.len();
         (0..self.library.len())
-            .filter(|e| !chosen.contains(e) && self.available.iter().any(|p| p.effect == *e))
+            .filter(|e| {
+                !chosen.contains(e)
+                    && !self.library[*e].baseline
+                    && self.available.iter().any(|p| p.effect == *e)
+            })
             .filter_map(|e| {
-                let params: Vec<usize> = (0..self.available.len())
-                    .filter(|i| {
-                        let owner = self.available[*i].effect;
-                        chosen.contains(&owner) || owner == e
-                    })
-                    .collect();
+                let params = self.params(chosen, Some(e));
                 let cal = self.columns(&params, &self.split.calibration);
                 let held = self.columns(&params, &self.split.held_out);
                 let cal: Vec<&[f64]> = cal.iter().map(Vec::as_slice).collect();
@@ -391,6 +432,42 @@ impl Selector<'_> {
         }
     }
 
+    /// Fits the baseline parameters (the set-up) alone and simulates them: the model as given,
+    /// measured as it was set up. Without baseline parameters, the model as given.
+    fn baseline(&mut self, given: Vec<TracePair>) -> Result<(Vec<Fitted>, Simulated), GapError> {
+        let params = self.params(&[], None);
+        let cal = self.columns(&params, &self.split.calibration);
+        let cal: Vec<&[f64]> = cal.iter().map(Vec::as_slice).collect();
+        let beta = match solve(&cal, &self.cal0) {
+            Some(b) if !params.is_empty() => b,
+            _ => {
+                let bins = given.iter().map(|p| bin(p, self.o.bin_deg)).collect();
+                return Ok((Vec::new(), (given, bins)));
+            }
+        };
+        let mut c = Candidate {
+            effect: usize::MAX,
+            params,
+            beta,
+            bic_change: 0.0,
+            held_rss: 0.0,
+        };
+        let simulated = self.verify(&mut c)?;
+        Ok((self.fitted(&c), simulated))
+    }
+
+    fn fitted(&self, c: &Candidate) -> Vec<Fitted> {
+        c.params
+            .iter()
+            .zip(&c.beta)
+            .map(|(p, b)| Fitted {
+                name: self.available[*p].name.clone(),
+                value: *b,
+                unit: self.available[*p].unit.into(),
+            })
+            .collect()
+    }
+
     fn score(&self, c: &Candidate) -> Score {
         Score {
             effect: self.library[c.effect].key.clone(),
@@ -404,16 +481,7 @@ impl Selector<'_> {
         Step {
             effect: effect.key.clone(),
             description: effect.description.clone(),
-            values: c
-                .params
-                .iter()
-                .zip(&c.beta)
-                .map(|(p, b)| Fitted {
-                    name: self.available[*p].name.clone(),
-                    value: *b,
-                    unit: self.available[*p].unit.into(),
-                })
-                .collect(),
+            values: self.fitted(c),
             calibration_rms_um: (cal / self.cal0.len() as f64).sqrt(),
             held_out_rms_um: (held / self.held0.len() as f64).sqrt(),
             held_out_shrink: shrink,
@@ -455,90 +523,174 @@ fn availability(
     (available, unavailable)
 }
 
-/// Every available parameter's binned sensitivity, one simulation each (in parallel).
-fn sensitivities(
-    model: &dyn Forward,
-    measured: &[Trace],
-    available: &[Available],
-    base: &[Vec<f64>],
-    o: &Options,
-) -> Result<Vec<Vec<Vec<f64>>>, GapError> {
-    available
-        .par_iter()
-        .map(|p| {
-            let values: Vec<(String, f64)> = p
-                .keys
-                .iter()
-                .map(|(k, v)| (k.clone(), v + p.step))
-                .collect();
-            let (_, bins) = residuals(measured, &model.traces(&values)?, o.bin_deg)?;
-            // Residual = measured − model, so the model's sensitivity is the residual's drop.
-            Ok(base
-                .iter()
-                .zip(&bins)
-                .map(|(b0, b1)| b0.iter().zip(b1).map(|(x, y)| (x - y) / p.step).collect())
-                .collect())
-        })
-        .collect()
+/// The model linearised about its given values: the simulated traces of the model as given
+/// and with each available parameter stepped (one simulation each, in parallel). It depends on
+/// the model only, so many measured sets can share it.
+pub struct Linearisation {
+    available: Vec<Available>,
+    /// Effects the model cannot express, with the first missing key.
+    pub unavailable: Vec<(String, String)>,
+    base: Vec<Trace>,
+    stepped: Vec<Vec<Trace>>,
 }
 
-/// Runs the forward selection of `library` effects on `model` against `measured`.
+impl Linearisation {
+    /// Simulates `model` as given and once per available parameter of `library`.
+    pub fn new(model: &dyn Forward, library: &[Effect]) -> Result<Self, GapError> {
+        let (available, unavailable) = availability(model, library);
+        let base = model.traces(&[])?;
+        let stepped = available
+            .par_iter()
+            .map(|p| {
+                let values: Vec<(String, f64)> = p
+                    .keys
+                    .iter()
+                    .map(|(k, v)| (k.clone(), v + p.step))
+                    .collect();
+                model.traces(&values)
+            })
+            .collect::<Result<_, GapError>>()?;
+        Ok(Self {
+            available,
+            unavailable,
+            base,
+            stepped,
+        })
+    }
+
+    /// Simulations it took.
+    pub fn simulations(&self) -> usize {
+        1 + self.stepped.len()
+    }
+
+    /// Per parameter, per measured trace: the model's binned sensitivity at the measured angles.
+    fn sensitivities(
+        &self,
+        measured: &[Trace],
+        base: &[Vec<f64>],
+        o: &Options,
+    ) -> Result<Vec<Vec<Vec<f64>>>, GapError> {
+        self.available
+            .iter()
+            .zip(&self.stepped)
+            .map(|(p, traces)| {
+                let (_, bins) = residuals(measured, traces, o.bin_deg)?;
+                // Residual = measured − model, so the model's sensitivity is the residual's drop.
+                Ok(base
+                    .iter()
+                    .zip(&bins)
+                    .map(|(b0, b1)| b0.iter().zip(b1).map(|(x, y)| (x - y) / p.step).collect())
+                    .collect())
+            })
+            .collect()
+    }
+}
+
+/// Runs the forward selection of `library` effects (the library `lin` was made from) on
+/// `model` against `measured`.
 pub fn select(
     model: &dyn Forward,
+    lin: &Linearisation,
     measured: &[Trace],
     library: &[Effect],
     split: Split,
     o: &Options,
 ) -> Result<Selection, GapError> {
-    let (available, unavailable) = availability(model, library);
-    let (initial_pairs, base_bins) = residuals(measured, &model.traces(&[])?, o.bin_deg)?;
-    let sensitivities = sensitivities(model, measured, &available, &base_bins, o)?;
+    select_without(model, lin, measured, library, &[], split, o)
+}
+
+/// [`select`] with the effects named in `hidden` left out of the candidates (a library that
+/// lacks them, as in the out-of-library cases of the bench).
+pub fn select_without(
+    model: &dyn Forward,
+    lin: &Linearisation,
+    measured: &[Trace],
+    library: &[Effect],
+    hidden: &[&str],
+    split: Split,
+    o: &Options,
+) -> Result<Selection, GapError> {
+    let (given_pairs, base_bins) = residuals(measured, &lin.base, o.bin_deg)?;
+    let sensitivities = lin.sensitivities(measured, &base_bins, o)?;
     let mut sel = Selector {
         model,
         measured,
         library,
         split: &split,
         o,
-        simulations: 1 + available.len(),
-        available,
+        simulations: 0,
+        available: lin.available.clone(),
         sensitivities,
         cal0: stack(&base_bins, &split.calibration),
         held0: stack(&base_bins, &split.held_out),
     };
-    let (mut cur_held, n_cal) = (rss(&sel.held0), sel.cal0.len());
-    let mut cur_bic = bic(rss(&sel.cal0), n_cal, 0);
-    let calibration_before_um = (rss(&sel.cal0) / n_cal as f64).sqrt();
+    let n_cal = sel.cal0.len();
+    let (baseline, (initial_pairs, initial_bins)) = sel.baseline(given_pairs)?;
+    let mut cur_held = rss(&stack(&initial_bins, &split.held_out));
+    let cur_cal = rss(&stack(&initial_bins, &split.calibration));
+    let mut cur_bic = bic(cur_cal, n_cal, baseline.len());
+    let calibration_before_um = (cur_cal / n_cal as f64).sqrt();
     let held_out_before_um = (cur_held / sel.held0.len() as f64).sqrt();
     let (mut chosen, mut steps, mut last_round) = (Vec::new(), Vec::new(), Vec::new());
-    let mut final_pairs = initial_pairs.clone();
+    let (mut final_pairs, mut held_bins) =
+        (initial_pairs.clone(), stack(&initial_bins, &split.held_out));
     while chosen.len() < o.max_effects {
-        let candidates = sel.candidates(&chosen, cur_bic);
+        let candidates: Vec<Candidate> = sel
+            .candidates(&chosen, cur_bic)
+            .into_iter()
+            .filter(|c| !hidden.contains(&library[c.effect].key.as_str()))
+            .collect();
         last_round = candidates.iter().map(|c| sel.score(c)).collect();
         last_round.sort_by(|a, b| a.held_out_rms_um.total_cmp(&b.held_out_rms_um));
-        let Some(mut best) = candidates
+        let mut ranked: Vec<Candidate> = candidates
             .into_iter()
             .filter(|c| c.bic_change < -o.min_bic_drop)
-            .min_by(|a, b| a.held_rss.total_cmp(&b.held_rss))
-        else {
+            .collect();
+        ranked.sort_by(|a, b| a.held_rss.total_cmp(&b.held_rss));
+        // The best candidate the model accepts: a fitted value the scenario refuses (a
+        // negative friction force, say) is not a physical explanation.
+        let mut verified = None;
+        for mut c in ranked {
+            match sel.verify(&mut c) {
+                Ok(simulated) => {
+                    verified = Some((c, simulated));
+                    break;
+                }
+                Err(GapError::Model(_)) => continue,
+                Err(e) => return Err(e),
+            }
+        }
+        let Some((best, (pairs, bins))) = verified else {
             break;
         };
-        let (pairs, bins) = sel.verify(&mut best)?;
         let cal = rss(&stack(&bins, &split.calibration));
-        let held = rss(&stack(&bins, &split.held_out));
+        let held_new = stack(&bins, &split.held_out);
+        let held = rss(&held_new);
         let new_bic = bic(cal, n_cal, best.params.len());
         let shrink = 1.0 - held / cur_held;
-        if new_bic > cur_bic - o.min_bic_drop || shrink < o.min_held_out_shrink {
+        let change = (rss(&held_bins
+            .iter()
+            .zip(&held_new)
+            .map(|(a, b)| a - b)
+            .collect::<Vec<_>>())
+            / held_new.len() as f64)
+            .sqrt();
+        if new_bic > cur_bic - o.min_bic_drop
+            || shrink < o.min_held_out_shrink
+            || change < o.min_effect_um
+        {
             break;
         }
         steps.push(sel.step(&best, cal, held, shrink));
         chosen.push(best.effect);
-        (cur_held, cur_bic, final_pairs) = (held, new_bic, pairs);
+        (cur_held, cur_bic, final_pairs, held_bins) = (held, new_bic, pairs, held_new);
     }
     Ok(Selection {
         held_out_before_um,
         calibration_before_um,
+        baseline,
         steps,
-        unavailable,
+        unavailable: lin.unavailable.clone(),
         last_round,
         final_pairs,
         initial_pairs,

@@ -89,7 +89,11 @@ fn backlash_steps_at_the_axis_reversals() {
         .map(|k| share(&l.by_harmonic, &format!("order {k}")))
         .sum();
     assert!(odd < 1e-3, "{:?}", l.by_harmonic);
-    assert!(share(&l.by_harmonic, "order 2") > 0.6, "{:?}", l.by_harmonic);
+    assert!(
+        share(&l.by_harmonic, "order 2") > 0.6,
+        "{:?}",
+        l.by_harmonic
+    );
     assert!(
         share(&l.by_direction, "reversing") > 0.95,
         "{:?}",

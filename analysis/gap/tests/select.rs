@@ -6,7 +6,7 @@
 use vmt_ballbar::Trace;
 use vmt_gap::effects::library;
 use vmt_gap::model::{Forward, ScenarioModel};
-use vmt_gap::select::{Options, Split, select};
+use vmt_gap::select::{Linearisation, Options, Split, select};
 
 fn short_test() -> String {
     vmt_scenario::BUILTIN_DEFAULT
@@ -70,11 +70,19 @@ fn added_backlash_is_found_sized_and_closes_the_held_out_gap() {
         "backlash_x",
         "backlash_y",
         "squareness",
-        "servo_gain_x",
-        "scale_x",
+        "servo_mismatch",
+        "scale_mismatch",
     ]);
     let split = Split::automatic(&real).unwrap();
-    let s = select(&model, &real, &lib, split, &Options::default()).unwrap();
+    let s = select(
+        &model,
+        &Linearisation::new(&model, &lib).unwrap(),
+        &real,
+        &lib,
+        split,
+        &Options::default(),
+    )
+    .unwrap();
     assert_eq!(
         s.steps.first().map(|s| s.effect.as_str()),
         Some("backlash_x"),
@@ -90,9 +98,15 @@ fn added_backlash_is_found_sized_and_closes_the_held_out_gap() {
 fn a_model_that_matches_gets_no_effect() {
     let model = ScenarioModel::new(&short_test(), "model.toml", None).unwrap();
     let real = measured(&[]);
-    let lib = few(&["backlash_x", "squareness", "servo_gain_x", "scale_x"]);
+    let lib = few(&[
+        "backlash_x",
+        "squareness",
+        "servo_mismatch",
+        "scale_mismatch",
+    ]);
     let s = select(
         &model,
+        &Linearisation::new(&model, &lib).unwrap(),
         &real,
         &lib,
         Split::automatic(&real).unwrap(),
@@ -111,9 +125,10 @@ fn an_effect_outside_the_library_is_left_unexplained() {
         ("machine.errors.x.forward.ECX_urad[1]", yaw + 60.0),
         ("machine.errors.x.backward.ECX_urad[1]", yaw + 60.0),
     ]);
-    let lib = few(&["backlash_x", "backlash_y", "servo_gain_x"]);
+    let lib = few(&["backlash_x", "backlash_y", "servo_mismatch"]);
     let s = select(
         &model,
+        &Linearisation::new(&model, &lib).unwrap(),
         &real,
         &lib,
         Split::automatic(&real).unwrap(),

@@ -1,0 +1,358 @@
+//! The withheld-effect check behind `vmt gap-bench`: "measured" runs from the model with
+//! effects switched on, the model without them, and the gap analysis asked to find them.
+//!
+//! Cases (all on the model's own job):
+//! - every available library effect withheld alone at 1, 2 and 3 times its typical size
+//!   (alternating sign);
+//! - a few pairs withheld together;
+//! - null cases: nothing withheld;
+//! - out-of-library cases: a library effect withheld and also taken out of the candidates
+//!   ([`HIDDEN`]), at three sizes: what no candidate can express must stay unexplained.
+//!
+//! Every case adds nuisance: each available parameter is offset by N(0, (ν·typical)²) (ν =
+//! [`Settings::nuisance`]), the instrument keeps its noise and resolution, and the simulation
+//! seed differs. Random draws come from a generator seeded per case.
+
+use crate::align::GapError;
+use crate::effects::Effect;
+use crate::model::{Forward, ScenarioModel};
+use crate::select::{Linearisation, Options, Selection, Split, select_without};
+use rand::SeedableRng;
+use rand::rngs::StdRng;
+use rand_distr::{Distribution, Normal};
+use rayon::prelude::*;
+use std::collections::BTreeMap;
+use vmt_scenario::edit::Template;
+
+/// What a case withheld.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+#[serde(tag = "kind", content = "effects", rename_all = "snake_case")]
+pub enum Withheld {
+    /// One library effect.
+    One(String),
+    /// Two library effects.
+    Pair(String, String),
+    /// Nothing.
+    Null,
+    /// An effect outside the library.
+    Outside(String),
+}
+
+/// The library effects the out-of-library cases withhold and hide from the candidates: a
+/// library that lacks the effect must leave it unexplained rather than force it onto another.
+pub const HIDDEN: [&str; 4] = [
+    "squareness",
+    "straightness_x",
+    "straightness_y",
+    "servo_mismatch",
+];
+
+/// One case: the edits that make the measured machine from the model.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Case {
+    /// Name.
+    pub name: String,
+    /// What was withheld.
+    pub withheld: Withheld,
+    /// Absolute values written into the model to make the measured machine.
+    pub edits: Vec<(String, f64)>,
+    /// Seed of the nuisance draws and of the simulation.
+    pub seed: u64,
+    /// The effect left out of the candidates (out-of-library cases).
+    pub hidden: Option<String>,
+}
+
+/// Settings of the bench.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Settings {
+    /// Nuisance size as a fraction of each parameter's typical size.
+    pub nuisance: f64,
+    /// Null cases.
+    pub nulls: usize,
+    /// Seed of the first case (the others count up).
+    pub seed: u64,
+}
+
+impl Default for Settings {
+    fn default() -> Self {
+        Self {
+            nuisance: 0.05,
+            nulls: 12,
+            seed: 1,
+        }
+    }
+}
+
+/// The offsets of every key of effect `e` at `m` times its typical size (growing parameters
+/// only grow).
+fn offsets_of(e: &Effect, m: f64) -> Vec<(String, f64)> {
+    e.params
+        .iter()
+        .flat_map(|p| {
+            let size = if p.increase_only { m.abs() } else { m } * p.typical;
+            p.keys.iter().map(move |key| (key.clone(), size))
+        })
+        .collect()
+}
+
+/// The cases of the bench for `library` on `model`.
+pub fn cases(model: &dyn Forward, library: &[Effect], s: &Settings) -> Vec<Case> {
+    let expressible = |e: &&Effect| {
+        e.params
+            .iter()
+            .flat_map(|p| &p.keys)
+            .all(|k| model.value(k).is_some())
+    };
+    let available: Vec<&Effect> = library.iter().filter(expressible).collect();
+    let effects: Vec<&Effect> = available.iter().copied().filter(|e| !e.baseline).collect();
+    let mut out = Vec::new();
+    let mut seed = s.seed;
+    let mut push = |name: String, withheld: Withheld, offsets: Vec<(String, f64)>| {
+        let hidden = match &withheld {
+            Withheld::Outside(e) => Some(e.clone()),
+            _ => None,
+        };
+        let edits = nuisance(model, &available, &offsets, s.nuisance, seed);
+        out.push(Case {
+            name,
+            withheld,
+            edits,
+            seed,
+            hidden,
+        });
+        seed += 1;
+    };
+    let sizes = [1.0, -2.0, 3.0];
+    for e in &effects {
+        for (k, m) in sizes.into_iter().enumerate() {
+            push(
+                format!("{} x{}", e.key, k + 1),
+                Withheld::One(e.key.clone()),
+                offsets_of(e, m),
+            );
+        }
+    }
+    for pair in effects.chunks(2).take(4).filter(|c| c.len() == 2) {
+        let offsets = pair.iter().flat_map(|e| offsets_of(e, 2.0)).collect();
+        let withheld = Withheld::Pair(pair[0].key.clone(), pair[1].key.clone());
+        push(
+            format!("{} + {}", pair[0].key, pair[1].key),
+            withheld,
+            offsets,
+        );
+    }
+    for i in 0..s.nulls {
+        push(format!("null {}", i + 1), Withheld::Null, Vec::new());
+    }
+    for e in effects.iter().filter(|e| HIDDEN.contains(&e.key.as_str())) {
+        for (k, m) in sizes.into_iter().enumerate() {
+            let name = format!("{} x{} (not in the library)", e.key, k + 1);
+            push(name, Withheld::Outside(e.key.clone()), offsets_of(e, m));
+        }
+    }
+    out
+}
+
+/// Absolute values: the model's value plus the withheld offsets, plus nuisance on every
+/// available parameter: N(0, (ν·typical)²), and N(0, typical²) for the baseline (a bar is
+/// never set up twice alike).
+fn nuisance(
+    model: &dyn Forward,
+    available: &[&Effect],
+    offsets: &[(String, f64)],
+    size: f64,
+    seed: u64,
+) -> Vec<(String, f64)> {
+    let mut rng = StdRng::seed_from_u64(seed);
+    let mut values: BTreeMap<String, f64> = BTreeMap::new();
+    for e in available {
+        for p in &e.params {
+            let sd = if e.baseline {
+                p.typical
+            } else {
+                size * p.typical
+            }
+            .abs();
+            let draw = Normal::new(0.0, sd).map_or(0.0, |d| d.sample(&mut rng));
+            // Nuisance keeps a growing parameter physical: it only adds.
+            let draw = if p.increase_only { draw.abs() } else { draw };
+            for k in &p.keys {
+                *values.entry(k.clone()).or_insert(0.0) += draw;
+            }
+        }
+    }
+    for (k, v) in offsets {
+        *values.entry(k.clone()).or_insert(0.0) += v;
+    }
+    values
+        .into_iter()
+        .filter_map(|(k, v)| model.value(&k).map(|m| (k, m + v)))
+        .collect()
+}
+
+/// What the gap analysis made of a case.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct Outcome {
+    /// Case name.
+    pub case: String,
+    /// What was withheld.
+    pub withheld: Withheld,
+    /// The effects that explain the gap, in order (empty when it stays unexplained).
+    pub found: Vec<String>,
+    /// Effects chosen that did not explain the gap (partial candidates).
+    pub partial: Vec<String>,
+    /// Held-out RMS before, µm.
+    pub held_out_before_um: f64,
+    /// Held-out RMS after, µm.
+    pub held_out_after_um: f64,
+    /// Shrink of the held-out mean square.
+    pub shrink: f64,
+}
+
+impl Outcome {
+    fn of(case: &Case, s: &Selection, o: &Options) -> Self {
+        let after = s.held_out_after_um();
+        let chosen: Vec<String> = s.steps.iter().map(|x| x.effect.clone()).collect();
+        let (found, partial) = if s.explained(o) {
+            (chosen, Vec::new())
+        } else {
+            (Vec::new(), chosen)
+        };
+        Self {
+            case: case.name.clone(),
+            withheld: case.withheld.clone(),
+            found,
+            partial,
+            held_out_before_um: s.held_out_before_um,
+            held_out_after_um: after,
+            shrink: s.held_out_shrink(),
+        }
+    }
+}
+
+/// Runs every case: the measured machine simulated with its instrument, the gap analysis of
+/// `model` against it. `progress` is called once per finished case.
+pub fn run(
+    text: &str,
+    model: &ScenarioModel,
+    library: &[Effect],
+    cases: &[Case],
+    o: &Options,
+    progress: &(dyn Fn() + Sync),
+) -> Result<Vec<Outcome>, GapError> {
+    let lin = Linearisation::new(model, library)?;
+    let template = Template::parse(text, "model").map_err(|e| GapError::Model(e.to_string()))?;
+    cases
+        .par_iter()
+        .map(|c| {
+            let mut edits: Vec<(&str, f64)> =
+                c.edits.iter().map(|(k, v)| (k.as_str(), *v)).collect();
+            let seed = c.seed as f64;
+            edits.push(("simulation.seed", seed));
+            let measured_text = template
+                .with(&edits)
+                .map_err(|e| GapError::Model(e.to_string()))?;
+            let measured =
+                ScenarioModel::instrumented(&measured_text, &c.name, None)?.traces(&[])?;
+            let split = Split::automatic(&measured)?;
+            let hidden: Vec<&str> = c.hidden.iter().map(String::as_str).collect();
+            let s = select_without(model, &lin, &measured, library, &hidden, split, o)?;
+            progress();
+            Ok(Outcome::of(c, &s, o))
+        })
+        .collect()
+}
+
+/// The bench's figures.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct Figures {
+    /// Single-effect cases whose first effect found is the withheld one, fraction.
+    pub top1: f64,
+    /// Single-effect cases.
+    pub single_cases: usize,
+    /// Null cases with any effect found, fraction.
+    pub false_attribution_null: f64,
+    /// Null cases.
+    pub null_cases: usize,
+    /// Out-of-library cases with no effect found, fraction.
+    pub unexplained_outside: f64,
+    /// Out-of-library cases.
+    pub outside_cases: usize,
+    /// Pair cases with both effects among the first two found, fraction.
+    pub pairs_both_found: f64,
+    /// Pair cases.
+    pub pair_cases: usize,
+    /// Median held-out shrink over the in-library cases (single and pairs).
+    pub median_shrink: f64,
+    /// Confusion counts: withheld (or `null`, `outside`) → first found (or `none`).
+    pub confusion: BTreeMap<String, BTreeMap<String, usize>>,
+}
+
+/// The figures of a bench's outcomes.
+pub fn figures(outcomes: &[Outcome]) -> Figures {
+    let frac = |hits: usize, n: usize| {
+        if n == 0 {
+            f64::NAN
+        } else {
+            hits as f64 / n as f64
+        }
+    };
+    let first = |o: &Outcome| o.found.first().cloned().unwrap_or_else(|| "none".into());
+    let mut confusion: BTreeMap<String, BTreeMap<String, usize>> = BTreeMap::new();
+    let (
+        mut single,
+        mut top1,
+        mut null,
+        mut false_null,
+        mut outside,
+        mut unexplained,
+        mut pairs,
+        mut both,
+    ) = (0, 0, 0, 0, 0, 0, 0, 0);
+    let mut shrinks = Vec::new();
+    for o in outcomes {
+        let row = match &o.withheld {
+            Withheld::One(e) => {
+                single += 1;
+                top1 += usize::from(o.found.first() == Some(e));
+                shrinks.push(o.shrink);
+                e.clone()
+            }
+            Withheld::Pair(a, b) => {
+                pairs += 1;
+                let head: Vec<&String> = o.found.iter().take(2).collect();
+                both += usize::from(head.contains(&a) && head.contains(&b));
+                shrinks.push(o.shrink);
+                format!("{a} + {b}")
+            }
+            Withheld::Null => {
+                null += 1;
+                false_null += usize::from(!o.found.is_empty());
+                "null".into()
+            }
+            Withheld::Outside(_) => {
+                outside += 1;
+                unexplained += usize::from(o.found.is_empty());
+                "outside".into()
+            }
+        };
+        *confusion
+            .entry(row)
+            .or_default()
+            .entry(first(o))
+            .or_default() += 1;
+    }
+    shrinks.sort_by(f64::total_cmp);
+    Figures {
+        top1: frac(top1, single),
+        single_cases: single,
+        false_attribution_null: frac(false_null, null),
+        null_cases: null,
+        unexplained_outside: frac(unexplained, outside),
+        outside_cases: outside,
+        pairs_both_found: frac(both, pairs),
+        pair_cases: pairs,
+        median_shrink: shrinks.get(shrinks.len() / 2).copied().unwrap_or(f64::NAN),
+        confusion,
+    }
+}
