@@ -2,8 +2,9 @@
 //!
 //! The residual is `r(θ) = measured(θ) - simulated(θ)` (µm) at each measured angle θ, the
 //! simulated deviation linearly interpolated in angle. Both traces must be the same test: same
-//! plane, sense, bar length (to 1e-6 relative) and feed (to 0.1 %), and the measured angles
-//! must lie within the simulated ones.
+//! plane, sense, bar length (to 1e-6 relative) and feed (to 0.1 %), and the simulated arc must
+//! cover at least 90 % of the measured one (after whole turns that bring the instrument's
+//! angle zero onto the model's); measured samples outside the simulated arc are left out.
 
 use thiserror::Error;
 use vmt_ballbar::{Plane, Sense, Trace, TraceError};
@@ -81,31 +82,34 @@ impl TracePair {
         measured.validate()?;
         simulated.validate()?;
         check_same_test(measured, simulated)?;
+        let (offset, (s0, s1)) = arc_overlap(measured, simulated)?;
         let sim = Monotone::new(&simulated.angle_deg, &simulated.deviation_um);
-        let residual_um = measured
-            .angle_deg
-            .iter()
-            .zip(&measured.deviation_um)
-            .map(|(a, d)| d - sim.at(*a))
+        let deg_per_s = (measured.feed_mm_min / 60.0 / measured.radius_mm).to_degrees();
+        let a0 = measured.angle_deg[0];
+        let keep: Vec<usize> = (0..measured.angle_deg.len())
+            .filter(|i| (s0..=s1).contains(&(measured.angle_deg[*i] + offset)))
             .collect();
-        let time_s = measured.time_s.clone().unwrap_or_else(|| {
-            let deg_per_s = (measured.feed_mm_min / 60.0 / measured.radius_mm).to_degrees();
-            let a0 = measured.angle_deg[0];
-            measured
-                .angle_deg
-                .iter()
-                .map(|a| (a - a0).abs() / deg_per_s)
-                .collect()
-        });
+        let time_at = |i: usize| match &measured.time_s {
+            Some(t) => t[i],
+            None => (measured.angle_deg[i] - a0).abs() / deg_per_s,
+        };
+        let angle_deg: Vec<f64> = keep
+            .iter()
+            .map(|i| measured.angle_deg[*i] + offset)
+            .collect();
         Ok(Self {
             label: measured.label.clone(),
             plane: measured.plane,
             sense: measured.sense,
             radius_mm: measured.radius_mm,
             feed_mm_min: measured.feed_mm_min,
-            angle_deg: measured.angle_deg.clone(),
-            time_s,
-            residual_um,
+            residual_um: keep
+                .iter()
+                .zip(&angle_deg)
+                .map(|(i, a)| measured.deviation_um[*i] - sim.at(*a))
+                .collect(),
+            time_s: keep.iter().map(|i| time_at(*i)).collect(),
+            angle_deg,
         })
     }
 
@@ -146,21 +150,33 @@ fn check_same_test(m: &Trace, s: &Trace) -> Result<(), GapError> {
             s.feed_mm_min.to_string(),
         ));
     }
+    Ok(())
+}
+
+/// The whole turns (deg) that bring the measured angles onto the simulated ones (instruments
+/// count from their own zero), and the simulated arc, which must cover at least
+/// [`MIN_OVERLAP`] of the measured one.
+fn arc_overlap(m: &Trace, s: &Trace) -> Result<(f64, (f64, f64)), GapError> {
     let range = |a: &[f64]| {
         let (x, y) = (a[0], a[a.len() - 1]);
         (x.min(y), x.max(y))
     };
     let ((m0, m1), (s0, s1)) = (range(&m.angle_deg), range(&s.angle_deg));
-    // Half a degree of slack: the two may start a sample apart.
-    if m0 < s0 - 0.5 || m1 > s1 + 0.5 {
-        return Err(mismatch(
-            "arc",
-            format!("{m0:.1}..{m1:.1} deg"),
-            format!("{s0:.1}..{s1:.1} deg"),
-        ));
+    let offset = 360.0 * (((s0 + s1) - (m0 + m1)) / 720.0).round();
+    let overlap = (m1 + offset).min(s1) - (m0 + offset).max(s0);
+    if overlap < MIN_OVERLAP * (m1 - m0) {
+        return Err(GapError::Mismatch {
+            label: m.label.clone(),
+            what: "arc",
+            measured: format!("{m0:.1}..{m1:.1} deg"),
+            model: format!("{s0:.1}..{s1:.1} deg"),
+        });
     }
-    Ok(())
+    Ok((offset, (s0, s1)))
 }
+
+/// The least share of a measured arc the simulated one must cover.
+pub const MIN_OVERLAP: f64 = 0.9;
 
 /// A piecewise-linear function of an angle that moves one way (either way).
 struct Monotone {

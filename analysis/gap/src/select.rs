@@ -131,7 +131,8 @@ pub struct Step {
     pub effect: String,
     /// What it is.
     pub description: String,
-    /// Its parameters' offsets (with those of the effects before it, refitted).
+    /// Its parameters' offsets, with those of the effects before it refitted (the baseline's
+    /// are left out).
     pub values: Vec<Fitted>,
     /// RMS of the calibration residual after it, µm.
     pub calibration_rms_um: f64,
@@ -481,7 +482,13 @@ impl Selector<'_> {
         Step {
             effect: effect.key.clone(),
             description: effect.description.clone(),
-            values: self.fitted(c),
+            values: self
+                .fitted(c)
+                .into_iter()
+                .zip(&c.params)
+                .filter(|(_, p)| !self.library[self.available[**p].effect].baseline)
+                .map(|(f, _)| f)
+                .collect(),
             calibration_rms_um: (cal / self.cal0.len() as f64).sqrt(),
             held_out_rms_um: (held / self.held0.len() as f64).sqrt(),
             held_out_shrink: shrink,
