@@ -9,11 +9,17 @@
 //! - [`simulate`]: runs a job through interpolator, controllers, plant, error chain and
 //!   instruments ([`ballbar`], [`laser`]: the ISO 230-2 positioning test); [`truth`] writes its
 //!   ground truth.
+//! - [`milling`]: time-domain milling with regenerative chatter: forces, tool modes, surface
+//!   memory, spindle-housing accelerometers, the machined wall and the chatter truth;
+//!   [`machining`] drives it from an NC program through the controller and feed drives, with a
+//!   supervisor (chatter detection and compensation) in the loop.
 //! - [`run`]: what a simulation produces: time-stamped streams, ball-bar traces, ground truth.
 
 pub mod ballbar;
 pub mod interpolator;
 pub mod laser;
+pub mod machining;
+pub mod milling;
 pub mod nc;
 pub mod plant;
 pub mod run;

@@ -238,7 +238,7 @@ pub fn simulate(
     Ok(recorder.finish(&truth, settings, scenario_toml))
 }
 
-fn check_strokes(
+pub(crate) fn check_strokes(
     machine: &Machine,
     ipo: &Interpolator,
     program: &Program,
@@ -291,7 +291,7 @@ pub fn check_step(
     Ok(())
 }
 
-fn build_plant(
+pub(crate) fn build_plant(
     machine: &Machine,
     axes: &[AxisDynamics; 3],
     start: &Vector3<f64>,

@@ -7,6 +7,8 @@
 //! clockwise seen from the spindle (M3). A tooth cuts while φ_st ≤ φ ≤ φ_ex. Up milling starts at
 //! φ_st = 0; down milling ends at φ_ex = π.
 
+pub mod forces;
+pub mod integrator;
 pub mod modal;
 pub mod tool;
 
