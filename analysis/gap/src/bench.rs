@@ -71,6 +71,8 @@ pub struct Settings {
     pub nulls: usize,
     /// Seed of the first case (the others count up).
     pub seed: u64,
+    /// How many times the whole list of cases is drawn (each with its own seeds).
+    pub repeats: usize,
 }
 
 impl Default for Settings {
@@ -79,6 +81,7 @@ impl Default for Settings {
             nuisance: 0.05,
             nulls: 12,
             seed: 1,
+            repeats: 1,
         }
     }
 }
@@ -95,8 +98,24 @@ fn offsets_of(e: &Effect, m: f64) -> Vec<(String, f64)> {
         .collect()
 }
 
-/// The cases of the bench for `library` on `model`.
+/// The cases of the bench for `library` on `model`: [`Settings::repeats`] draws of the list,
+/// each with its own seeds.
 pub fn cases(model: &dyn Forward, library: &[Effect], s: &Settings) -> Vec<Case> {
+    let mut out: Vec<Case> = Vec::new();
+    for r in 0..s.repeats.max(1) {
+        let seed = out.last().map_or(s.seed, |c| c.seed + 1);
+        let mut draw = cases_once(model, library, &Settings { seed, ..*s });
+        if s.repeats > 1 {
+            draw.iter_mut()
+                .for_each(|c| c.name = format!("{} (draw {})", c.name, r + 1));
+        }
+        out.extend(draw);
+    }
+    out
+}
+
+/// One draw of the cases, seeds from `s.seed` up.
+fn cases_once(model: &dyn Forward, library: &[Effect], s: &Settings) -> Vec<Case> {
     let expressible = |e: &&Effect| {
         e.params
             .iter()

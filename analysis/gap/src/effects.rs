@@ -209,6 +209,39 @@ pub fn library(p: char, q: char) -> Vec<Effect> {
     out
 }
 
+/// The library for tests in several planes (`(p, q)` axis letters, lower case): the first
+/// plane's library, the axis effects of the others' axes, their plane effects (squareness,
+/// servo and scale mismatch) named with the plane (`squareness_zx`), and one baseline (set-up
+/// of every axis involved, bar length).
+pub fn library_for(planes: &[(char, char)]) -> Vec<Effect> {
+    let Some((&(p, q), rest)) = planes.split_first() else {
+        return Vec::new();
+    };
+    let mut out = library(p, q);
+    for &(p, q) in rest {
+        for mut e in library(p, q) {
+            if let Some(have) = out.iter_mut().find(|x| x.key == e.key) {
+                if e.baseline {
+                    let new: Vec<Param> = e
+                        .params
+                        .into_iter()
+                        .filter(|n| !have.params.iter().any(|h| h.keys == n.keys))
+                        .collect();
+                    have.params.extend(new);
+                }
+                continue;
+            }
+            if ["squareness", "servo_mismatch", "scale_mismatch"].contains(&e.key.as_str()) {
+                e.key = format!("{}_{p}{q}", e.key);
+            }
+            if !out.iter().any(|x| x.key == e.key) {
+                out.push(e);
+            }
+        }
+    }
+    out
+}
+
 fn axis_index(a: char) -> usize {
     match a {
         'x' => 0,

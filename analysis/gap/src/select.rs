@@ -216,21 +216,27 @@ struct Available {
 }
 
 /// The simulated traces matched to the measured ones, aligned and binned.
+/// Pairs each measured trace with a simulated one of the same test: the k-th measured trace
+/// of a (plane, direction, radius, feed) with the k-th simulated one, so repeated tests (Kwon's
+/// steps 1 and 2) pair in order.
 fn residuals(
     measured: &[Trace],
     simulated: &[Trace],
     bin_deg: f64,
 ) -> Result<(Vec<TracePair>, Vec<Vec<f64>>), GapError> {
+    let same = |s: &Trace, m: &Trace| {
+        s.plane == m.plane
+            && s.sense == m.sense
+            && (s.radius_mm - m.radius_mm).abs() <= 1e-6 * s.radius_mm
+            && (s.feed_mm_min - m.feed_mm_min).abs() <= 1e-3 * s.feed_mm_min
+    };
     let mut pairs = Vec::with_capacity(measured.len());
-    for m in measured {
+    for (i, m) in measured.iter().enumerate() {
+        let k = measured[..i].iter().filter(|x| same(x, m)).count();
         let s = simulated
             .iter()
-            .find(|s| {
-                s.plane == m.plane
-                    && s.sense == m.sense
-                    && (s.radius_mm - m.radius_mm).abs() <= 1e-6 * s.radius_mm
-                    && (s.feed_mm_min - m.feed_mm_min).abs() <= 1e-3 * s.feed_mm_min
-            })
+            .filter(|s| same(s, m))
+            .nth(k)
             .ok_or_else(|| not_in_job(m, simulated))?;
         pairs.push(TracePair::align(m, s)?);
     }
