@@ -50,9 +50,11 @@ pub struct Execution {
     pub settings: vmt_sim::simulate::SimSettings,
     /// The job.
     pub job: vmt_sim::simulate::Job,
-    /// The NC program's file of a `kind = "program"` job, so that errors about a block can
-    /// name the file as well as the line.
+    /// The NC program's file of a `kind = "program"` or `"milling"` job, so that errors about
+    /// a block can name the file as well as the line.
     pub program_file: Option<String>,
+    /// The cut of a `kind = "milling"` job.
+    pub milling: Option<vmt_sim::machining::MillingJob>,
 }
 
 /// A loaded scenario.
@@ -152,6 +154,18 @@ fn execution(
         (dynamics::JobToml::Program { program }, Some(dir)) => {
             Some(dir.join(program).display().to_string())
         }
+        (dynamics::JobToml::Milling(m), Some(dir)) => {
+            Some(dir.join(&m.program).display().to_string())
+        }
+        _ => None,
+    };
+    let milling = match job {
+        dynamics::JobToml::Milling(m) => Some(crate::milling::milling_job(
+            m,
+            &raw.tools,
+            raw.instruments.accelerometer.as_ref(),
+            settings.seed,
+        )?),
         _ => None,
     };
     let job = dynamics::job(job, &raw.instruments, tool, base_dir)?;
@@ -161,6 +175,7 @@ fn execution(
         settings,
         job,
         program_file,
+        milling,
     }))
 }
 

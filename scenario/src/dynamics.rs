@@ -122,6 +122,8 @@ pub enum JobToml {
     /// ISO 230-2 linear positioning test with a laser interferometer.
     #[serde(rename = "iso230_2")]
     Iso230_2(PositioningToml),
+    /// A milling program with its cut (`scenarios/milling_slot.toml`).
+    Milling(crate::milling::MillingJobToml),
     /// Kwon's seven-step ball-bar procedure, the steps in a row.
     #[serde(rename = "kwon_seven_step")]
     KwonSevenStep {
@@ -173,6 +175,7 @@ fn both() -> Vec<String> {
 pub struct InstrumentsToml {
     pub ballbar: Option<BallbarToml>,
     pub laser: Option<LaserToml>,
+    pub accelerometer: Option<crate::milling::AccelerometerToml>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -593,30 +596,38 @@ pub fn job(
                 laser: None,
             })
         }
-        JobToml::Program { program } => {
-            let Some(dir) = base_dir else {
-                return Err(Invalid::new(
-                    p.key("program"),
-                    "the built-in scenario cannot refer to files",
-                )
-                .into());
-            };
-            let path = dir.join(program);
-            let file = path.display().to_string();
-            let text = std::fs::read_to_string(&path)
-                .map_err(|e| crate::build::external(&file, None, format!("cannot read: {e}")))?;
-            let program = parse(&text, tool_offset).map_err(|e| {
-                crate::build::external(&file, Some((e.line, e.column)), e.message.clone())
-            })?;
-            Ok(Job {
-                program,
-                ballbar: Vec::new(),
-                laser: None,
-            })
-        }
+        JobToml::Program { program } => program_job(program, tool_offset, base_dir, &p),
+        JobToml::Milling(m) => program_job(&m.program, tool_offset, base_dir, &p),
         JobToml::Iso230_2(t) => Ok(positioning_job(t, instruments)?),
         JobToml::KwonSevenStep { pivot_mm, steps } => Ok(kwon_job(pivot_mm, steps, instruments)?),
     }
+}
+
+/// A job of an NC program file (relative to the scenario's folder).
+fn program_job(
+    program: &str,
+    tool_offset: Vector3<f64>,
+    base_dir: Option<&Path>,
+    p: &KeyPath,
+) -> Result<Job, BuildError> {
+    let Some(dir) = base_dir else {
+        return Err(Invalid::new(
+            p.key("program"),
+            "the built-in scenario cannot refer to files",
+        )
+        .into());
+    };
+    let path = dir.join(program);
+    let file = path.display().to_string();
+    let text = std::fs::read_to_string(&path)
+        .map_err(|e| crate::build::external(&file, None, format!("cannot read: {e}")))?;
+    let program = parse(&text, tool_offset)
+        .map_err(|e| crate::build::external(&file, Some((e.line, e.column)), e.message.clone()))?;
+    Ok(Job {
+        program,
+        ballbar: Vec::new(),
+        laser: None,
+    })
 }
 
 /// The ISO 230-2 targets: `targets_mm`, or `count` evenly spaced over `range_mm`, m.

@@ -7,9 +7,10 @@
 
 mod build;
 pub mod dataset;
-pub mod edit;
 mod dynamics;
+pub mod edit;
 mod error;
+mod milling;
 mod schema;
 mod table;
 

@@ -50,6 +50,9 @@ pub struct ScenarioFile {
     pub instruments: crate::dynamics::InstrumentsToml,
     /// Distributions for `vmt dataset`; a run ignores them.
     pub dataset: Option<crate::dataset::DatasetToml>,
+    /// The tool table of milling jobs, by tool name (`[tools.T1]`).
+    #[serde(default)]
+    pub tools: BTreeMap<String, crate::milling::ToolTableToml>,
 }
 
 #[derive(Debug, Deserialize)]

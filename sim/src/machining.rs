@@ -261,6 +261,7 @@ pub fn simulate_machining(
         [c[0].position_m + tcp.x, c[1].position_m + tcp.y]
     };
     let mut before = tool_xy(plant.as_ref());
+    let mut speed_taken_over = false;
     while tau <= duration {
         let o = command.feed_override;
         let Some(sp) = setpoint_at(&ipo, tau, o, &mut cursor) else {
@@ -286,14 +287,17 @@ pub fn simulate_machining(
         } else if tau > plan.end_s {
             pending = None;
         }
+        // The program's S holds until the supervisor asks for another speed.
+        let programmed = match sp.spindle {
+            Spindle::Clockwise(s) | Spindle::CounterClockwise(s) => s,
+            Spindle::Stopped => 0.0,
+        };
+        if !speed_taken_over {
+            command.spindle_rpm = programmed;
+        }
         if let Some(c) = cut.as_mut().filter(|_| tau <= plan.end_s) {
             c.advance(t, period, before, now, &mut command);
-        }
-        if !matches!(sp.spindle, Spindle::Clockwise(_)) || cut.is_none() {
-            command.spindle_rpm = match sp.spindle {
-                Spindle::Clockwise(s) | Spindle::CounterClockwise(s) => s,
-                Spindle::Stopped => 0.0,
-            };
+            speed_taken_over |= command.spindle_rpm != programmed;
         }
         if k.is_multiple_of(log_every) {
             let q = plant.carriages().map(|c| c.position_m);
