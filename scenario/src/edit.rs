@@ -106,9 +106,10 @@ mod tests {
         let out = t
             .with(&[("a.x", 2.5), ("a.y[0]", -1.0), ("a.f.c", 5.0)])
             .unwrap();
+        // An integer stays an integer when the new value is whole.
         assert_eq!(
             out,
-            "[a]\nx = 2.5 # comment\ny = [-1.0, 2.0, 3]\nf = { c = 5.0 }\n"
+            "[a]\nx = 2.5 # comment\ny = [-1, 2.0, 3]\nf = { c = 5.0 }\n"
         );
         let e = t.with(&[("a.z", 1.0)]).unwrap_err();
         assert!(e.to_string().contains("a.z"), "{e}");
