@@ -24,7 +24,9 @@
 //!   times from the start of the cut) and `cut_start_s`.
 
 use crate::interpolator::{Cursor, Interpolator, InterpolatorConfig, Setpoint};
-use crate::milling::{AccelWindow, CuttingProcess, MillingSetup, Supervisor, SupervisorCommand};
+use crate::milling::{
+    AccelWindow, CuttingProcess, MillingError, MillingSetup, Supervisor, SupervisorCommand,
+};
 use crate::nc::{Motion, Spindle};
 use crate::run::{Channel, Run, Stream};
 use crate::simulate::{
@@ -156,6 +158,7 @@ struct Cut<'a> {
     window: usize,
     last_called: usize,
     sample_rate_hz: f64,
+    diameter: f64,
     supervisor: Option<&'a mut dyn Supervisor>,
 }
 
@@ -169,13 +172,15 @@ impl Cut<'_> {
         from: [f64; 2],
         to: [f64; 2],
         command: &mut SupervisorCommand,
-    ) {
+    ) -> Result<(), MillingError> {
         let h = self.process.step_s();
         while self.clock_s + h <= t - self.start_s + 1e-12 {
             let w =
                 ((self.clock_s + 0.5 * h + self.start_s - (t - period)) / period).clamp(0.0, 1.0);
             let c = [0, 1].map(|i| from[i] + (to[i] - from[i]) * w - self.origin[i]);
-            self.process.step(c, command.spindle_rpm);
+            self.process
+                .step(c, command.spindle_rpm)
+                .check_runaway(self.diameter)?;
             self.clock_s += h;
         }
         let n = self.process.accelerometer_samples()[0].len();
@@ -195,6 +200,7 @@ impl Cut<'_> {
             });
             self.last_called = n;
         }
+        Ok(())
     }
 }
 
@@ -246,6 +252,7 @@ pub fn simulate_machining(
         window,
         last_called: 0,
         sample_rate_hz: setup.accelerometer.sample_rate_hz,
+        diameter: setup.tool.diameter,
         supervisor,
     });
     let mut command = SupervisorCommand {
@@ -296,7 +303,8 @@ pub fn simulate_machining(
             command.spindle_rpm = programmed;
         }
         if let Some(c) = cut.as_mut().filter(|_| tau <= plan.end_s) {
-            c.advance(t, period, before, now, &mut command);
+            c.advance(t, period, before, now, &mut command)
+                .map_err(|e| SimError::Settings(format!("milling: {e}")))?;
             speed_taken_over |= command.spindle_rpm != programmed;
         }
         if k.is_multiple_of(log_every) {

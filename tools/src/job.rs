@@ -14,6 +14,7 @@ use vmt_scenario::Scenario;
 use vmt_sim::laser::Iso230_2;
 use vmt_sim::plant::Fidelity;
 use vmt_sim::run::Run;
+use vmt_sim::machining::simulate_machining;
 use vmt_sim::simulate::{SimError, simulate};
 
 /// The files a run wrote.
@@ -51,15 +52,29 @@ pub fn execute(
         .unwrap_or_else(|_| ProgressStyle::default_bar()),
     );
     bar.set_message(format!("simulating ({})", settings.fidelity.name()));
-    let run = simulate(
-        &scenario.machine,
-        &exec.axes,
-        &exec.controller,
-        &exec.job,
-        &settings,
-        text,
-        &mut |f| bar.set_position((f * 1000.0) as u64),
-    )
+    let mut progress = |f: f64| bar.set_position((f * 1000.0) as u64);
+    let run = match &exec.milling {
+        Some(m) => simulate_machining(
+            &scenario.machine,
+            &exec.axes,
+            &exec.controller,
+            &exec.job,
+            m,
+            &settings,
+            text,
+            None,
+            &mut progress,
+        ),
+        None => simulate(
+            &scenario.machine,
+            &exec.axes,
+            &exec.controller,
+            &exec.job,
+            &settings,
+            text,
+            &mut progress,
+        ),
+    }
     .map_err(|e| match (&e, &exec.program_file) {
         (SimError::Stroke { line, .. }, Some(file)) => {
             CliError::Model(format!("{file}:{line}: {e}"))

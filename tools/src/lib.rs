@@ -2,10 +2,13 @@
 //! The binary in `main.rs` only parses arguments, calls these and the library crates, and prints.
 
 pub mod accuracy;
+pub mod chatter;
+pub mod chatter_bench;
 pub mod dataset;
 pub mod diagnose;
 pub mod error;
 pub mod formats;
+pub mod gap;
 pub mod job;
 pub mod map;
 pub mod plot;

@@ -82,6 +82,50 @@ enum Command {
     /// Diagnose every run of a dataset and compare with its truth: bias, RMS, 95th percentile,
     /// worst, share within tolerance and false positives per figure (DIR/accuracy.{md,json}).
     Accuracy(AccuracyArgs),
+    /// Milling chatter.
+    #[command(subcommand)]
+    Chatter(ChatterCommand),
+    /// Sim-to-real gap: where a model disagrees with measured ball-bar runs, which unmodelled
+    /// effect explains it (fitted on some runs, judged on held-out ones) and how much it buys.
+    ///
+    /// Examples:
+    ///   vmt gap --model scenarios/vmc500.toml --real out/run.mcap --out gap
+    ///   vmt gap --model my.toml --real cw.csv ccw.csv --radius-mm 150 --feed-mm-min 1000 --plane XY
+    #[command(verbatim_doc_comment)]
+    Gap(vmt_tools::gap::GapArgs),
+    /// The withheld-effect check of `vmt gap`: every library effect withheld at three sizes,
+    /// pairs, null and out-of-library cases; prints top-1 attribution, false attributions,
+    /// held-out shrink and the confusion matrix.
+    ///
+    /// Example:
+    ///   vmt gap-bench --out docs
+    #[command(verbatim_doc_comment)]
+    GapBench(vmt_tools::gap::BenchArgs),
+}
+
+#[derive(Subcommand)]
+enum ChatterCommand {
+    /// Detect chatter in an accelerometer log: run.mcap (its `accelerometer` stream, m/s², and
+    /// the spindle speed and teeth from its ground truth) or a CSV file with header
+    /// time_s,ax,ay,az (time in s, strictly increasing and uniformly sampled; acceleration in
+    /// m/s²; at least one of ax, ay, az; other columns ignored).
+    ///
+    /// Detectors: `kim` (Kim, Song & Koh 2015: Chebyshev band-pass 6–7 kHz, 50 ms block RMS
+    /// against --limit, feed override = limit / RMS) and `better` (share of the short-time
+    /// spectrum in the strongest peak that is not a tooth-passing harmonic; needs no band).
+    /// Prints the decision, the detection time and the chatter frequency.
+    ///
+    /// Examples:
+    ///   vmt chatter detect out/run.mcap
+    ///   vmt chatter detect accel.csv --spindle-rpm 7500 --teeth 4 --limit 0.5 --csv windows.csv
+    #[command(verbatim_doc_comment)]
+    Detect(vmt_tools::chatter::DetectArgs),
+    /// Both detectors on a labelled set of simulated slots over spindle speeds and depths:
+    /// accuracy, false positives, misses and latency.
+    Bench(vmt_tools::chatter_bench::BenchArgs),
+    /// Chatter suppression in the loop: no control, Kim's feed override, and the spindle speed
+    /// moved to a stable lobe; chatter, removal rate and roughness side by side.
+    Compensate(vmt_tools::chatter_bench::CompensateArgs),
 }
 
 #[derive(Args)]
@@ -314,6 +358,11 @@ fn main() -> ExitCode {
             vmt_tools::dataset::command(&a.scenario, a.count, a.seed, &a.out, a.quiet)
         }
         Command::Accuracy(a) => vmt_tools::accuracy::command(&a.dir),
+        Command::Chatter(ChatterCommand::Detect(a)) => vmt_tools::chatter::command(&a),
+        Command::Chatter(ChatterCommand::Bench(a)) => vmt_tools::chatter_bench::bench(&a),
+        Command::Chatter(ChatterCommand::Compensate(a)) => vmt_tools::chatter_bench::compensate(&a),
+        Command::Gap(a) => vmt_tools::gap::command(&a),
+        Command::GapBench(a) => vmt_tools::gap::bench_command(&a),
         Command::Topologies => {
             topologies();
             Ok(())

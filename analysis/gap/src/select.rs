@@ -17,7 +17,8 @@
 //!    [`Options::min_held_out_shrink`] of what is left;
 //! 3. one more Gauss–Newton step from the simulated residual refines the values.
 //!
-//! Selection stops when no candidate passes; what is left is reported as unexplained.
+//! Selection does not start when the held-out gap is already at [`Options::explained_floor_um`]
+//! and stops when no candidate passes; what is left is reported as unexplained.
 
 use crate::align::{GapError, TracePair};
 use crate::effects::Effect;
@@ -37,8 +38,9 @@ pub struct Options {
     pub min_held_out_shrink: f64,
     /// Most effects added.
     pub max_effects: usize,
-    /// Least RMS change an effect must make to the held-out residual, µm: below the ball
-    /// bar's resolution (0.1 µm) a difference is not a finding.
+    /// Least RMS change an effect must make to the held-out residual, µm: above the ball
+    /// bar's resolution (0.1 µm) and the level at which a model's other small mismatches
+    /// (the bench's nuisance) already change the residual.
     pub min_effect_um: f64,
     /// The gap counts as explained when what the chosen effects leave on the held-out runs
     /// is at most this RMS, µm (the level of a model's other small mismatches)…
@@ -55,7 +57,7 @@ impl Default for Options {
             min_bic_drop: 10.0,
             min_held_out_shrink: 0.3,
             max_effects: 4,
-            min_effect_um: 0.1,
+            min_effect_um: 0.15,
             explained_floor_um: 0.2,
             explained_fraction: 0.25,
         }
@@ -647,7 +649,9 @@ pub fn select_without(
     let (mut chosen, mut steps, mut last_round) = (Vec::new(), Vec::new(), Vec::new());
     let (mut final_pairs, mut held_bins) =
         (initial_pairs.clone(), stack(&initial_bins, &split.held_out));
-    while chosen.len() < o.max_effects {
+    // A gap already at the explained floor needs no effect: the model as given explains the
+    // measurement to the level of its small mismatches.
+    while chosen.len() < o.max_effects && held_out_before_um > o.explained_floor_um {
         let candidates: Vec<Candidate> = sel
             .candidates(&chosen, cur_bic)
             .into_iter()

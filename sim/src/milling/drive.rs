@@ -143,7 +143,9 @@ fn run(
     let (mut x, mut travel_rpm_sum) = (0.0, 0.0);
     let mut commands = Vec::new();
     for n in 0..steps {
-        process.step([x, 0.0], rpm);
+        process
+            .step([x, 0.0], rpm)
+            .check_runaway(setup.tool.diameter)?;
         x += feed_rate * feed_override * h;
         travel_rpm_sum += rpm;
         let Some(sup) = supervisor.as_deref_mut() else {

@@ -103,6 +103,27 @@ pub enum MillingError {
         value: f64,
         accepted: &'static str,
     },
+    /// The tool's vibration grew beyond its diameter: a cut this far past the stability limit
+    /// breaks a real tool, and the linear modes no longer describe it.
+    #[error(
+        "at {time_s:.4} s of the cut the tool vibrates by {displacement_mm:.1} mm, more than its diameter: the cut is far beyond the stability limit (a real tool would break); take a smaller depth or another spindle speed"
+    )]
+    Runaway { time_s: f64, displacement_mm: f64 },
+}
+
+impl CutSample {
+    /// [`MillingError::Runaway`] when the tool's displacement exceeds `diameter` (m).
+    pub fn check_runaway(&self, diameter: f64) -> Result<(), MillingError> {
+        let u = self.displacement[0].hypot(self.displacement[1]);
+        if u.is_finite() && u <= diameter {
+            Ok(())
+        } else {
+            Err(MillingError::Runaway {
+                time_s: self.time_s,
+                displacement_mm: u * 1e3,
+            })
+        }
+    }
 }
 
 pub(crate) fn check(

@@ -1,0 +1,431 @@
+//! `vmt chatter detect`: chatter detection on an accelerometer log.
+//!
+//! Inputs:
+//! - a CSV file with a header holding `time_s` (s, strictly increasing, uniformly sampled to
+//!   within 1 %) and one or more of `ax`, `ay`, `az` (acceleration, m/s²); other columns are
+//!   ignored;
+//! - a run of ours (`run.mcap`): the `/accelerometer` stream (fields `time_s`, `ax`, `ay`, `az`,
+//!   m/s²) and the spindle speed and teeth from the ground truth (`milling.spindle_rpm`,
+//!   `milling.teeth`, or `spindle_rpm`, `teeth` at its top level).
+//!
+//! Detectors: `vmt_chatter::detect::kim` (band-pass RMS against a limit) and
+//! `vmt_chatter::detect::spectral` (non-harmonic spectral peak share).
+
+use crate::error::CliError;
+use clap::{Args, ValueEnum};
+use mcap::MessageStream;
+use serde_json::Value;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use vmt_chatter::detect::kim::{self, KimResult, KimSettings};
+use vmt_chatter::detect::spectral::{self, SpectralResult, SpectralSettings, tooth_passing_hz};
+
+/// Which detector to run.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum Which {
+    /// Kim, Song & Koh: band-pass (default 6–7 kHz), 50 ms block RMS against --limit.
+    Kim,
+    /// Share of the spectrum in the strongest peak that is not a tooth-passing harmonic.
+    Better,
+    /// Both.
+    Both,
+}
+
+/// Arguments of `vmt chatter detect`.
+#[derive(Args, Debug)]
+pub struct DetectArgs {
+    /// The log: run.mcap (its `accelerometer` stream) or a CSV file with header
+    /// time_s,ax,ay,az (s; m/s²; at least one of ax, ay, az; time strictly increasing and
+    /// uniformly sampled).
+    pub log: PathBuf,
+    /// Detector(s) to run.
+    #[arg(long, value_enum, default_value = "both")]
+    pub detector: Which,
+    /// Spindle speed, rev/min (default: the run's ground truth; otherwise the tooth-passing
+    /// frequency is estimated from the spectrum).
+    #[arg(long)]
+    pub spindle_rpm: Option<f64>,
+    /// Number of teeth of the cutter (default: the run's ground truth).
+    #[arg(long)]
+    pub teeth: Option<u32>,
+    /// Kim's RMS limit of the band-passed acceleration, m/s² (default: 3 × the largest block
+    /// RMS over the first 0.2 s of the log, which assumes the log starts with a stable cut).
+    #[arg(long)]
+    pub limit: Option<f64>,
+    /// Kim's pass band, Hz, as LOW,HIGH (stop edges 500 Hz outside it).
+    #[arg(long, value_delimiter = ',', default_values_t = [6000.0, 7000.0])]
+    pub band: Vec<f64>,
+    /// Write the per-window figures of the detectors to this CSV file.
+    #[arg(long)]
+    pub csv: Option<PathBuf>,
+}
+
+/// An accelerometer log.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Log {
+    /// Sample rate, Hz (from the mean sample interval).
+    pub sample_rate_hz: f64,
+    /// Channel names and samples, m/s².
+    pub channels: Vec<(String, Vec<f64>)>,
+    /// Spindle speed (rev/min) and teeth from the run's ground truth, when present.
+    pub spindle_rpm: Option<f64>,
+    /// Teeth from the ground truth.
+    pub teeth: Option<u32>,
+}
+
+const AXES: [&str; 3] = ["ax", "ay", "az"];
+
+const CSV_FORMAT: &str = "a header with time_s (s) and one or more of ax, ay, az (m/s²), then one row of numbers per sample";
+
+/// Reads an MCAP run or a CSV log.
+pub fn read(path: &Path) -> Result<Log, CliError> {
+    let file = path.display().to_string();
+    let bytes = std::fs::read(path).map_err(|e| CliError::input(&file, None, e.to_string()))?;
+    if bytes.starts_with(mcap::MAGIC) {
+        read_mcap(&bytes, &file)
+    } else {
+        read_csv(&bytes, &file)
+    }
+}
+
+fn read_csv(bytes: &[u8], file: &str) -> Result<Log, CliError> {
+    let mut r = csv::ReaderBuilder::new()
+        .trim(csv::Trim::All)
+        .from_reader(bytes);
+    let header = r
+        .headers()
+        .map_err(|e| {
+            CliError::input(
+                file,
+                Some(1),
+                format!("unreadable header: {e}; expected {CSV_FORMAT}"),
+            )
+        })?
+        .clone();
+    let find = |n: &str| header.iter().position(|h| h == n);
+    let found = || header.iter().collect::<Vec<_>>().join(",");
+    let time = find("time_s").ok_or_else(|| {
+        CliError::input(
+            file,
+            Some(1),
+            format!(
+                "no `time_s` column (found: {}); expected {CSV_FORMAT}",
+                found()
+            ),
+        )
+    })?;
+    let axes: Vec<(&str, usize)> = AXES
+        .iter()
+        .filter_map(|a| find(a).map(|i| (*a, i)))
+        .collect();
+    if axes.is_empty() {
+        return Err(CliError::input(
+            file,
+            Some(1),
+            format!(
+                "no `ax`, `ay` or `az` column (found: {}); expected {CSV_FORMAT}",
+                found()
+            ),
+        ));
+    }
+    let mut times = Vec::new();
+    let mut values = vec![Vec::new(); axes.len()];
+    for rec in r.records() {
+        let rec = rec.map_err(|e| {
+            let line = e.position().map(|p| p.line() as usize);
+            CliError::input(file, line, format!("unreadable row: {e}"))
+        })?;
+        let line = rec.position().map(|p| p.line() as usize);
+        let num = |col: usize, name: &str| -> Result<f64, CliError> {
+            let cell = rec.get(col).unwrap_or("");
+            cell.parse::<f64>()
+                .ok()
+                .filter(|v| v.is_finite())
+                .ok_or_else(|| {
+                    CliError::input(
+                        file,
+                        line,
+                        format!("column `{name}`: `{cell}` is not a finite number"),
+                    )
+                })
+        };
+        let t = num(time, "time_s")?;
+        if let Some(&prev) = times.last()
+            && t <= prev
+        {
+            return Err(CliError::input(
+                file,
+                line,
+                format!(
+                    "column `time_s`: {t} does not increase (previous {prev}); times must be strictly increasing"
+                ),
+            ));
+        }
+        times.push(t);
+        for ((name, col), v) in axes.iter().zip(&mut values) {
+            v.push(num(*col, name)?);
+        }
+    }
+    let channels = axes
+        .iter()
+        .map(|(n, _)| n.to_string())
+        .zip(values)
+        .collect();
+    finish(file, &times, channels, None)
+}
+
+fn read_mcap(bytes: &[u8], file: &str) -> Result<Log, CliError> {
+    let bad = |m: String| CliError::input(file, None, m);
+    let mut truth: Option<Value> = None;
+    let mut times = Vec::new();
+    let mut values: Vec<Vec<f64>> = vec![Vec::new(); AXES.len()];
+    let stream =
+        MessageStream::new(bytes).map_err(|e| bad(format!("not a readable MCAP file: {e}")))?;
+    for message in stream {
+        let m = message.map_err(|e| bad(format!("a damaged MCAP record: {e}")))?;
+        match m.channel.topic.as_str() {
+            "/ground_truth" => truth = serde_json::from_slice(&m.data).ok(),
+            "/accelerometer" => {
+                let v: Value = serde_json::from_slice(&m.data)
+                    .map_err(|e| bad(format!("/accelerometer: a message that is not JSON: {e}")))?;
+                let num = |k: &str| {
+                    v[k].as_f64().ok_or_else(|| {
+                        bad(format!("/accelerometer: a message without a number `{k}`"))
+                    })
+                };
+                times.push(num("time_s")?);
+                for (axis, vals) in AXES.iter().zip(&mut values) {
+                    vals.push(num(axis)?);
+                }
+            }
+            _ => {}
+        }
+    }
+    if times.is_empty() {
+        return Err(bad(
+            "no /accelerometer topic: not a milling run (a run with an accelerometer stream is needed)".into(),
+        ));
+    }
+    if times.windows(2).any(|w| w[1] <= w[0]) {
+        return Err(bad("/accelerometer: times that do not increase".into()));
+    }
+    let channels = AXES.iter().map(|a| a.to_string()).zip(values).collect();
+    finish(file, &times, channels, truth.as_ref())
+}
+
+/// Sample rate from the mean interval; refuses irregular sampling (an interval off the mean by
+/// more than 1 %), which the spectra and filters assume away.
+fn finish(
+    file: &str,
+    times: &[f64],
+    channels: Vec<(String, Vec<f64>)>,
+    truth: Option<&Value>,
+) -> Result<Log, CliError> {
+    if times.len() < 2 {
+        return Err(CliError::input(
+            file,
+            None,
+            format!("{} samples: at least two are needed", times.len()),
+        ));
+    }
+    let dt = (times[times.len() - 1] - times[0]) / (times.len() - 1) as f64;
+    if let Some(i) = times
+        .windows(2)
+        .position(|w| ((w[1] - w[0]) - dt).abs() > 0.01 * dt)
+    {
+        return Err(CliError::input(
+            file,
+            None,
+            format!(
+                "sample {} (time {} s): interval {} s differs from the mean {dt} s by more than 1 %; uniform sampling is needed",
+                i + 2,
+                times[i + 1],
+                times[i + 1] - times[i]
+            ),
+        ));
+    }
+    // A job's run nests the cut under `milling`; a bare milling run has the keys at the top.
+    let milling = truth.map(|t| {
+        if t["milling"].is_object() {
+            &t["milling"]
+        } else {
+            t
+        }
+    });
+    Ok(Log {
+        sample_rate_hz: 1.0 / dt,
+        channels,
+        spindle_rpm: milling.and_then(|m| m["spindle_rpm"].as_f64()),
+        teeth: milling
+            .and_then(|m| m["teeth"].as_u64())
+            .and_then(|t| u32::try_from(t).ok()),
+    })
+}
+
+/// What the detectors found.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Report {
+    /// Kim's detector, with the limit used.
+    pub kim: Option<(KimResult, f64)>,
+    /// The spectral detector, and where its tooth-passing frequency came from.
+    pub spectral: Option<(SpectralResult, &'static str)>,
+}
+
+/// Runs the chosen detectors on `log`.
+pub fn detect(log: &Log, args: &DetectArgs) -> Result<Report, CliError> {
+    let fs = log.sample_rate_hz;
+    let slices: Vec<&[f64]> = log.channels.iter().map(|(_, v)| v.as_slice()).collect();
+    let model = |e: vmt_chatter::detect::DetectError| CliError::Model(e.to_string());
+    let kim = if args.detector != Which::Better {
+        let band = match args.band[..] {
+            [lo, hi] => (lo, hi),
+            _ => {
+                return Err(CliError::Argument(
+                    "--band LOW,HIGH: two frequencies in Hz".into(),
+                ));
+            }
+        };
+        let mut s = KimSettings {
+            band_hz: band,
+            ..KimSettings::with_limit(1.0)
+        };
+        s.limit = match args.limit {
+            Some(l) => l,
+            None => default_limit(&slices, fs, &s).map_err(model)?,
+        };
+        Some((kim::detect(&slices, fs, &s).map_err(model)?, s.limit))
+    } else {
+        None
+    };
+    let spectral = if args.detector != Which::Kim {
+        let rpm = args.spindle_rpm.or(log.spindle_rpm);
+        let teeth = args.teeth.or(log.teeth);
+        let (f_tp, source) = match (rpm, teeth) {
+            (Some(n), Some(z)) => {
+                let given = args.spindle_rpm.is_some() && args.teeth.is_some();
+                let source = if given {
+                    "from --spindle-rpm, --teeth"
+                } else {
+                    "from the run"
+                };
+                (Some(tooth_passing_hz(n, z)), source)
+            }
+            _ => (None, "estimated from the spectrum"),
+        };
+        let s = SpectralSettings {
+            tooth_passing_hz: f_tp,
+            ..Default::default()
+        };
+        Some((spectral::detect(&slices, fs, &s).map_err(model)?, source))
+    } else {
+        None
+    };
+    Ok(Report { kim, spectral })
+}
+
+/// 3 × the largest block RMS within the first 0.2 s.
+fn default_limit(
+    slices: &[&[f64]],
+    fs: f64,
+    s: &KimSettings,
+) -> Result<f64, vmt_chatter::detect::DetectError> {
+    let probe = kim::detect(
+        slices,
+        fs,
+        &KimSettings {
+            limit: f64::MAX,
+            ..*s
+        },
+    )?;
+    let start = probe.windows.iter().take_while(|w| w.end_s <= 0.2 + 1e-9);
+    let rms = start.map(|w| w.rms).fold(0.0, f64::max);
+    Ok(if rms > 0.0 {
+        3.0 * rms
+    } else {
+        f64::MIN_POSITIVE
+    })
+}
+
+/// The report as text.
+pub fn text(log: &Log, r: &Report) -> String {
+    let n = log.channels.first().map_or(0, |c| c.1.len());
+    let names: Vec<&str> = log.channels.iter().map(|c| c.0.as_str()).collect();
+    let mut out = format!(
+        "{n} samples at {:.1} Hz ({:.3} s), channels {}\n",
+        log.sample_rate_hz,
+        n as f64 / log.sample_rate_hz,
+        names.join(", ")
+    );
+    let when =
+        |t: Option<f64>| t.map_or("no chatter".to_string(), |t| format!("CHATTER at {t:.3} s"));
+    if let Some((k, limit)) = &r.kim {
+        let peak = k.windows.iter().map(|w| w.rms).fold(0.0, f64::max);
+        let feed = k
+            .windows
+            .iter()
+            .map(|w| w.feed_override)
+            .fold(1.0, f64::min);
+        out += &format!(
+            "kim:      {} (limit {limit:.4} m/s², largest block RMS {peak:.4} m/s², lowest feed override {feed:.3})\n",
+            when(k.verdict.detection_time_s)
+        );
+    }
+    if let Some((s, source)) = &r.spectral {
+        let freq = s
+            .verdict
+            .chatter_frequency_hz
+            .map(|f| format!(", chatter frequency {f:.1} Hz"))
+            .unwrap_or_default();
+        let peak = s.frames.iter().map(|f| f.share).fold(0.0, f64::max);
+        out += &format!(
+            "better:   {}{freq} (tooth passing {:.2} Hz {source}, frame {} samples, largest share {peak:.3})\n",
+            when(s.verdict.detection_time_s),
+            s.tooth_passing_hz,
+            s.frame_len
+        );
+    }
+    out
+}
+
+/// Writes the per-window figures: one row per Kim block and per spectral frame.
+pub fn write_csv(r: &Report, w: &mut impl Write) -> std::io::Result<()> {
+    writeln!(
+        w,
+        "detector,window_end_s,rms_m_s2,feed_override,share,non_harmonic_ratio,peak_hz,chatter"
+    )?;
+    if let Some((k, _)) = &r.kim {
+        for b in &k.windows {
+            writeln!(
+                w,
+                "kim,{},{},{},,,,{}",
+                b.end_s, b.rms, b.feed_override, b.chatter
+            )?;
+        }
+    }
+    if let Some((s, _)) = &r.spectral {
+        for f in &s.frames {
+            writeln!(
+                w,
+                "better,{},,,{},{},{},{}",
+                f.end_s, f.share, f.non_harmonic_ratio, f.peak_hz, f.chatter
+            )?;
+        }
+    }
+    Ok(())
+}
+
+/// `vmt chatter detect`.
+pub fn command(args: &DetectArgs) -> Result<(), CliError> {
+    let log = read(&args.log)?;
+    let report = detect(&log, args)?;
+    print!("{}", text(&log, &report));
+    if let Some(path) = &args.csv {
+        let f = std::fs::File::create(path).map_err(|e| CliError::output(path, e))?;
+        let mut w = std::io::BufWriter::new(f);
+        write_csv(&report, &mut w)
+            .and_then(|_| w.flush())
+            .map_err(|e| CliError::output(path, e))?;
+        println!("wrote {}", path.display());
+    }
+    Ok(())
+}

@@ -1,0 +1,580 @@
+//! `vmt gap` and `vmt gap-bench`: the sim-to-real gap of a model against measured ball-bar runs
+//! (where the residual sits, which unmodelled effects explain it, how much each buys on
+//! held-out runs), and the withheld-effect check of that analysis.
+//!
+//! Files written by `vmt gap --out DIR`: `gap.txt`, `gap.json`, `residual_before.png` and
+//! `residual_after.png` (polar plots of measured − model, magnified about the nominal circle),
+//! and `gap.rrd` (Rerun 0.36: the residual traces before and after as polar plots and series).
+
+use crate::error::CliError;
+use crate::formats::rerun::write_rrd;
+use crate::plot::{self, Format};
+use crate::traces::{self, CsvSetup};
+use serde_json::{Value, json};
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+use vmt_ballbar::Trace;
+use vmt_gap::effects::{library, library_for};
+use vmt_gap::localise::{self, Localisation, Place};
+use vmt_gap::model::ScenarioModel;
+use vmt_gap::select::{self, Linearisation, Selection, Split};
+use vmt_gap::{GapError, TracePair};
+use vmt_sim::run::{BallbarTrace, Run};
+
+/// A gap analysis and what it was made from.
+pub struct GapReport {
+    /// The model's scenario file.
+    pub model_file: String,
+    /// The measured files.
+    pub files: Vec<String>,
+    /// The residual of the model as given, localised.
+    pub before: Localisation,
+    /// The residual after the selected effects, localised.
+    pub after: Localisation,
+    /// The selection.
+    pub selection: Selection,
+    /// Simulations run in all.
+    pub simulations: usize,
+}
+
+fn model_error(file: &str, e: GapError) -> CliError {
+    CliError::input(file, None, e.to_string())
+}
+
+/// Reads the measured traces of every file (MCAP runs or CSV traces with `csv`'s set-up).
+pub fn measured(files: &[PathBuf], csv: Option<CsvSetup>) -> Result<Vec<Trace>, CliError> {
+    let mut all = Vec::new();
+    for f in files {
+        all.extend(traces::read(f, csv)?.tests.into_iter().flatten());
+    }
+    if all.is_empty() {
+        return Err(CliError::Argument(
+            "no ball-bar trace in the measured files".into(),
+        ));
+    }
+    Ok(all)
+}
+
+/// The gap of the scenario at `model` against `measured`.
+pub fn analyse(model: &Path, files: &[PathBuf], measured: &[Trace]) -> Result<GapReport, CliError> {
+    let model_file = model.display().to_string();
+    let text = std::fs::read_to_string(model)
+        .map_err(|e| CliError::input(&model_file, None, e.to_string()))?;
+    let dir = model.parent().map(Path::to_path_buf);
+    let forward =
+        ScenarioModel::new(&text, &model_file, dir).map_err(|e| model_error(&model_file, e))?;
+    let mut planes: Vec<(char, char)> = Vec::new();
+    for t in measured {
+        let (p, q) = t.plane.axes();
+        let plane = (p.to_ascii_lowercase(), q.to_ascii_lowercase());
+        if !planes.contains(&plane) {
+            planes.push(plane);
+        }
+    }
+    let lib = library_for(&planes);
+    let err = |e: GapError| match e {
+        GapError::Model(_) => model_error(&model_file, e),
+        other => CliError::Argument(other.to_string()),
+    };
+    let split = Split::automatic(measured).map_err(err)?;
+    let lin = Linearisation::new(&forward, &lib).map_err(err)?;
+    let selection = select::select(
+        &forward,
+        &lin,
+        measured,
+        &lib,
+        split,
+        &select::Options::default(),
+    )
+    .map_err(err)?;
+    let o = localise::Options::default();
+    let before = Localisation::of(&selection.initial_pairs, &o).map_err(err)?;
+    let after = Localisation::of(&selection.final_pairs, &o).map_err(err)?;
+    Ok(GapReport {
+        model_file,
+        files: files.iter().map(|f| f.display().to_string()).collect(),
+        before,
+        after,
+        simulations: lin.simulations() + selection.simulations,
+        selection,
+    })
+}
+
+fn places_text(out: &mut String, title: &str, places: &[Place]) {
+    if places.is_empty() {
+        return;
+    }
+    let _ = writeln!(out, "  {title}:");
+    for p in places {
+        let _ = writeln!(
+            out,
+            "    {:<40} {:>5.1} %  (even spread {:>5.1} %)",
+            p.name,
+            100.0 * p.share,
+            100.0 * p.expected
+        );
+    }
+}
+
+fn localisation_text(out: &mut String, l: &Localisation) {
+    let _ = writeln!(out, "  RMS {:.3} um", l.rms_um);
+    places_text(out, "by run", &l.by_run);
+    places_text(out, "by quadrant", &l.by_quadrant);
+    places_text(out, "around axis reversals", &l.by_reversal);
+    places_text(out, "by direction", &l.by_direction);
+    places_text(out, "by harmonic order of the angle", &l.by_harmonic);
+    places_text(out, "in time", &l.by_time);
+    match &l.concentrations[..] {
+        [] => {
+            let _ = writeln!(out, "  concentrates: nowhere in particular");
+        }
+        c => {
+            let names: Vec<String> = c
+                .iter()
+                .map(|p| format!("{} ({:.0} %)", p.name, 100.0 * p.share))
+                .collect();
+            let _ = writeln!(out, "  concentrates in: {}", names.join(", "));
+        }
+    }
+    if let Some(w) = l.whiteness {
+        let verdict = if w.is_white(0.01) {
+            "white"
+        } else {
+            "not white: structure is left"
+        };
+        let _ = writeln!(
+            out,
+            "  whiteness (Ljung-Box, {} dof): Q = {:.1}, p = {:.3} -> {verdict}",
+            w.dof, w.q, w.p_value
+        );
+    }
+}
+
+/// The report as text.
+pub fn text(r: &GapReport) -> String {
+    let s = &r.selection;
+    let mut out = String::new();
+    let _ = writeln!(
+        out,
+        "Sim-to-real gap: model {} against {}",
+        r.model_file,
+        r.files.join(", ")
+    );
+    let _ = writeln!(
+        out,
+        "Runs: {} measured; split: {}",
+        s.initial_pairs.len(),
+        s.split.rule
+    );
+    let _ = writeln!(out, "\n1. Where (measured - model, before):");
+    localisation_text(&mut out, &r.before);
+    let _ = writeln!(
+        out,
+        "\n2. Which effects explain it, and 3. how much (held-out runs):"
+    );
+    let _ = writeln!(
+        out,
+        "  model as given: calibration RMS {:.3} um, held-out RMS {:.3} um",
+        s.calibration_before_um, s.held_out_before_um
+    );
+    if !s.baseline.is_empty() {
+        let values: Vec<String> = s
+            .baseline
+            .iter()
+            .map(|v| format!("{} {:+.3} {}", v.name, v.value, v.unit))
+            .collect();
+        let _ = writeln!(
+            out,
+            "  baseline (the bar's set-up and length, fitted with every candidate): {}",
+            values.join(", ")
+        );
+    }
+    if s.steps.is_empty() {
+        let _ = writeln!(
+            out,
+            "  no candidate effect explains the gap on the held-out runs: it stays unexplained"
+        );
+    }
+    for (i, step) in s.steps.iter().enumerate() {
+        let values: Vec<String> = step
+            .values
+            .iter()
+            .map(|v| format!("{} {:+.3} {}", v.name, v.value, v.unit))
+            .collect();
+        let _ = writeln!(
+            out,
+            "  + {}. {} ({}): {}\n      held-out RMS {:.3} um ({:.0} % of the remaining mean square removed), calibration RMS {:.3} um",
+            i + 1,
+            step.effect,
+            step.description,
+            values.join(", "),
+            step.held_out_rms_um,
+            100.0 * step.held_out_shrink,
+            step.calibration_rms_um
+        );
+    }
+    let _ = writeln!(
+        out,
+        "  in all: {:.0} % of the held-out mean square removed",
+        100.0 * s.held_out_shrink()
+    );
+    if !s.unavailable.is_empty() {
+        let names: Vec<String> = s
+            .unavailable
+            .iter()
+            .map(|(e, k)| format!("{e} (no `{k}` in the model)"))
+            .collect();
+        let _ = writeln!(
+            out,
+            "  candidates the model file cannot express: {}",
+            names.join(", ")
+        );
+    }
+    let _ = writeln!(out, "\nUnexplained residual (after):");
+    localisation_text(&mut out, &r.after);
+    let _ = writeln!(out, "\n{} simulations.", r.simulations);
+    out
+}
+
+fn places_json(places: &[Place]) -> Value {
+    serde_json::to_value(places).unwrap_or(Value::Null)
+}
+
+fn localisation_json(l: &Localisation) -> Value {
+    json!({
+        "rms_um": l.rms_um,
+        "by_run": places_json(&l.by_run),
+        "by_quadrant": places_json(&l.by_quadrant),
+        "by_reversal": places_json(&l.by_reversal),
+        "by_direction": places_json(&l.by_direction),
+        "by_harmonic": places_json(&l.by_harmonic),
+        "by_time": places_json(&l.by_time),
+        "concentrations": places_json(&l.concentrations),
+        "whiteness": l.whiteness.map(|w| json!({"q": w.q, "dof": w.dof, "p_value": w.p_value})),
+    })
+}
+
+/// The report as JSON.
+pub fn json(r: &GapReport) -> Value {
+    let s = &r.selection;
+    json!({
+        "model": r.model_file,
+        "measured": r.files,
+        "split": {"rule": s.split.rule, "calibration": s.split.calibration, "held_out": s.split.held_out},
+        "before": localisation_json(&r.before),
+        "baseline": s.baseline,
+        "effects": s.steps,
+        "held_out_rms_before_um": s.held_out_before_um,
+        "held_out_shrink": s.held_out_shrink(),
+        "unexplained": localisation_json(&r.after),
+        "last_round": s.last_round,
+        "unavailable": s.unavailable,
+        "simulations": r.simulations,
+    })
+}
+
+fn residual_traces(pairs: &[TracePair], suffix: &str) -> Vec<BallbarTrace> {
+    pairs
+        .iter()
+        .map(|p| BallbarTrace {
+            label: format!("{} {suffix}", p.label),
+            plane: p.plane.to_string(),
+            direction: p.sense.name().into(),
+            radius_mm: p.radius_mm,
+            feed_mm_min: p.feed_mm_min,
+            times_s: p.time_s.clone(),
+            angle_deg: p.angle_deg.clone(),
+            deviation_um: p.residual_um.clone(),
+        })
+        .collect()
+}
+
+/// Writes gap.txt, gap.json, the residual polar plots and gap.rrd into `dir`.
+pub fn write(r: &GapReport, dir: &Path) -> Result<Vec<PathBuf>, CliError> {
+    std::fs::create_dir_all(dir).map_err(|e| CliError::output(dir, e))?;
+    let mut files = Vec::new();
+    let mut put = |name: &str, body: String| -> Result<(), CliError> {
+        let path = dir.join(name);
+        std::fs::write(&path, body).map_err(|e| CliError::output(&path, e))?;
+        files.push(path);
+        Ok(())
+    };
+    put("gap.txt", text(r))?;
+    put(
+        "gap.json",
+        serde_json::to_string_pretty(&json(r)).map_err(|e| CliError::output(dir, e))?,
+    )?;
+    let before = residual_traces(&r.selection.initial_pairs, "residual before");
+    let after = residual_traces(&r.selection.final_pairs, "residual after");
+    for (name, traces, rms) in [
+        ("residual_before.png", &before, r.before.rms_um),
+        ("residual_after.png", &after, r.after.rms_um),
+    ] {
+        let path = dir.join(name);
+        plot::draw_polar(
+            traces,
+            &path,
+            Format::Png,
+            Some(&format!("measured - model, RMS {rms:.3} um")),
+        )?;
+        files.push(path);
+    }
+    let rrd = dir.join("gap.rrd");
+    write_rrd(&residual_run(r, before, after)?, &rrd)?;
+    files.push(rrd);
+    Ok(files)
+}
+
+/// The residuals as a run for the Rerun writer: the traces before and after, the report as the
+/// run's ground-truth document.
+fn residual_run(
+    r: &GapReport,
+    before: Vec<BallbarTrace>,
+    after: Vec<BallbarTrace>,
+) -> Result<Run, CliError> {
+    let text = std::fs::read_to_string(&r.model_file)
+        .map_err(|e| CliError::input(&r.model_file, None, e.to_string()))?;
+    let scenario = vmt_scenario::parse(&text, &r.model_file, Path::new(&r.model_file).parent())?;
+    Ok(Run {
+        scenario_name: format!("gap of {}", r.model_file),
+        scenario_toml: text,
+        seed: 0,
+        fidelity: "reduced".into(),
+        machine: vmt_sim::simulate::summary(&scenario.machine),
+        streams: Vec::new(),
+        ballbar: before.into_iter().chain(after).collect(),
+        laser: None,
+        ground_truth: json(r),
+    })
+}
+
+/// `vmt gap` arguments.
+#[derive(clap::Args, Debug)]
+pub struct GapArgs {
+    /// The model: a scenario whose job is the measured test(s).
+    #[arg(long)]
+    pub model: PathBuf,
+    /// Measured runs: our run.mcap files, or ball-bar CSV traces (angle_deg, deviation_um,
+    /// direction [, time_s]) with --radius-mm, --feed-mm-min and --plane.
+    #[arg(long, num_args = 1.., required = true)]
+    pub real: Vec<PathBuf>,
+    /// Nominal radius of CSV traces, mm.
+    #[arg(long)]
+    pub radius_mm: Option<f64>,
+    /// Feed of CSV traces, mm/min.
+    #[arg(long)]
+    pub feed_mm_min: Option<f64>,
+    /// Plane of CSV traces: XY, ZX or YZ.
+    #[arg(long)]
+    pub plane: Option<String>,
+    /// Also write gap.txt, gap.json, residual plots and gap.rrd into this folder.
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Print JSON instead of text.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// Runs `vmt gap`.
+pub fn command(a: &GapArgs) -> Result<(), CliError> {
+    let csv = match (a.radius_mm, a.feed_mm_min, a.plane.as_deref()) {
+        (Some(radius_mm), Some(feed_mm_min), Some(plane)) => Some(CsvSetup {
+            plane,
+            radius_mm,
+            feed_mm_min,
+        }),
+        (None, None, None) => None,
+        _ => {
+            return Err(CliError::Argument(
+                "CSV traces need all of --radius-mm, --feed-mm-min and --plane".into(),
+            ));
+        }
+    };
+    let measured = measured(&a.real, csv)?;
+    let report = analyse(&a.model, &a.real, &measured)?;
+    if a.json {
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&json(&report))
+                .map_err(|e| CliError::Argument(e.to_string()))?
+        );
+    } else {
+        print!("{}", text(&report));
+    }
+    if let Some(dir) = &a.out {
+        for f in write(&report, dir)? {
+            eprintln!("wrote {}", f.display());
+        }
+    }
+    Ok(())
+}
+
+/// `vmt gap-bench` arguments.
+#[derive(clap::Args, Debug)]
+pub struct BenchArgs {
+    /// The model (default: the built-in machine).
+    #[arg(long)]
+    pub model: Option<PathBuf>,
+    /// Radius of the circular test every case runs, mm (written into the model's job).
+    #[arg(long, default_value_t = 100.0)]
+    pub radius_mm: f64,
+    /// Feed of that test, mm/min.
+    #[arg(long, default_value_t = 2000.0)]
+    pub feed_mm_min: f64,
+    /// Nuisance: the other parameters' mismatch, as a fraction of their typical size.
+    #[arg(long, default_value_t = 0.05)]
+    pub nuisance: f64,
+    /// Null cases (nothing withheld).
+    #[arg(long, default_value_t = 12)]
+    pub nulls: usize,
+    /// Seed of the first case.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Draws of the whole list of cases, each with its own seeds.
+    #[arg(long, default_value_t = 3)]
+    pub repeats: usize,
+    /// Write gap_bench.md and gap_bench.json into this folder.
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// No progress bar.
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+/// Runs `vmt gap-bench`.
+pub fn bench_command(a: &BenchArgs) -> Result<(), CliError> {
+    use vmt_gap::bench;
+    let (text, file) = match &a.model {
+        Some(p) => (
+            std::fs::read_to_string(p)
+                .map_err(|e| CliError::input(&p.display().to_string(), None, e.to_string()))?,
+            p.display().to_string(),
+        ),
+        None => (
+            vmt_scenario::BUILTIN_DEFAULT.to_string(),
+            vmt_scenario::BUILTIN_NAME.to_string(),
+        ),
+    };
+    let text = vmt_scenario::edit::Template::parse(&text, &file)?.with(&[
+        ("job.radius_mm", a.radius_mm),
+        ("job.feed_mm_min", a.feed_mm_min),
+    ])?;
+    let dir = a
+        .model
+        .as_deref()
+        .and_then(Path::parent)
+        .map(Path::to_path_buf);
+    let model = ScenarioModel::new(&text, &file, dir).map_err(|e| model_error(&file, e))?;
+    let lib = library('x', 'y');
+    let settings = bench::Settings {
+        nuisance: a.nuisance,
+        nulls: a.nulls,
+        seed: a.seed,
+        repeats: a.repeats,
+    };
+    let cases = bench::cases(&model, &lib, &settings);
+    let bar = if a.quiet {
+        indicatif::ProgressBar::hidden()
+    } else {
+        indicatif::ProgressBar::new(cases.len() as u64)
+    };
+    bar.set_message("gap-bench cases");
+    let o = select::Options::default();
+    let outcomes = bench::run(&text, &model, &lib, &cases, &o, &|| bar.inc(1))
+        .map_err(|e| model_error(&file, e))?;
+    bar.finish_and_clear();
+    let figures = bench::figures(&outcomes);
+    let report = bench_markdown(&file, a, &figures, &outcomes);
+    print!("{report}");
+    if let Some(dir) = &a.out {
+        std::fs::create_dir_all(dir).map_err(|e| CliError::output(dir, e))?;
+        let md = dir.join("gap_bench.md");
+        std::fs::write(&md, &report).map_err(|e| CliError::output(&md, e))?;
+        let js = dir.join("gap_bench.json");
+        let body = json!({"settings": {"model": file, "radius_mm": a.radius_mm, "feed_mm_min": a.feed_mm_min, "nuisance": a.nuisance, "nulls": a.nulls, "seed": a.seed, "repeats": a.repeats}, "figures": figures, "cases": outcomes});
+        std::fs::write(
+            &js,
+            serde_json::to_string_pretty(&body).map_err(|e| CliError::output(&js, e))?,
+        )
+        .map_err(|e| CliError::output(&js, e))?;
+    }
+    Ok(())
+}
+
+fn pct(x: f64) -> String {
+    format!("{:.1} %", 100.0 * x)
+}
+
+fn bench_markdown(
+    file: &str,
+    a: &BenchArgs,
+    f: &vmt_gap::bench::Figures,
+    outcomes: &[vmt_gap::bench::Outcome],
+) -> String {
+    let mut out = String::new();
+    let _ = writeln!(out, "# Sim-to-real gap: withheld-effect check\n");
+    let _ = writeln!(
+        out,
+        "Model {file}, job: XY circle {} mm at {} mm/min, CW and CCW (CW fits, CCW judges); nuisance {} x typical on every other parameter, the bar's set-up drawn anew, instrument noise and resolution kept, a seed per case (first seed {}, {} draws of the list).\n",
+        a.radius_mm, a.feed_mm_min, a.nuisance, a.seed, a.repeats
+    );
+    let _ = writeln!(
+        out,
+        "| Figure | Measured | Goal | Cases |\n|---|---|---|---|"
+    );
+    let _ = writeln!(
+        out,
+        "| Top-1 attribution (one effect withheld) | {} | >= 95 % | {} |",
+        pct(f.top1),
+        f.single_cases
+    );
+    let _ = writeln!(
+        out,
+        "| False attribution (nothing withheld) | {} | <= 5 % | {} |",
+        pct(f.false_attribution_null),
+        f.null_cases
+    );
+    let _ = writeln!(
+        out,
+        "| Median held-out shrink (in-library cases) | {} | >= 80 % | {} |",
+        pct(f.median_shrink),
+        f.single_cases + f.pair_cases
+    );
+    let _ = writeln!(
+        out,
+        "| Out-of-library effect left unexplained | {} | >= 90 % | {} |",
+        pct(f.unexplained_outside),
+        f.outside_cases
+    );
+    let _ = writeln!(
+        out,
+        "| Pairs: both effects found | {} | - | {} |\n",
+        pct(f.pairs_both_found),
+        f.pair_cases
+    );
+    let _ = writeln!(
+        out,
+        "## Confusion (withheld -> first effect found)\n\n| Withheld | Found |\n|---|---|"
+    );
+    for (row, cols) in &f.confusion {
+        let cells: Vec<String> = cols.iter().map(|(c, n)| format!("{c} x{n}")).collect();
+        let _ = writeln!(out, "| {row} | {} |", cells.join(", "));
+    }
+    let _ = writeln!(
+        out,
+        "\n## Cases\n\n| Case | Found | Partial | Held-out RMS before (um) | after (um) | Shrink |\n|---|---|---|---|---|---|"
+    );
+    for o in outcomes {
+        let _ = writeln!(
+            out,
+            "| {} | {} | {} | {:.3} | {:.3} | {} |",
+            o.case,
+            o.found.join(", "),
+            o.partial.join(", "),
+            o.held_out_before_um,
+            o.held_out_after_um,
+            pct(o.shrink)
+        );
+    }
+    out
+}

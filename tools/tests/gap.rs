@@ -1,0 +1,117 @@
+//! `vmt gap` end to end on ball-bar CSV traces that did not come from the simulator (written
+//! from displacement laws), and the refusal of measurements of another test.
+
+mod common;
+
+use common::{stderr, vmt};
+use std::path::{Path, PathBuf};
+use vmt_ballbar::synthetic::{Errors, trace};
+use vmt_ballbar::{Plane, Sense, Trace};
+
+/// The built-in machine with its test shortened to a 50 mm circle at 2000 mm/min.
+fn model(dir: &Path) -> PathBuf {
+    let text = vmt_scenario::BUILTIN_DEFAULT
+        .replace("radius_mm = 150.0", "radius_mm = 50.0")
+        .replace(
+            "feed_mm_min = 1000.0\narc_deg",
+            "feed_mm_min = 2000.0\narc_deg",
+        );
+    let p = dir.join("model.toml");
+    std::fs::write(&p, text).unwrap();
+    p
+}
+
+fn write_csv(dir: &Path, name: &str, traces: &[Trace]) -> PathBuf {
+    let mut s = String::from("angle_deg,deviation_um,direction\n");
+    for t in traces {
+        for (a, d) in t.angle_deg.iter().zip(&t.deviation_um) {
+            s += &format!("{a},{d},{}\n", t.sense.name());
+        }
+    }
+    let p = dir.join(name);
+    std::fs::write(&p, s).unwrap();
+    p
+}
+
+/// CW then CCW over the full circle from 0°, the tool displaced by `e`.
+fn traces(radius_mm: f64, e: &Errors) -> Vec<Trace> {
+    [(Sense::Cw, (0.0, 0.5), 1), (Sense::Ccw, (0.5, 1.0), 2)]
+        .into_iter()
+        .map(|(sense, progress, seed)| {
+            trace(
+                Plane::Xy,
+                sense,
+                radius_mm,
+                2000.0,
+                0.0,
+                360.0,
+                e,
+                progress,
+                seed,
+            )
+        })
+        .collect()
+}
+
+#[test]
+fn a_servo_mismatch_in_hand_made_traces_is_found() {
+    let dir = tempfile::tempdir().unwrap();
+    let model = model(dir.path());
+    // The model's axes lag equally (Kv 33 and 33.3/s: 30.3 and 30.0 ms); these traces carry a
+    // 1 ms mismatch, ±(FΔτ/2)·sin 2θ = ±16.7 µm at 2000 mm/min, reversing with direction.
+    let e = Errors {
+        lag_ms: [31.3, 30.0],
+        noise_um: 0.2,
+        ..Default::default()
+    };
+    let csv = write_csv(dir.path(), "trace.csv", &traces(50.0, &e));
+    let m = model.to_str().unwrap();
+    let o = vmt(&[
+        "gap",
+        "--model",
+        m,
+        "--real",
+        csv.to_str().unwrap(),
+        "--radius-mm",
+        "50",
+        "--feed-mm-min",
+        "2000",
+        "--plane",
+        "XY",
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let r: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let first = &r["effects"][0];
+    assert_eq!(first["effect"], "servo_mismatch", "{r:#}");
+    // Δτ = ΔKv/Kv²: 1 ms more lag on X is Kv_X lower by about 33²·0.001 ≈ 1.1/s.
+    let dkv = first["values"][0]["value"].as_f64().unwrap();
+    assert!((dkv + 1.05).abs() < 0.2, "ΔKv_X {dkv} 1/s");
+    assert!(r["held_out_shrink"].as_f64().unwrap() > 0.8, "{r:#}");
+}
+
+#[test]
+fn measurements_of_another_test_are_refused_by_name() {
+    let dir = tempfile::tempdir().unwrap();
+    let model = model(dir.path());
+    let csv = write_csv(dir.path(), "trace.csv", &traces(60.0, &Errors::default()));
+    let o = vmt(&[
+        "gap",
+        "--model",
+        model.to_str().unwrap(),
+        "--real",
+        csv.to_str().unwrap(),
+        "--radius-mm",
+        "60",
+        "--feed-mm-min",
+        "2000",
+        "--plane",
+        "XY",
+    ]);
+    assert!(!o.status.success());
+    let e = stderr(&o);
+    assert!(
+        e.contains("60 mm") && e.contains("XY 50 mm 2000 mm/min"),
+        "{e}"
+    );
+}

@@ -1,0 +1,78 @@
+//! A milling job end to end: `vmt run` on scenarios/milling_slot.toml (the NC program through
+//! the controller and feed drives, the cut with regenerative chatter), then `vmt chatter
+//! detect` on the run's MCAP, for a depth above the stability limit and one below it.
+
+mod common;
+
+use common::{stderr, vmt};
+use std::path::{Path, PathBuf};
+
+/// The shipped slot scenario at `depth_mm`, written with its program into `dir`.
+fn scenario(dir: &Path, depth_mm: f64) -> PathBuf {
+    let root = concat!(env!("CARGO_MANIFEST_DIR"), "/../scenarios");
+    let text = std::fs::read_to_string(format!("{root}/milling_slot.toml")).unwrap();
+    let text = text.replace(
+        "axial_depth_mm = 0.5",
+        &format!("axial_depth_mm = {depth_mm}"),
+    );
+    std::fs::create_dir_all(dir.join("milling")).unwrap();
+    std::fs::copy(
+        format!("{root}/milling/slot.nc"),
+        dir.join("milling/slot.nc"),
+    )
+    .unwrap();
+    let p = dir.join("slot.toml");
+    std::fs::write(&p, text).unwrap();
+    p
+}
+
+fn run(dir: &Path, depth_mm: f64) -> (serde_json::Value, String) {
+    let s = scenario(dir, depth_mm);
+    let out = dir.join("out");
+    let o = vmt(&[
+        "run",
+        s.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--quiet",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let truth = std::fs::read_to_string(out.join("ground_truth.json")).unwrap();
+    let d = vmt(&[
+        "chatter",
+        "detect",
+        out.join("run.mcap").to_str().unwrap(),
+        "--detector",
+        "better",
+    ]);
+    assert!(d.status.success(), "{}", stderr(&d));
+    (
+        serde_json::from_str(&truth).unwrap(),
+        String::from_utf8_lossy(&d.stdout).into_owned(),
+    )
+}
+
+#[test]
+fn a_slot_beyond_the_limit_chatters_near_the_mode_and_is_detected() {
+    let dir = tempfile::tempdir().unwrap();
+    let (truth, detect) = run(dir.path(), 0.5);
+    let m = &truth["milling"];
+    assert_eq!(m["chatter"], true, "{m:#}");
+    // Regenerative chatter just above the 922 Hz mode, away from the 500 Hz tooth passing.
+    let f = m["chatter_frequency_hz"].as_f64().unwrap();
+    assert!((f - 930.0).abs() < 40.0, "chatter at {f} Hz");
+    assert_eq!(m["spindle_rpm"], 15000.0);
+    assert!(
+        (m["feed_per_tooth_mm"].as_f64().unwrap() - 0.1).abs() < 1e-9,
+        "F3000 S15000 on two teeth"
+    );
+    assert!(detect.contains("CHATTER"), "{detect}");
+}
+
+#[test]
+fn a_slot_below_the_limit_is_stable_and_not_flagged() {
+    let dir = tempfile::tempdir().unwrap();
+    let (truth, detect) = run(dir.path(), 0.2);
+    assert_eq!(truth["milling"]["chatter"], false, "{truth:#}");
+    assert!(!detect.contains("CHATTER"), "{detect}");
+}
