@@ -336,7 +336,7 @@ pub fn compensate(a: &CompensateArgs) -> Result<(), CliError> {
     let mut out = String::new();
     let _ = writeln!(
         out,
-        "Slot of {} mm at {} rpm, 0.05 mm per tooth, {} s (12 mm four-flute tool, modes 2.3 and 6.5 kHz):\n",
+        "Half-immersion down-milling cut of {} mm at {} rpm, 0.05 mm per tooth, {} s (12 mm four-flute tool, modes 2.3 and 6.5 kHz):\n",
         a.depth_mm, a.spindle_rpm, a.duration_s
     );
     let _ = writeln!(

@@ -515,6 +515,11 @@ fn bench_markdown(
     let _ = writeln!(out, "# Sim-to-real gap: withheld-effect check\n");
     let _ = writeln!(
         out,
+        "Made by `vmt gap-bench --radius-mm {} --feed-mm-min {} --nuisance {} --nulls {} --seed {} --repeats {}` (the defaults).\n",
+        a.radius_mm, a.feed_mm_min, a.nuisance, a.nulls, a.seed, a.repeats
+    );
+    let _ = writeln!(
+        out,
         "Model {file}, job: XY circle {} mm at {} mm/min, CW and CCW (CW fits, CCW judges); nuisance {} x typical on every other parameter, the bar's set-up drawn anew, instrument noise and resolution kept, a seed per case (first seed {}, {} draws of the list).\n",
         a.radius_mm, a.feed_mm_min, a.nuisance, a.seed, a.repeats
     );
