@@ -112,6 +112,10 @@ pub struct BenchArgs {
     /// Length of each cut, s.
     #[arg(long, default_value_t = 0.4)]
     pub duration_s: f64,
+    /// Also write one row per run (speed, depth, label, onset, the better detector's verdict
+    /// and time) to this CSV file.
+    #[arg(long)]
+    pub csv: Option<std::path::PathBuf>,
 }
 
 fn grid(a: &BenchArgs) -> Vec<(f64, f64)> {
@@ -165,14 +169,35 @@ pub fn bench(a: &BenchArgs) -> Result<(), CliError> {
         .map(|(i, (rpm, d))| labelled(*rpm, *d, i as u64 + 1, a.duration_s))
         .collect::<Result<_, _>>()?;
     let chatter = runs.iter().filter(|r| r.chatter_onset_s.is_some()).count();
+    let verdicts = std::cell::RefCell::new(Vec::new());
     let better = evaluate(&runs, |r| {
         let s = spectral::SpectralSettings {
             tooth_passing_hz: Some(spectral::tooth_passing_hz(r.spindle_rpm, r.teeth)),
             ..Default::default()
         };
-        spectral::detect(&r.slices(), r.sample_rate_hz, &s).map(|x| x.verdict)
+        let v = spectral::detect(&r.slices(), r.sample_rate_hz, &s).map(|x| x.verdict)?;
+        verdicts.borrow_mut().push(v);
+        Ok(v)
     })
     .map_err(sim_error)?;
+    if let Some(path) = &a.csv {
+        let mut text = String::from(
+            "spindle_rpm,depth_mm,chatter,onset_s,better_chatter,better_time_s,better_frequency_hz\n",
+        );
+        for (((rpm, d), r), v) in grid(a).iter().zip(&runs).zip(verdicts.borrow().iter()) {
+            let opt = |x: Option<f64>| x.map_or(String::new(), |x| x.to_string());
+            let _ = writeln!(
+                text,
+                "{rpm},{d},{},{},{},{},{}",
+                r.chatter_onset_s.is_some(),
+                opt(r.chatter_onset_s),
+                v.chatter,
+                opt(v.detection_time_s),
+                opt(v.chatter_frequency_hz)
+            );
+        }
+        std::fs::write(path, text).map_err(|e| CliError::output(path, e))?;
+    }
     let mut out = String::new();
     let _ = writeln!(
         out,

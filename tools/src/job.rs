@@ -12,9 +12,9 @@ use indicatif::{ProgressBar, ProgressStyle};
 use std::path::{Path, PathBuf};
 use vmt_scenario::Scenario;
 use vmt_sim::laser::Iso230_2;
+use vmt_sim::machining::simulate_machining;
 use vmt_sim::plant::Fidelity;
 use vmt_sim::run::Run;
-use vmt_sim::machining::simulate_machining;
 use vmt_sim::simulate::{SimError, simulate};
 
 /// The files a run wrote.

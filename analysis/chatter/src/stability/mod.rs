@@ -29,7 +29,9 @@ use vmt_model::cutting::{
 pub enum StabilityError {
     #[error(transparent)]
     Cutting(#[from] CuttingError),
-    #[error("{name} range {start} … {end} is empty or inverted; give start < end, both finite and > 0")]
+    #[error(
+        "{name} range {start} … {end} is empty or inverted; give start < end, both finite and > 0"
+    )]
     BadRange {
         name: &'static str,
         start: f64,
@@ -122,7 +124,12 @@ pub fn directional_integral(phi0: f64, phi1: f64, kr: f64) -> Matrix2<f64> {
 
 /// An evenly spaced grid of `count` values from `start` to `end` (both included), refused
 /// when empty, inverted or not finite and positive. `name` names the quantity in the error.
-pub fn grid(name: &'static str, start: f64, end: f64, count: usize) -> Result<Vec<f64>, StabilityError> {
+pub fn grid(
+    name: &'static str,
+    start: f64,
+    end: f64,
+    count: usize,
+) -> Result<Vec<f64>, StabilityError> {
     if !(start.is_finite() && end.is_finite() && start > 0.0 && start < end) {
         return Err(StabilityError::BadRange { name, start, end });
     }

@@ -238,7 +238,11 @@ impl MillingSd {
         let modes: Vec<(usize, _)> = dirs
             .iter()
             .flat_map(|&dir| {
-                let list = if dir == 0 { &system.dynamics.x } else { &system.dynamics.y };
+                let list = if dir == 0 {
+                    &system.dynamics.x
+                } else {
+                    &system.dynamics.y
+                };
                 list.iter().map(move |md| (dir, *md))
             })
             .collect();

@@ -116,7 +116,10 @@ pub fn lobes(system: &MillingSystem, settings: &ZoaSettings) -> Result<Lobes, St
     check_settings(settings)?;
     let alpha = directional_coefficients(system);
     let modes = system.dynamics.x.iter().chain(&system.dynamics.y);
-    let f_lo = modes.clone().map(|m| m.natural_frequency_hz).fold(f64::INFINITY, f64::min);
+    let f_lo = modes
+        .clone()
+        .map(|m| m.natural_frequency_hz)
+        .fold(f64::INFINITY, f64::min);
     let f_hi = system.dynamics.highest_frequency_hz();
     let freqs = super::grid(
         "chatter frequency, Hz",
@@ -133,7 +136,8 @@ pub fn lobes(system: &MillingSystem, settings: &ZoaSettings) -> Result<Lobes, St
                 let wc = std::f64::consts::TAU * f;
                 let point = lambdas(system, &alpha, wc)[branch].and_then(|lam| {
                     let kappa = lam.im / lam.re;
-                    let depth_m = -std::f64::consts::TAU * lam.re / (n * kt) * (1.0 + kappa * kappa);
+                    let depth_m =
+                        -std::f64::consts::TAU * lam.re / (n * kt) * (1.0 + kappa * kappa);
                     let eps = std::f64::consts::PI - 2.0 * kappa.atan();
                     let period = (eps + std::f64::consts::TAU * k as f64) / wc;
                     (depth_m.is_finite() && depth_m > 0.0).then_some(LobePoint {
@@ -193,5 +197,7 @@ pub fn feed_only_minimum_depth(system: &MillingSystem) -> Option<f64> {
     } else {
         1.0 / (4.0 * k * z * (1.0 - z))
     };
-    Some(std::f64::consts::TAU / (system.teeth() * system.coefficients.tangential * axx * g_extreme))
+    Some(
+        std::f64::consts::TAU / (system.teeth() * system.coefficients.tangential * axx * g_extreme),
+    )
 }
