@@ -10,6 +10,7 @@ pub mod error;
 pub mod formats;
 pub mod gap;
 pub mod job;
+pub mod lobes;
 pub mod map;
 pub mod plot;
 pub mod points;

@@ -82,6 +82,17 @@ enum Command {
     /// Diagnose every run of a dataset and compare with its truth: bias, RMS, 95th percentile,
     /// worst, share within tolerance and false positives per figure (DIR/accuracy.{md,json}).
     Accuracy(AccuracyArgs),
+    /// Stability lobes of a milling operation by semi-discretization (Insperger–Stépán) and
+    /// the zero-order approximation (Altintas–Budak), side by side: OUT/lobes.csv (critical
+    /// depth per speed by each method), OUT/sd_map.csv (spectral radius over speed × depth)
+    /// and OUT/lobes.png.
+    ///
+    /// Examples:
+    ///   vmt lobes                                  (1-DOF benchmark, a/D = 1, 0.5, 0.1, 0.05)
+    ///   vmt lobes --immersion 0.05 --direction up --depth-max-mm 5
+    ///   vmt lobes --scenario scenarios/milling_slot.toml --out slot_lobes
+    #[command(verbatim_doc_comment)]
+    Lobes(vmt_tools::lobes::LobesArgs),
     /// Milling chatter.
     #[command(subcommand)]
     Chatter(ChatterCommand),
@@ -358,6 +369,7 @@ fn main() -> ExitCode {
             vmt_tools::dataset::command(&a.scenario, a.count, a.seed, &a.out, a.quiet)
         }
         Command::Accuracy(a) => vmt_tools::accuracy::command(&a.dir),
+        Command::Lobes(a) => vmt_tools::lobes::command(&a),
         Command::Chatter(ChatterCommand::Detect(a)) => vmt_tools::chatter::command(&a),
         Command::Chatter(ChatterCommand::Bench(a)) => vmt_tools::chatter_bench::bench(&a),
         Command::Chatter(ChatterCommand::Compensate(a)) => vmt_tools::chatter_bench::compensate(&a),
