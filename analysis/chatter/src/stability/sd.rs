@@ -496,6 +496,162 @@ fn eigenvalues(m: DMatrix<f64>) -> Option<Vec<Complex<f64>>> {
     Some(eig)
 }
 
+/// The eigenvalues of the upper Hessenberg `a` (row-major k×k, destroyed) by the Francis
+/// double-shift QR iteration without accumulating transformations (EISPACK hqr, as in
+/// Numerical Recipes §11.6); None after 60 iterations on one eigenvalue.
+fn hessenberg_eigenvalues(a: &mut [f64], k: usize) -> Option<Vec<Complex<f64>>> {
+    let at = |i: usize, j: usize| i * k + j;
+    let mut eig = Vec::with_capacity(k);
+    let anorm: f64 = (0..k)
+        .map(|i| {
+            (i.saturating_sub(1)..k)
+                .map(|j| a[at(i, j)].abs())
+                .sum::<f64>()
+        })
+        .sum();
+    let mut nn = k as isize - 1;
+    let mut t = 0.0;
+    while nn >= 0 {
+        let n = nn as usize;
+        let mut its = 0;
+        loop {
+            let mut l = n;
+            while l >= 1 {
+                let mut s = a[at(l - 1, l - 1)].abs() + a[at(l, l)].abs();
+                if s == 0.0 {
+                    s = anorm;
+                }
+                if a[at(l, l - 1)].abs() + s == s {
+                    a[at(l, l - 1)] = 0.0;
+                    break;
+                }
+                l -= 1;
+            }
+            let mut x = a[at(n, n)];
+            if l == n {
+                eig.push(Complex::new(x + t, 0.0));
+                nn -= 1;
+                break;
+            }
+            let mut y = a[at(n - 1, n - 1)];
+            let mut w = a[at(n, n - 1)] * a[at(n - 1, n)];
+            if l == n - 1 {
+                let p = 0.5 * (y - x);
+                let q = p * p + w;
+                let z = q.abs().sqrt();
+                x += t;
+                if q >= 0.0 {
+                    let z = p + z.copysign(p);
+                    let second = if z != 0.0 { x - w / z } else { x + z };
+                    eig.push(Complex::new(x + z, 0.0));
+                    eig.push(Complex::new(second, 0.0));
+                } else {
+                    eig.push(Complex::new(x + p, z));
+                    eig.push(Complex::new(x + p, -z));
+                }
+                nn -= 2;
+                break;
+            }
+            if its == 60 {
+                return None;
+            }
+            if its % 10 == 0 && its > 0 {
+                // Exceptional shift.
+                t += x;
+                for i in 0..=n {
+                    a[at(i, i)] -= x;
+                }
+                let s = a[at(n, n - 1)].abs() + a[at(n - 1, n - 2)].abs();
+                x = 0.75 * s;
+                y = x;
+                w = -0.4375 * s * s;
+            }
+            its += 1;
+            let (mut p, mut q, mut r);
+            let mut m = n - 2;
+            loop {
+                let z = a[at(m, m)];
+                let (rr, ss) = (x - z, y - z);
+                p = (rr * ss - w) / a[at(m + 1, m)] + a[at(m, m + 1)];
+                q = a[at(m + 1, m + 1)] - z - rr - ss;
+                r = a[at(m + 2, m + 1)];
+                let s = p.abs() + q.abs() + r.abs();
+                p /= s;
+                q /= s;
+                r /= s;
+                if m == l {
+                    break;
+                }
+                let u = a[at(m, m - 1)].abs() * (q.abs() + r.abs());
+                let v = p.abs() * (a[at(m - 1, m - 1)].abs() + z.abs() + a[at(m + 1, m + 1)].abs());
+                if u + v == v {
+                    break;
+                }
+                m -= 1;
+            }
+            for i in m + 2..=n {
+                a[at(i, i - 2)] = 0.0;
+                if i != m + 2 {
+                    a[at(i, i - 3)] = 0.0;
+                }
+            }
+            for kk in m..n {
+                if kk != m {
+                    p = a[at(kk, kk - 1)];
+                    q = a[at(kk + 1, kk - 1)];
+                    r = if kk != n - 1 {
+                        a[at(kk + 2, kk - 1)]
+                    } else {
+                        0.0
+                    };
+                    x = p.abs() + q.abs() + r.abs();
+                    if x != 0.0 {
+                        p /= x;
+                        q /= x;
+                        r /= x;
+                    }
+                }
+                let s = (p * p + q * q + r * r).sqrt().copysign(p);
+                if s == 0.0 {
+                    continue;
+                }
+                if kk == m {
+                    if l != m {
+                        a[at(kk, kk - 1)] = -a[at(kk, kk - 1)];
+                    }
+                } else {
+                    a[at(kk, kk - 1)] = -s * x;
+                }
+                p += s;
+                x = p / s;
+                y = q / s;
+                let z = r / s;
+                q /= p;
+                r /= p;
+                for j in kk..=n {
+                    let mut p = a[at(kk, j)] + q * a[at(kk + 1, j)];
+                    if kk != n - 1 {
+                        p += r * a[at(kk + 2, j)];
+                        a[at(kk + 2, j)] -= p * z;
+                    }
+                    a[at(kk + 1, j)] -= p * y;
+                    a[at(kk, j)] -= p * x;
+                }
+                for i in l..=n.min(kk + 3) {
+                    let mut p = x * a[at(i, kk)] + y * a[at(i, kk + 1)];
+                    if kk != n - 1 {
+                        p += z * a[at(i, kk + 2)];
+                        a[at(i, kk + 2)] -= p * r;
+                    }
+                    a[at(i, kk + 1)] -= p * q;
+                    a[at(i, kk)] -= p;
+                }
+            }
+        }
+    }
+    Some(eig)
+}
+
 /// The step maps of one period as an operator on z = (y, history ring): per step the
 /// row-major n×(n + 2d) block [P | R0 | R1], and whether it reads the history at all.
 struct StepMaps {
@@ -509,8 +665,8 @@ struct StepMaps {
 }
 
 /// Arnoldi: first convergence check, check interval and largest Krylov dimension.
-const KRYLOV_FIRST: usize = 16;
-const KRYLOV_EVERY: usize = 8;
+const KRYLOV_FIRST: usize = 12;
+const KRYLOV_EVERY: usize = 6;
 const KRYLOV_MAX: usize = 96;
 /// Accepted residual of the dominant Ritz pair, relative to its modulus.
 const KRYLOV_TOL: f64 = 1e-12;
@@ -544,27 +700,58 @@ impl StepMaps {
         self.reads[i] = (0..n).any(|r| rows[r * s + n..(r + 1) * s].iter().any(|&v| v != 0.0));
     }
 
-    /// out = Φ·x; `y` is scratch of 2n.
+    /// out = Φ·x; `y` is scratch of 2n. Monomorphised for the common (n, d).
     fn apply(&self, x: &[f64], out: &mut [f64], y: &mut [f64]) {
-        let (n, d, m) = (self.n, self.d, self.m);
+        match (self.n, self.d) {
+            (2, 1) => self.apply_sized::<2, 1>(x, out, y),
+            (4, 1) => self.apply_sized::<4, 1>(x, out, y),
+            (4, 2) => self.apply_sized::<4, 2>(x, out, y),
+            (8, 2) => self.apply_sized::<8, 2>(x, out, y),
+            _ => self.apply_general(x, out, y, self.n, self.d),
+        }
+    }
+
+    #[inline(always)]
+    fn apply_sized<const N: usize, const D: usize>(
+        &self,
+        x: &[f64],
+        out: &mut [f64],
+        y: &mut [f64],
+    ) {
+        self.apply_general(x, out, y, N, D);
+    }
+
+    #[inline(always)]
+    fn apply_general(&self, x: &[f64], out: &mut [f64], y: &mut [f64], n: usize, d: usize) {
+        let m = self.m;
         let s = n + 2 * d;
         out.copy_from_slice(x);
         let (state, hist) = out.split_at_mut(n);
-        for i in 0..m {
-            let blk = &self.rows[self.block(i)..self.block(i) + n * s];
-            let (old, next) = (i * d, ((i + 1) % m) * d);
-            let (new_y, _) = y.split_at_mut(n);
+        let (state, hist) = (&mut state[..n], &mut hist[..m * d]);
+        let new_y = &mut y[..n];
+        let c = &self.c[..d * n];
+        for (i, (blk, &reads)) in self.rows.chunks_exact(n * s).zip(&self.reads).enumerate() {
+            let old = i * d;
+            let next = if i + 1 == m { 0 } else { old + d };
             for (r, ny) in new_y.iter_mut().enumerate() {
                 let row = &blk[r * s..(r + 1) * s];
-                let mut acc = dot(&row[..n], state);
-                if self.reads[i] {
-                    acc += dot(&row[n..n + d], &hist[old..old + d])
-                        + dot(&row[n + d..], &hist[next..next + d]);
+                let mut acc = 0.0;
+                for k in 0..n {
+                    acc += row[k] * state[k];
+                }
+                if reads {
+                    for e in 0..d {
+                        acc += row[n + e] * hist[old + e] + row[n + d + e] * hist[next + e];
+                    }
                 }
                 *ny = acc;
             }
             for e in 0..d {
-                hist[old + e] = dot(&self.c[e * n..(e + 1) * n], state);
+                let mut acc = 0.0;
+                for k in 0..n {
+                    acc += c[e * n + k] * state[k];
+                }
+                hist[old + e] = acc;
             }
             state.copy_from_slice(new_y);
         }
@@ -615,6 +802,9 @@ impl StepMaps {
             let (basis, rest) = v.split_at_mut((j + 1) * size);
             self.apply(&basis[j * size..], &mut w, &mut scratch);
             let w0 = dot(&w, &w).sqrt();
+            // Gram–Schmidt, repeated once when it cancelled much of w (Daniel et al. 1976).
+            let mut before = w0;
+            let mut beta = w0;
             for _ in 0..2 {
                 for i in 0..=j {
                     let vi = &basis[i * size..(i + 1) * size];
@@ -622,8 +812,12 @@ impl StepMaps {
                     h[(i, j)] += proj;
                     axpy(&mut w, -proj, vi);
                 }
+                beta = dot(&w, &w).sqrt();
+                if beta > std::f64::consts::FRAC_1_SQRT_2 * before {
+                    break;
+                }
+                before = beta;
             }
-            let beta = dot(&w, &w).sqrt();
             let k = j + 1;
             let invariant = beta <= 1e-14 * w0;
             if !invariant {
@@ -635,7 +829,9 @@ impl StepMaps {
             }
             if invariant || k == size || k == check {
                 let hk = h.view((0, 0), (k, k)).into_owned();
-                let theta = eigenvalues(hk.clone())?
+                let mut rows: Vec<f64> = (0..k * k).map(|i| hk[(i / k, i % k)]).collect();
+                let theta = hessenberg_eigenvalues(&mut rows, k)
+                    .or_else(|| eigenvalues(hk.clone()))?
                     .into_iter()
                     .max_by(|a, b| a.norm().total_cmp(&b.norm()))?;
                 if invariant
@@ -1076,6 +1272,39 @@ mod tests {
         }
     }
 
+    #[test]
+    fn hessenberg_qr_matches_schur() {
+        let mut seed = 11;
+        for k in [1, 2, 3, 5, 8, 16, 24, 40] {
+            for _ in 0..20 {
+                let h = DMatrix::from_fn(
+                    k,
+                    k,
+                    |r, c| {
+                        if r > c + 1 { 0.0 } else { xorshift(&mut seed) }
+                    },
+                );
+                let mut rows: Vec<f64> = (0..k * k).map(|i| h[(i / k, i % k)]).collect();
+                let ours = hessenberg_eigenvalues(&mut rows, k).expect("converges");
+                let theirs = eigenvalues(h.clone()).unwrap();
+                assert_eq!(ours.len(), k);
+                // Every eigenvalue of one is matched by the other's.
+                for (a, b) in [(&ours, &theirs), (&theirs, &ours)] {
+                    for z in a.iter() {
+                        let near = b
+                            .iter()
+                            .map(|w| (w - z).norm())
+                            .fold(f64::INFINITY, f64::min);
+                        assert!(
+                            near < 1e-8 * h.norm(),
+                            "k {k}: {z} is {near:e} from the nearest"
+                        );
+                    }
+                }
+            }
+        }
+    }
+
     /// Arnoldi radius (without fallback) against the dense Schur of the formed Φ.
     fn check_fast_against_dense(sd: &MillingSd, depth: f64, stats: &mut (usize, usize)) -> f64 {
         let maps = sd.step_maps(depth).unwrap();
@@ -1159,7 +1388,22 @@ mod tests {
         assert!(sd_spectral_radius(&Mathieu, 1).is_err());
     }
 
-    /// Wall time of a reduced map and the accuracy of the default m (release: `cargo test -p
+    /// CPU time of this thread (the machine is shared): /proc/thread-self/schedstat, s.
+    struct Cpu(f64);
+    impl Cpu {
+        fn read() -> f64 {
+            let s = std::fs::read_to_string("/proc/thread-self/schedstat").unwrap();
+            s.split_whitespace().next().unwrap().parse::<f64>().unwrap() * 1e-9
+        }
+        fn now() -> Self {
+            Self(Self::read())
+        }
+        fn elapsed(&self) -> f64 {
+            Self::read() - self.0
+        }
+    }
+
+    /// CPU time of a reduced map and the accuracy of the default m (release: `cargo test -p
     /// vmt-chatter --release --lib -- --ignored --nocapture timing`).
     #[test]
     #[ignore]
@@ -1169,9 +1413,9 @@ mod tests {
         for steps in [80] {
             for imm in [1.0, 0.5, 0.05] {
                 let sys = benchmark_1dof(imm, MillingDirection::Down);
-                let t = std::time::Instant::now();
+                let t = Cpu::now();
                 let map = stability_map(&sys, &speeds, &depths, &SdSettings { steps }).unwrap();
-                let dt = t.elapsed().as_secs_f64();
+                let dt = t.elapsed();
                 println!(
                     "m {steps} a/D {imm}: {:.1} us/point, full 200x100 map {:.2} s (sum {:.6})",
                     dt / 2000.0 * 1e6,
@@ -1186,15 +1430,15 @@ mod tests {
             for &speed in &speeds {
                 let sd = MillingSd::new(&sys, speed, &SdSettings::default()).unwrap();
                 for &depth in &depths {
-                    let t = std::time::Instant::now();
+                    let t = Cpu::now();
                     let maps = sd.step_maps(depth).unwrap();
-                    t_steps += t.elapsed().as_secs_f64();
-                    let t = std::time::Instant::now();
+                    t_steps += t.elapsed();
+                    let t = Cpu::now();
                     match maps.krylov_radius() {
                         Some((_, k)) => dims += k,
                         None => fallbacks += 1,
                     }
-                    t_arnoldi += t.elapsed().as_secs_f64();
+                    t_arnoldi += t.elapsed();
                 }
             }
             println!(
@@ -1203,6 +1447,44 @@ mod tests {
                 t_arnoldi / 2000.0 * 1e6,
                 dims as f64 / 2000.0
             );
+        }
+        {
+            let sys = benchmark_1dof(1.0, MillingDirection::Down);
+            let sd = MillingSd::new(&sys, 12e3, &SdSettings::default()).unwrap();
+            let maps = sd.step_maps(3e-3).unwrap();
+            let size = maps.size();
+            let x: Vec<f64> = (0..size).map(|i| (i as f64).sin()).collect();
+            let (mut out, mut y) = (vec![0.0; size], vec![0.0; 4]);
+            let t = Cpu::now();
+            for _ in 0..1000 {
+                maps.apply(std::hint::black_box(&x), &mut out, &mut y);
+            }
+            println!("matvec {:.2} us", t.elapsed() * 1e3);
+            for k in [8, 12, 16, 24] {
+                let hk = DMatrix::from_fn(k, k, |r, c| {
+                    if r > c + 1 {
+                        0.0
+                    } else {
+                        ((r * 7 + c * 3) as f64).sin()
+                    }
+                });
+                let t = Cpu::now();
+                for _ in 0..1000 {
+                    let mut rows: Vec<f64> = (0..k * k).map(|i| hk[(i / k, i % k)]).collect();
+                    std::hint::black_box(hessenberg_eigenvalues(&mut rows, k));
+                }
+                let te = t.elapsed() * 1e3;
+                let t = Cpu::now();
+                for _ in 0..1000 {
+                    std::hint::black_box(ritz_last_component(&hk, Complex::new(0.5, 0.5)));
+                }
+                println!("k {k}: eig {te:.2} us, ritz {:.2} us", t.elapsed() * 1e3);
+            }
+            let t = Cpu::now();
+            for _ in 0..1000 {
+                std::hint::black_box(sd.step_maps(3e-3).unwrap());
+            }
+            println!("step maps {:.2} us", t.elapsed() * 1e3);
         }
         let sys = benchmark_1dof(1.0, MillingDirection::Down);
         for speed in [8e3, 15e3, 21e3] {
