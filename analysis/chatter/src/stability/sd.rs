@@ -179,10 +179,24 @@ impl Expm {
 
     /// exp(`m`) into `out` (both row-major s×s).
     fn exp(&mut self, m: &[f64], out: &mut [f64]) {
+        self.exp_balanced(m, out, true);
+    }
+
+    /// exp(`m`) into `out`, balancing `m` afresh when `rebalance`, else with the last scaling
+    /// (any diagonal similarity is exact; the balancing only saves squarings).
+    fn exp_balanced(&mut self, m: &[f64], out: &mut [f64], rebalance: bool) {
         let s = self.s;
         let ss = s * s;
         self.a.copy_from_slice(m);
-        self.balance();
+        if rebalance {
+            self.balance();
+        } else {
+            for r in 0..s {
+                for k in 0..s {
+                    self.a[r * s + k] *= self.scale[k] / self.scale[r];
+                }
+            }
+        }
         let norm = (0..s)
             .map(|k| (0..s).map(|r| self.a[r * s + k].abs()).sum::<f64>())
             .fold(0.0, f64::max);
@@ -278,9 +292,21 @@ impl Expm {
 
     /// The row-major n×(n + 2d) block [P | R0 | R1] of the step whose augmented matrix is `aug`.
     fn step_rows(&mut self, aug: &[f64], n: usize, d: usize, out: &mut [f64]) {
+        self.step_rows_balanced(aug, n, d, out, true);
+    }
+
+    /// As `step_rows`, reusing the last balancing unless `rebalance`.
+    fn step_rows_balanced(
+        &mut self,
+        aug: &[f64],
+        n: usize,
+        d: usize,
+        out: &mut [f64],
+        rebalance: bool,
+    ) {
         let s = self.s;
         let mut e = std::mem::take(&mut self.e);
-        self.exp(aug, &mut e);
+        self.exp_balanced(aug, &mut e, rebalance);
         for r in 0..n {
             let (row, o) = (&e[r * s..(r + 1) * s], &mut out[r * s..(r + 1) * s]);
             o.copy_from_slice(row);
@@ -335,8 +361,32 @@ fn balance(a: &mut [f64], s: usize, scale: &mut [f64]) {
     }
 }
 
-/// out = x·y, all row-major s×s.
+/// out = x·y, all row-major s×s; monomorphised for the usual sizes.
 fn matmul(out: &mut [f64], x: &[f64], y: &[f64], s: usize) {
+    match s {
+        4 => matmul_sized::<4>(out, x, y),
+        6 => matmul_sized::<6>(out, x, y),
+        8 => matmul_sized::<8>(out, x, y),
+        12 => matmul_sized::<12>(out, x, y),
+        _ => matmul_general(out, x, y, s),
+    }
+}
+
+fn matmul_sized<const S: usize>(out: &mut [f64], x: &[f64], y: &[f64]) {
+    let (out, x, y) = (&mut out[..S * S], &x[..S * S], &y[..S * S]);
+    for r in 0..S {
+        let mut acc = [0.0; S];
+        for k in 0..S {
+            let xk = x[r * S + k];
+            for (a, yv) in acc.iter_mut().zip(&y[k * S..(k + 1) * S]) {
+                *a += xk * yv;
+            }
+        }
+        out[r * S..(r + 1) * S].copy_from_slice(&acc);
+    }
+}
+
+fn matmul_general(out: &mut [f64], x: &[f64], y: &[f64], s: usize) {
     out[..s * s].fill(0.0);
     for r in 0..s {
         let o = &mut out[r * s..(r + 1) * s];
@@ -1041,6 +1091,7 @@ impl MillingSd {
         fill_augmented(&mut aug, n, d, self.h, |r, k| self.a0[(r, k)], |_, _| 0.0);
         let base = aug.clone();
         let mut rows = vec![0.0; n * s];
+        let mut balanced = false;
         for (i, f) in self.forcing.iter().enumerate() {
             let Some((fu, f)) = f else {
                 maps.set(i, &self.free);
@@ -1057,7 +1108,9 @@ impl MillingSd {
                     row[n + e] = -ah * f[r * d + e];
                 }
             }
-            expm.step_rows(&aug, n, d, &mut rows);
+            // One balancing per depth: the steps differ only in the directional factor.
+            expm.step_rows_balanced(&aug, n, d, &mut rows, !balanced);
+            balanced = true;
             maps.set(i, &rows);
         }
         Ok(maps)
@@ -1480,6 +1533,41 @@ mod tests {
                 }
                 println!("k {k}: eig {te:.2} us, ritz {:.2} us", t.elapsed() * 1e3);
             }
+            let (n, d) = (2, 1);
+            let s = 4;
+            let mut aug = vec![0.0; 16];
+            fill_augmented(&mut aug, n, d, sd.h, |r, k| sd.a0[(r, k)], |_, _| 0.0);
+            aug[s] += -sd.h * 6e8 * 5e-3 / 0.04;
+            aug[s + 2] = 1e-3 * sd.h * 6e8 / 0.04;
+            let mut e = Expm::new(4);
+            let mut out = vec![0.0; 16];
+            e.a.copy_from_slice(&aug);
+            e.balance();
+            println!(
+                "balanced norm {}",
+                (0..s)
+                    .map(|k| (0..s).map(|r| e.a[r * s + k].abs()).sum::<f64>())
+                    .fold(0.0, f64::max)
+            );
+            let mut best = f64::INFINITY;
+            for _ in 0..5 {
+                let t = std::time::Instant::now();
+                for _ in 0..10000 {
+                    e.exp(std::hint::black_box(&aug), &mut out);
+                }
+                best = best.min(t.elapsed().as_secs_f64() * 1e2);
+            }
+            println!("expm 4x4 {best:.3} us");
+            let mut best = f64::INFINITY;
+            for _ in 0..5 {
+                let t = std::time::Instant::now();
+                for _ in 0..10000 {
+                    e.a.copy_from_slice(std::hint::black_box(&aug));
+                    e.balance();
+                }
+                best = best.min(t.elapsed().as_secs_f64() * 1e2);
+            }
+            println!("balance 4x4 {best:.3} us");
             let t = Cpu::now();
             for _ in 0..1000 {
                 std::hint::black_box(sd.step_maps(3e-3).unwrap());
