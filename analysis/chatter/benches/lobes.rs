@@ -1,6 +1,7 @@
 //! Stability-map timing: the first-order SD map of the 1-DOF benchmark (Insperger & Stépán;
-//! half immersion, down milling) over 200 speeds (5–25 krpm) × 100 depths (0–10 mm) with the
-//! default 40 steps per tooth period, and the ZOA lobes. Goal: the SD map under 2 s on one core.
+//! down milling at a/D = 1, 0.5 and 0.05) over 200 speeds (5–25 krpm) × 100 depths
+//! (0.05–10 mm) with the default 80 steps per tooth period, and the ZOA lobes. Goal: each SD
+//! map under 2 s on one core.
 //!
 //! Run: `cargo bench -p vmt-chatter --bench lobes`.
 
