@@ -44,12 +44,24 @@ fn setup(system: &MillingSystem, depth: f64) -> MillingSetup {
 fn chatters(system: &MillingSystem, rpm: f64, depth: f64) -> bool {
     let drive = MillingDrive {
         spindle_rpm: rpm,
-        feed: #[test]
+        feed: Feed::PerTooth(1e-4),
+        duration_s: 0.6,
+        supervisor_window_s: 0.01,
+    };
+    let run = simulate_milling(&setup(system, depth), &drive).expect("the cut runs");
+    run.ground_truth["chatter"]
+        .as_bool()
+        .expect("the truth says whether the cut chattered")
+}
+
+#[test]
 fn cuts_below_the_sd_boundary_are_stable_and_cuts_above_it_chatter() {
     let system = benchmark_1dof(0.5, MillingDirection::Down);
     let settings = SdSettings::default();
     let (mut disagreements, mut judged) = (Vec::new(), [0, 0]);
-    for rpm in [7_000.0, 9_500.0, 12_000.0, 14_500.0, 17_000.0, 21_000.0, 24_000.0] {
+    for rpm in [
+        7_000.0, 9_500.0, 12_000.0, 14_500.0, 17_000.0, 21_000.0, 24_000.0,
+    ] {
         let critical = critical_depth(&system, rpm, 0.02, &settings)
             .expect("the SD runs")
             .expect("the benchmark chatters below 20 mm at every speed");
@@ -75,5 +87,8 @@ fn cuts_below_the_sd_boundary_are_stable_and_cuts_above_it_chatter() {
         }
     }
     assert!(disagreements.is_empty(), "{disagreements:#?}");
-    assert!(judged[0] >= 10 && judged[1] >= 10, "judged (stable, chatter): {judged:?}");
+    assert!(
+        judged[0] >= 10 && judged[1] >= 10,
+        "judged (stable, chatter): {judged:?}"
+    );
 }

@@ -311,7 +311,10 @@ pub fn summary(cases: &[Case]) -> String {
 pub fn command(args: &LobesArgs) -> Result<(), CliError> {
     let cases = compute(args)?;
     std::fs::create_dir_all(&args.out).map_err(|e| CliError::output(&args.out, e))?;
-    for (name, text) in [("lobes.csv", lobes_csv(&cases)), ("sd_map.csv", map_csv(&cases))] {
+    for (name, text) in [
+        ("lobes.csv", lobes_csv(&cases)),
+        ("sd_map.csv", map_csv(&cases)),
+    ] {
         let path = args.out.join(name);
         std::fs::write(&path, text).map_err(|e| CliError::output(&path, e))?;
     }
@@ -392,7 +395,10 @@ fn draw_case<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, case: &Case) -> 
             .filter(|&(i, k)| map.at(i, k) >= 1.0)
             .map(|(i, k)| {
                 let (x, y) = (krpm[i], mm[k]);
-                Rectangle::new([(x - dx / 2.0, y - dy / 2.0), (x + dx / 2.0, y + dy / 2.0)], unstable)
+                Rectangle::new(
+                    [(x - dx / 2.0, y - dy / 2.0), (x + dx / 2.0, y + dy / 2.0)],
+                    unstable,
+                )
             }),
     )?;
     let red = RGBColor(178, 24, 43);
@@ -413,9 +419,11 @@ fn draw_case<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, case: &Case) -> 
             .map(|p| (p.speed_rpm / 1e3, p.depth_m * 1e3));
         let series = chart.draw_series(LineSeries::new(pts, blue.stroke_width(1)))?;
         if j == 0 {
-            series.label("zero-order approximation").legend(move |(x, y)| {
-                PathElement::new(vec![(x, y), (x + 18, y)], blue.stroke_width(1))
-            });
+            series
+                .label("zero-order approximation")
+                .legend(move |(x, y)| {
+                    PathElement::new(vec![(x, y), (x + 18, y)], blue.stroke_width(1))
+                });
         }
     }
     chart

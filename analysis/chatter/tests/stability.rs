@@ -68,7 +68,10 @@ fn sd_reproduces_the_spectral_radius_of_hayes_equation() {
     let m = 10;
     let rho = sd_spectral_radius(&Hayes { a: -1.0, b: -1.0 }, m).unwrap();
     let per_step = rho.powf(1.0 / m as f64);
-    assert!((per_step - 0.941189374166563).abs() < 1e-12, "{per_step:.15}");
+    assert!(
+        (per_step - 0.941189374166563).abs() < 1e-12,
+        "{per_step:.15}"
+    );
     // The exact multiplier is e^{Re λ} of the rightmost root of λ + 1 + e^{-λ} = 0,
     // λ = -0.6050209 ± 1.7881880i (Newton): 0.5460630. The step of 0.1 is within 0.2 %.
     assert!((rho / 0.5460630043605498 - 1.0).abs() < 2e-3, "{rho}");
@@ -111,10 +114,13 @@ fn zoa_slotting_minimum_is_the_closed_form_of_the_benchmark() {
     // a_min = 2kζ(1+ζ)/(N·K_n/4) ≈ 0.298 mm (NOTES.md).
     let sys = benchmark_1dof(1.0, MillingDirection::Down);
     let mode = sys.dynamics.x[0];
-    let by_hand = 2.0 * mode.stiffness * mode.damping_ratio * (1.0 + mode.damping_ratio)
-        / (2.0 * 2e8 / 4.0);
+    let by_hand =
+        2.0 * mode.stiffness * mode.damping_ratio * (1.0 + mode.damping_ratio) / (2.0 * 2e8 / 4.0);
     let closed = feed_only_minimum_depth(&sys).unwrap();
-    assert!((closed / by_hand - 1.0).abs() < 1e-9, "{closed} vs {by_hand}");
+    assert!(
+        (closed / by_hand - 1.0).abs() < 1e-9,
+        "{closed} vs {by_hand}"
+    );
     assert!((closed * 1e3 - 0.298).abs() < 0.0015, "{closed}");
 }
 
