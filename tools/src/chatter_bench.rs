@@ -116,6 +116,28 @@ pub struct BenchArgs {
     /// and time) to this CSV file.
     #[arg(long)]
     pub csv: Option<std::path::PathBuf>,
+    /// Seed of the first run (run i gets seed + i): another seed and grid make a calibration
+    /// set apart from the evaluation set.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// The better detector's developed-chatter share (default: the library's).
+    #[arg(long)]
+    pub developed_share: Option<f64>,
+    /// The better detector's growth factor of the peak power (default: the library's).
+    #[arg(long)]
+    pub growth: Option<f64>,
+}
+
+impl BenchArgs {
+    fn spectral(&self, r: &LabelledRun) -> spectral::SpectralSettings {
+        let d = spectral::SpectralSettings::default();
+        spectral::SpectralSettings {
+            tooth_passing_hz: Some(spectral::tooth_passing_hz(r.spindle_rpm, r.teeth)),
+            developed_share: self.developed_share.unwrap_or(d.developed_share),
+            growth: self.growth.unwrap_or(d.growth),
+            ..d
+        }
+    }
 }
 
 fn grid(a: &BenchArgs) -> Vec<(f64, f64)> {
@@ -166,16 +188,13 @@ pub fn bench(a: &BenchArgs) -> Result<(), CliError> {
     let runs: Vec<LabelledRun> = grid(a)
         .par_iter()
         .enumerate()
-        .map(|(i, (rpm, d))| labelled(*rpm, *d, i as u64 + 1, a.duration_s))
+        .map(|(i, (rpm, d))| labelled(*rpm, *d, a.seed + i as u64, a.duration_s))
         .collect::<Result<_, _>>()?;
     let chatter = runs.iter().filter(|r| r.chatter_onset_s.is_some()).count();
     let verdicts = std::cell::RefCell::new(Vec::new());
     let better = evaluate(&runs, |r| {
-        let s = spectral::SpectralSettings {
-            tooth_passing_hz: Some(spectral::tooth_passing_hz(r.spindle_rpm, r.teeth)),
-            ..Default::default()
-        };
-        let v = spectral::detect(&r.slices(), r.sample_rate_hz, &s).map(|x| x.verdict)?;
+        let v =
+            spectral::detect(&r.slices(), r.sample_rate_hz, &a.spectral(r)).map(|x| x.verdict)?;
         verdicts.borrow_mut().push(v);
         Ok(v)
     })

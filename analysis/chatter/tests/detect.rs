@@ -323,6 +323,11 @@ fn noise_only_is_not_flagged() {
     }
 }
 
+/// The formula chatter of these cuts rises as 1 − e^{−τ/30 ms} to a level that, for the weaker
+/// ones over resonant harmonics, holds a share below the developed 0.12: such a line is found
+/// only while it grows (by 4 in power within 25 ms), so two of the 20 chatter runs are missed
+/// and a few are found late (p90 0.13 s); the median stays under 50 ms and no stable cut is
+/// flagged.
 #[test]
 fn better_detector_classifies_random_cuts_quickly() {
     let (_, runs) = random_runs(40, 7);
@@ -331,11 +336,16 @@ fn better_detector_classifies_random_cuts_quickly() {
     assert!(s.accuracy >= 0.95, "accuracy {}", s.accuracy);
     assert_eq!(s.false_positive_rate, 0.0);
     assert!(
-        s.median_latency_s < 0.06,
+        s.false_negative_rate <= 0.1,
+        "missed {}",
+        s.false_negative_rate
+    );
+    assert!(
+        s.median_latency_s < 0.05,
         "median latency {}",
         s.median_latency_s
     );
-    assert!(s.p90_latency_s < 0.1, "p90 latency {}", s.p90_latency_s);
+    assert!(s.p90_latency_s < 0.15, "p90 latency {}", s.p90_latency_s);
     assert!(
         s.latencies_s.iter().all(|&l| l > 0.0),
         "fired before onset: {:?}",
@@ -368,5 +378,117 @@ fn decaying_entry_transient_is_not_chatter() {
         if let Some(t) = v.detection_time_s {
             assert!(t > 0.3, "fired at {t} s, before the onset");
         }
+    }
+}
+
+/// Tooth harmonics of 500 Hz (1, 0.5, 0.25 m/s² at 500, 1000, 1500 Hz), white noise 0.02 m/s²,
+/// and a line at 3130 Hz (off the harmonics) of amplitude `line(t)`, m/s².
+fn line_over_harmonics(line: impl Fn(f64) -> f64, seed: u64) -> Vec<f64> {
+    let mut rng = Rng(seed);
+    (0..(0.4 * FS) as usize)
+        .map(|i| {
+            let t = i as f64 / FS;
+            (TAU * 500.0 * t).sin()
+                + 0.5 * (TAU * 1000.0 * t + 1.0).sin()
+                + 0.25 * (TAU * 1500.0 * t + 2.0).sin()
+                + line(t) * (TAU * 3130.0 * t).sin()
+                + 0.02 * rng.gauss()
+        })
+        .collect()
+}
+
+fn settings_500() -> SpectralSettings {
+    SpectralSettings {
+        tooth_passing_hz: Some(500.0),
+        ..Default::default()
+    }
+}
+
+/// Near the stability boundary a stable cut's closed-loop mode is lightly damped and the cut's
+/// own broad-band excitation keeps it ringing: a stationary line off the harmonics (the bench's
+/// false alarms at 14 526, 17 368 and 22 105 rpm, shares 0.03–0.06 held for the whole cut). Here
+/// the line holds 0.3 m/s² against harmonics of total power (1 + 0.25 + 0.0625)/2: share
+/// 0.045/(0.656 + 0.045) ≈ 0.064, above the 0.05 threshold, below the developed share 0.12, and
+/// it never grows: not chatter. The old rule (any held peak above 0.05) flagged it.
+#[test]
+fn a_stationary_line_below_the_developed_share_is_not_chatter() {
+    let x = line_over_harmonics(|_| 0.3, 41);
+    let r = spectral::detect(&[&x], FS, &settings_500()).unwrap();
+    let late: Vec<f64> = r.frames.iter().skip(4).map(|f| f.share).collect();
+    let (lo, hi) = late
+        .iter()
+        .fold((f64::INFINITY, 0.0f64), |(a, b), &s| (a.min(s), b.max(s)));
+    assert!(lo > 0.05 && hi < 0.08, "shares {lo}..{hi}");
+    assert!(r.frames.iter().filter(|f| f.chatter).count() > 20);
+    assert!(!r.verdict.chatter, "{:?}", r.verdict);
+    let old = SpectralSettings {
+        developed_share: 1.0,
+        growth: 1.0,
+        ..settings_500()
+    };
+    assert!(spectral::detect(&[&x], FS, &old).unwrap().verdict.chatter);
+}
+
+/// Self-excitation: the same line growing as e^{t/20 ms} from 0.02 m/s² at 0.1 s, capped at
+/// 0.35 m/s² (share ≈ 0.085 < 0.12, the tool leaving the cut): its power grows by e² ≈ 7.4 per
+/// 20 ms, past the factor 4 within the 25 ms look-back, so it is chatter, detected while it
+/// crosses the 0.05 share: the amplitude reaches 0.26 m/s² (share 0.05) at 0.1 + 0.02·ln 13 =
+/// 0.151 s, and a frame of 512 samples (25.6 ms) plus two hops (12.8 ms) later at the most.
+#[test]
+fn a_growing_line_below_the_developed_share_is_chatter() {
+    let x = line_over_harmonics(
+        |t| {
+            if t < 0.1 {
+                0.0
+            } else {
+                (0.02 * ((t - 0.1) / 0.02).exp()).min(0.35)
+            }
+        },
+        43,
+    );
+    let r = spectral::detect(&[&x], FS, &settings_500()).unwrap();
+    assert!(r.frames.iter().all(|f| f.share < 0.12));
+    let t = r
+        .verdict
+        .detection_time_s
+        .expect("growing line not flagged");
+    assert!((0.151..0.151 + 0.04).contains(&t), "detected at {t} s");
+    let f = r.verdict.chatter_frequency_hz.unwrap();
+    assert!((f - 3130.0).abs() < 10.0, "{f} Hz");
+}
+
+/// Developed chatter from the first frame (fast chatter at deep cuts: the tool leaves the cut
+/// within a few teeth, before the first frame closes) shows no growth, but a line of 1 m/s²
+/// holds a share of 0.5/(0.656 + 0.5) ≈ 0.43 > 0.12: chatter, at the end of the third frame
+/// (512 + 2·128 samples = 38.4 ms).
+#[test]
+fn a_dominant_line_from_the_start_is_chatter() {
+    let x = line_over_harmonics(|_| 1.0, 47);
+    let r = spectral::detect(&[&x], FS, &settings_500()).unwrap();
+    assert!(r.frames.iter().all(|f| f.share > 0.35 && f.share < 0.5));
+    assert_eq!(r.verdict.detection_time_s, Some(0.0384));
+}
+
+#[test]
+fn growth_settings_out_of_range_are_refused() {
+    let x = line_over_harmonics(|_| 0.0, 1);
+    for s in [
+        SpectralSettings {
+            developed_share: 0.01,
+            ..settings_500()
+        },
+        SpectralSettings {
+            growth: 0.5,
+            ..settings_500()
+        },
+        SpectralSettings {
+            growth_window_s: -1.0,
+            ..settings_500()
+        },
+    ] {
+        assert!(matches!(
+            spectral::detect(&[&x], FS, &s),
+            Err(DetectError::Setting { .. })
+        ));
     }
 }

@@ -114,6 +114,10 @@ pub struct CuttingProcess {
     theta: f64,
     /// Spindle advance over the last step, bins.
     dtheta: f64,
+    /// Whole revolutions turned (the wraps of `theta`).
+    revolutions: i64,
+    /// Tooth pitches passed (revolutions·teeth + ⌊theta/pitch⌋) at the last tooth sample.
+    tooth_count: i64,
     /// Tool axis and displacement at the last mid-step force evaluation, m.
     p_prev: [f64; 2],
     u_prev: [f64; 2],
@@ -183,6 +187,8 @@ impl CuttingProcess {
             step_index: 0,
             theta: 0.0,
             dtheta: 0.0,
+            revolutions: 0,
+            tooth_count: 0,
             p_prev: [0.0; 2],
             u_prev: [0.0; 2],
             u_last: [0.0; 2],
@@ -319,6 +325,7 @@ impl CuttingProcess {
         self.theta += advance;
         while self.theta >= M {
             self.theta -= M;
+            self.revolutions += 1;
         }
         self.step_index += 1;
         CutSample {
@@ -397,6 +404,15 @@ impl CuttingProcess {
 
     /// Samples the tool point when the spindle crossed a multiple of the pitch over the last
     /// step (interpolated to the crossing).
+    ///
+    /// A crossing is counted on the running tooth count revolutions·teeth + ⌊theta/pitch⌋,
+    /// computed once per step from the same angle. Comparing ⌊theta/pitch⌋ with
+    /// ⌊(theta − dtheta)/pitch⌋ instead counted a crossing twice when a step ended within
+    /// rounding of a revolution (theta = M − ε, whose quotient rounds up to `teeth`, then wraps
+    /// to a small theta whose `before` is negative): whenever the revolution is a whole number
+    /// of steps (6000 rpm at 160 kHz), the truth got a duplicate sample, a zero deviation
+    /// d = 0 that restarted its count of chattering tooth periods, and fast-growing chatter
+    /// lost its growth and was labelled stable.
     fn sample_tooth_pass(&mut self, t: f64, u: [f64; 2]) {
         let dx = self.dtheta;
         if dx <= 0.0 {
@@ -405,8 +421,10 @@ impl CuttingProcess {
         let pitch = M / self.teeth as f64;
         let (now, before) = (self.theta, self.theta - dx);
         let n = floor(now / pitch);
-        if n > floor(before / pitch) {
-            let f = (n as f64 * pitch - before) / dx;
+        let count = self.revolutions * self.teeth as i64 + n;
+        if count > self.tooth_count {
+            self.tooth_count = count;
+            let f = ((n as f64 * pitch - before) / dx).clamp(0.0, 1.0);
             let s = &mut self.teeth_samples;
             s.times_s.push(t - (1.0 - f) * self.setup.step_s);
             let up = self.u_last;
