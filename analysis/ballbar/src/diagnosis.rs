@@ -12,7 +12,6 @@ use crate::features::{self, Residual};
 use crate::iso230_4::{self, Figures};
 use crate::model::{Fit, FitError, Term, Terms, reversal_angles};
 use crate::samples::Samples;
-use crate::signatures::Point;
 use crate::trace::{Plane, Trace, TraceError};
 use serde::Serialize;
 use thiserror::Error;
@@ -147,23 +146,14 @@ pub fn diagnose(traces: &[Trace], options: &Options) -> Result<Diagnosis, Diagno
         .zip(progress)
         .map(|(t, p)| Samples::new(t, p))
         .collect();
+    let sample_refs: Vec<&Samples> = samples.iter().collect();
     let terms = Terms::for_test(&refs);
-    let pairs: Vec<(&Trace, &Samples)> = traces.iter().zip(&samples).collect();
-    let fit = Fit::new(plane, &terms.terms, &pairs)?;
-    let group_points: Vec<Point> = pairs
-        .iter()
-        .flat_map(|(t, s)| s.groups(&t.angle_deg).into_iter().map(|g| g.0))
-        .collect();
-    let mut findings = fitted_findings(&fit, &group_points);
-    let points: Vec<Vec<Point>> = samples
-        .iter()
-        .map(|s| (0..s.len()).map(|i| s.point(i)).collect())
-        .collect();
+    let fit = Fit::new(plane, &terms.terms, &sample_refs)?;
+    let mut findings = fitted_findings(&fit, &sample_refs);
     let residuals: Vec<Residual> = traces
         .iter()
         .zip(&samples)
-        .zip(&points)
-        .map(|((t, s), pts)| residual(t, s, pts, &fit))
+        .map(|(t, s)| residual(t, s, &fit))
         .collect();
     let noise = features::median(
         residuals
@@ -172,17 +162,41 @@ pub fn diagnose(traces: &[Trace], options: &Options) -> Result<Diagnosis, Diagno
             .collect(),
     );
     findings.extend(closing_errors(&fit, traces, &samples));
-    let local = local_findings(&mut findings, &fit, &residuals, traces, noise, options);
+    let local = local_findings(
+        &mut findings,
+        &fit,
+        &residuals,
+        traces,
+        &samples,
+        noise,
+        options,
+    );
     findings.extend(local);
     findings.sort_by(|a, b| b.contribution_um.total_cmp(&a.contribution_um));
     let n: usize = residuals.iter().map(|r| r.r.len()).sum();
     let rss: f64 = residuals.iter().flat_map(|r| &r.r).map(|x| x * x).sum();
+    let trig: Vec<(&[f64], &[f64])> = samples
+        .iter()
+        .map(|s| (s.cos.as_slice(), s.sin.as_slice()))
+        .collect();
+    let iso = iso230_4::figures_with_trig(&refs, &trig, options.minimum_zone);
+    drop(trig);
+    for r in residuals {
+        for v in [r.r, r.smooth, r.high_pass] {
+            crate::samples::recycle(v);
+        }
+    }
+    for s in samples {
+        for v in [s.cos, s.sin, s.progress] {
+            crate::samples::recycle(v);
+        }
+    }
     Ok(Diagnosis {
         plane,
         radius_mm: first.radius_mm,
         feed_mm_min: first.feed_mm_min,
         traces: traces.iter().map(|t| t.label.clone()).collect(),
-        iso: iso230_4::figures(&refs, options.minimum_zone),
+        iso,
         findings,
         not_computed: not_computed(&terms, first),
         residual_rms_um: (rss / n as f64).sqrt(),
@@ -245,7 +259,11 @@ fn progress(traces: &[Trace]) -> Vec<Vec<f64>> {
         let span = (t1 - t0).max(1e-12);
         return times
             .iter()
-            .map(|t| t.iter().map(|x| (x - t0) / span).collect())
+            .map(|t| {
+                let mut p = crate::samples::buffer(t.len());
+                p.extend(t.iter().map(|x| (x - t0) / span));
+                p
+            })
             .collect();
     }
     let total: f64 = traces.iter().map(|t| t.sweep_deg()).sum::<f64>().max(1e-12);
@@ -265,13 +283,18 @@ fn progress(traces: &[Trace]) -> Vec<Vec<f64>> {
         .collect()
 }
 
-fn residual<'a>(t: &'a Trace, s: &Samples, points: &'a [Point], fit: &Fit) -> Residual<'a> {
+fn residual<'a>(t: &'a Trace, s: &'a Samples, fit: &Fit) -> Residual<'a> {
     let model = fit.compiled(s.radius_um, s.feed_um_per_ms);
-    let r = points
-        .iter()
-        .zip(&s.deviation_um)
-        .map(|(p, d)| d - model.eval(p))
-        .collect();
+    let g = s.sense.sign();
+    let mut r = crate::samples::buffer(s.len());
+    r.extend(
+        s.cos
+            .iter()
+            .zip(&s.sin)
+            .zip(&s.progress)
+            .zip(s.deviation_um)
+            .map(|(((c, sn), u), d)| d - model.eval_at(*c, *sn, g, *u)),
+    );
     let n = t.angle_deg.len();
     let dt_ms = match &t.time_s {
         Some(ts) => (ts[n - 1] - ts[0]) / (n - 1) as f64 * 1e3,
@@ -280,7 +303,7 @@ fn residual<'a>(t: &'a Trace, s: &Samples, points: &'a [Point], fit: &Fit) -> Re
             deg.to_radians() * s.radius_um / s.feed_um_per_ms
         }
     };
-    Residual::new(&t.angle_deg, points, r, dt_ms)
+    Residual::new(&t.angle_deg, &s.cos, &s.sin, s.sense, r, dt_ms)
 }
 
 /// Key, name and unit of a fitted term in `plane`.
@@ -354,14 +377,15 @@ pub const fn squareness_iso(plane: Plane) -> &'static str {
     }
 }
 
-fn fitted_findings(fit: &Fit, points: &[Point]) -> Vec<Finding> {
+fn fitted_findings(fit: &Fit, samples: &[&Samples]) -> Vec<Finding> {
     let one_sense = fit.get(Term::ServoMismatch).is_none();
+    let unit = fit.unit_contributions(samples);
     fit.terms
         .iter()
-        .filter_map(|&term| {
+        .zip(unit)
+        .filter_map(|(&term, per_unit)| {
             let (key, mut name, unit) = describe(term, fit.plane)?;
             let (value, se) = fit.get(term)?;
-            let per_unit = fit_contribution(fit, term, points, 1.0);
             let contribution = per_unit * value.abs();
             let threshold = if per_unit > 0.0 {
                 MIN_CONTRIBUTION_UM / per_unit
@@ -387,17 +411,6 @@ fn fitted_findings(fit: &Fit, points: &[Point]) -> Vec<Finding> {
             })
         })
         .collect()
-}
-
-/// Peak-to-valley of `value` units of `term` over `points`, µm.
-fn fit_contribution(fit: &Fit, term: Term, points: &[Point], value: f64) -> f64 {
-    let (lo, hi) = points
-        .iter()
-        .map(|p| value * term.basis(p, fit.plane))
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), x| {
-            (a.min(x), b.max(x))
-        });
-    if hi >= lo { hi - lo } else { 0.0 }
 }
 
 /// Closing error of each full trace (Kwon): the drift of the model between its first and last
@@ -474,6 +487,7 @@ fn local_findings(
     fit: &Fit,
     residuals: &[Residual],
     traces: &[Trace],
+    samples: &[Samples],
     noise: f64,
     options: &Options,
 ) -> Vec<Finding> {
@@ -516,9 +530,8 @@ fn local_findings(
             let floor = 6.0 * noise / ((features::SMOOTH_MS / res.dt_ms).max(1.0)).sqrt();
             // A run starting at an axis reversal shows that axis' spike in its first degrees:
             // the two cannot be told apart there, and the spike is reported on its own.
-            let at_reversal = res.points.first().is_some_and(|p| {
-                p.sin.abs().min(p.cos.abs()) < features::SPIKE_ZONE_DEG.to_radians().sin() * 2.0
-            });
+            let at_reversal = res.sin[0].abs().min(res.cos[0].abs())
+                < features::SPIKE_ZONE_DEG.to_radians().sin() * 2.0;
             let (name, floor) = if at_reversal {
                 (
                     format!(
@@ -547,7 +560,7 @@ fn local_findings(
         }
     }
     if options.cyclic {
-        out.extend(cyclic_findings(fit, residuals));
+        out.extend(cyclic_findings(fit, residuals, samples));
     }
     out
 }
@@ -563,19 +576,15 @@ fn side_details(
     let (b, _) = fit.get(Term::Backlash(axis))?;
     let ends = reversal_angles(axis);
     let mut per_end: [Vec<f64>; 2] = [Vec::new(), Vec::new()];
+    let basis = Term::Backlash(axis);
     for res in residuals {
-        let partial: Vec<f64> = res
-            .r
-            .iter()
-            .zip(res.points)
-            .map(|(r, p)| r + b * Term::Backlash(axis).basis(p, fit.plane))
-            .collect();
-        for i in features::reversals(res.points, axis) {
-            let Some(step) = features::step(res, &partial, i) else {
+        let partial = |j: usize| res.r[j] + b * basis.basis(&res.point(j), fit.plane);
+        for &i in &res.reversals[axis] {
+            let Some(step) = features::step(res, partial, i) else {
                 continue;
             };
-            let before = Term::Backlash(axis).basis(&res.points[i - 1], fit.plane);
-            let after = Term::Backlash(axis).basis(&res.points[i], fit.plane);
+            let before = basis.basis(&res.point(i - 1), fit.plane);
+            let after = basis.basis(&res.point(i), fit.plane);
             let unit_step = after - before;
             if unit_step.abs() < 0.5 {
                 continue;
@@ -601,7 +610,7 @@ fn spike_finding(residuals: &[Residual], axis: usize, letter: char, noise: f64) 
     for res in residuals {
         let smooth_n = (features::SMOOTH_MS / res.dt_ms).max(1.0);
         floor = floor.max(6.0 * noise / smooth_n.sqrt());
-        for i in features::reversals(res.points, axis) {
+        for &i in &res.reversals[axis] {
             found.extend(features::spike(res, i));
         }
     }
@@ -651,16 +660,16 @@ fn vibration_finding(residuals: &[Residual], noise: f64) -> Option<Finding> {
     })
 }
 
-fn cyclic_findings(fit: &Fit, residuals: &[Residual]) -> Vec<Finding> {
+fn cyclic_findings(fit: &Fit, residuals: &[Residual], samples: &[Samples]) -> Vec<Finding> {
     let (p, q) = fit.plane.axes();
     let mut points = Vec::new();
     let mut r = Vec::new();
     let mut w = Vec::new();
-    for res in residuals {
+    for (res, s) in residuals.iter().zip(samples) {
         let size = res.r.len().div_ceil(crate::samples::MAX_GROUPS).max(1);
         for (k, chunk) in res.r.chunks(size).enumerate() {
             let i = k * size + chunk.len() / 2;
-            points.push(res.points[i]);
+            points.push(s.point(i));
             r.push(chunk.iter().sum::<f64>() / chunk.len() as f64);
             w.push(chunk.len() as f64);
         }

@@ -47,21 +47,25 @@ impl Circle {
 /// A trace with cos θ and sin θ of its samples (computed once, see [`crate::samples::trig`]).
 struct Arc<'a> {
     t: &'a Trace,
-    cos: Vec<f64>,
-    sin: Vec<f64>,
+    cos: std::borrow::Cow<'a, [f64]>,
+    sin: std::borrow::Cow<'a, [f64]>,
 }
 
 impl<'a> Arc<'a> {
     fn new(t: &'a Trace) -> Self {
         let (cos, sin) = crate::samples::trig(&t.angle_deg);
-        Self { t, cos, sin }
+        Self {
+            t,
+            cos: cos.into(),
+            sin: sin.into(),
+        }
     }
 
     /// (cos θ, sin θ, deviation) of every sample.
     fn samples(&self) -> impl Iterator<Item = (f64, f64, f64)> + '_ {
         self.cos
             .iter()
-            .zip(&self.sin)
+            .zip(self.sin.iter())
             .zip(&self.t.deviation_um)
             .map(|((c, s), d)| (*c, *s, *d))
     }
@@ -73,16 +77,37 @@ pub fn least_squares_circle(traces: &[&Trace]) -> Circle {
     circle_of(&arcs.iter().collect::<Vec<_>>())
 }
 
+/// The sums of the least-squares circle's normal equations over one arc: the upper triangle of
+/// Σ (1, c, s)ᵀ(1, c, s) and Σ d (1, c, s).
+fn circle_sums(arc: &Arc) -> [f64; 9] {
+    let mut m = [0.0; 9];
+    for (c, s, d) in arc.samples() {
+        m[0] += 1.0;
+        m[1] += c;
+        m[2] += s;
+        m[3] += c * c;
+        m[4] += c * s;
+        m[5] += s * s;
+        m[6] += d;
+        m[7] += d * c;
+        m[8] += d * s;
+    }
+    m
+}
+
 fn circle_of(arcs: &[&Arc]) -> Circle {
-    let mut ata = nalgebra::Matrix3::<f64>::zeros();
-    let mut aty = nalgebra::Vector3::<f64>::zeros();
-    for arc in arcs {
-        for (c, s, d) in arc.samples() {
-            let row = nalgebra::Vector3::new(1.0, c, s);
-            ata += row * row.transpose();
-            aty += row * d;
+    circle_of_sums(&arcs.iter().map(|a| circle_sums(a)).collect::<Vec<_>>())
+}
+
+fn circle_of_sums(sums: &[[f64; 9]]) -> Circle {
+    let mut m = [0.0; 9];
+    for s in sums {
+        for (a, b) in m.iter_mut().zip(s) {
+            *a += b;
         }
     }
+    let ata = nalgebra::Matrix3::new(m[0], m[1], m[2], m[1], m[3], m[4], m[2], m[4], m[5]);
+    let aty = nalgebra::Vector3::new(m[6], m[7], m[8]);
     // A trace of at least a few degrees makes the 3×3 system regular; validation ensures it.
     let x = ata
         .try_inverse()
@@ -129,13 +154,45 @@ pub struct Figures {
 /// The figures of the traces of one test (one or two directions).
 pub fn figures(traces: &[&Trace], minimum_zone: bool) -> Figures {
     let arcs: Vec<Arc> = traces.iter().map(|t| Arc::new(t)).collect();
-    let directions = arcs.iter().map(|a| directional(a, minimum_zone)).collect();
-    let both = traces.len() == 2 && traces[0].sense != traces[1].sense;
+    figures_of(&arcs, minimum_zone)
+}
+
+/// [`figures`] with cos θ and sin θ of every sample of each trace already computed.
+pub fn figures_with_trig(
+    traces: &[&Trace],
+    trig: &[(&[f64], &[f64])],
+    minimum_zone: bool,
+) -> Figures {
+    let arcs: Vec<Arc> = traces
+        .iter()
+        .zip(trig)
+        .map(|(t, (c, s))| Arc {
+            t,
+            cos: (*c).into(),
+            sin: (*s).into(),
+        })
+        .collect();
+    figures_of(&arcs, minimum_zone)
+}
+
+fn figures_of(arcs: &[Arc], minimum_zone: bool) -> Figures {
+    let sums: Vec<[f64; 9]> = arcs.iter().map(circle_sums).collect();
+    let directions = arcs
+        .iter()
+        .zip(&sums)
+        .map(|(a, s)| directional(a, circle_of_sums(std::slice::from_ref(s)), minimum_zone))
+        .collect();
+    let both = arcs.len() == 2 && arcs[0].t.sense != arcs[1].t.sense;
     let (bidirectional, hysteresis) = if both {
-        let c = circle_of(&[&arcs[0], &arcs[1]]);
-        let e: Vec<f64> = arcs.iter().flat_map(|a| radial(a, &c)).collect();
+        let c = circle_of_sums(&sums);
+        let (lo, hi) = arcs
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |acc, a| {
+                let (l, h) = radial_bounds(a, &c);
+                (acc.0.min(l), acc.1.max(h))
+            });
         (
-            Some(span(&e)),
+            Some(hi - lo),
             hysteresis(&arcs[0], &arcs[1], &c).filter(|h| h.is_finite()),
         )
     } else {
@@ -148,11 +205,9 @@ pub fn figures(traces: &[&Trace], minimum_zone: bool) -> Figures {
     }
 }
 
-fn directional(a: &Arc, minimum_zone: bool) -> Directional {
+fn directional(a: &Arc, circle: Circle, minimum_zone: bool) -> Directional {
     let t = a.t;
-    let circle = circle_of(&[a]);
-    let e = radial(a, &circle);
-    let (lo, hi) = bounds(&e);
+    let (lo, hi) = radial_bounds(a, &circle);
     Directional {
         label: t.label.clone(),
         sense: t.sense.name().into(),
@@ -171,6 +226,15 @@ fn radial(a: &Arc, c: &Circle) -> Vec<f64> {
         .collect()
 }
 
+/// (min, max) of the radial deviation of `a` about `c`.
+fn radial_bounds(a: &Arc, c: &Circle) -> (f64, f64) {
+    a.samples()
+        .map(|(co, s, d)| c.radial_cs(co, s, d))
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), x| {
+            (lo.min(x), hi.max(x))
+        })
+}
+
 fn bounds(v: &[f64]) -> (f64, f64) {
     v.iter()
         .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), x| {
@@ -183,44 +247,77 @@ fn span(v: &[f64]) -> f64 {
     hi - lo
 }
 
-/// The path of `t` about centre `c` as (angle in [0, 360), e) sorted by angle.
-fn sorted_path(a: &Arc, c: &Circle) -> Vec<(f64, f64)> {
-    let mut p: Vec<(f64, f64)> =
+/// `x.rem_euclid(360.0)`, bit for bit, without the division's library call: `x − 360 k` is
+/// exact for the integer k = ⌊x/360⌋ (or one less where the quotient rounded up).
+#[inline]
+fn rem360(x: f64) -> f64 {
+    let q = x / 360.0;
+    if q.abs() >= 1e15 {
+        return x.rem_euclid(360.0);
+    }
+    let mut k = q as i64 as f64;
+    if k > q {
+        k -= 1.0;
+    }
+    let r = x - 360.0 * k;
+    if r < 0.0 { x - 360.0 * (k - 1.0) } else { r }
+}
+
+/// The path of `t` about centre `c` as (angle in [0, 360), e) sorted by angle (stably: a trace
+/// is a few monotonic runs, which the sort merges in linear time), into `p`.
+fn sorted_path(a: &Arc, c: &Circle, p: &mut Path) {
+    p.clear();
+    p.extend(
         a.t.angle_deg
             .iter()
-            .zip(radial(a, c))
-            .map(|(x, e)| (x.rem_euclid(360.0), e))
-            .collect();
+            .zip(a.samples())
+            .map(|(x, (co, s, d))| (rem360(*x), c.radial_cs(co, s, d))),
+    );
     p.sort_by(|x, y| x.0.total_cmp(&y.0));
-    p
+}
+
+/// A path as (angle, radial deviation) pairs.
+type Path = Vec<(f64, f64)>;
+
+thread_local! {
+    /// The two sorted paths of [`hysteresis`], reused between calls on a thread.
+    static PATHS: std::cell::RefCell<(Path, Path)> =
+        const { std::cell::RefCell::new((Vec::new(), Vec::new())) };
 }
 
 /// Largest |e_a(θ) − e_b(θ)| at the angles of `a` that `b` covers (linear interpolation of b).
+/// Both paths sorted by angle are walked together, so each sample of `a` finds its neighbours in
+/// `b` where the previous one left off.
 fn hysteresis(a: &Arc, b: &Arc, c: &Circle) -> Option<f64> {
-    let pb = sorted_path(b, c);
-    let ea = radial(a, c);
-    let max_step = 2.0 * crate::trace::MAX_GAP_DEG;
-    let mut worst: Option<f64> = None;
-    for (ang, e) in a.t.angle_deg.iter().zip(ea) {
-        let x = ang.rem_euclid(360.0);
-        let k = pb.partition_point(|p| p.0 < x);
-        let (lo, hi) = match (k.checked_sub(1).map(|i| pb[i]), pb.get(k)) {
-            (Some(l), Some(h)) => (l, h),
-            _ => continue,
-        };
-        if hi.0 - lo.0 > max_step {
-            continue;
+    PATHS.with(|cell| {
+        let (pa, pb) = &mut *cell.borrow_mut();
+        sorted_path(b, c, pb);
+        sorted_path(a, c, pa);
+        let max_step = 2.0 * crate::trace::MAX_GAP_DEG;
+        let mut worst: Option<f64> = None;
+        let mut k = 0;
+        for &(x, e) in pa.iter() {
+            while k < pb.len() && pb[k].0 < x {
+                k += 1;
+            }
+            let (lo, hi) = match (k.checked_sub(1).map(|i| pb[i]), pb.get(k)) {
+                (Some(l), Some(h)) => (l, *h),
+                _ => continue,
+            };
+            if hi.0 - lo.0 > max_step {
+                continue;
+            }
+            let w = if hi.0 > lo.0 {
+                (x - lo.0) / (hi.0 - lo.0)
+            } else {
+                0.0
+            };
+            let eb = lo.1 + w * (hi.1 - lo.1);
+            let d = (e - eb).abs();
+            worst = Some(worst.map_or(d, |m: f64| m.max(d)));
         }
-        let w = if hi.0 > lo.0 {
-            (x - lo.0) / (hi.0 - lo.0)
-        } else {
-            0.0
-        };
-        let eb = lo.1 + w * (hi.1 - lo.1);
-        let d = (e - eb).abs();
-        worst = Some(worst.map_or(d, |m: f64| m.max(d)));
-    }
-    worst
+        worst
+    })
 }
 
 /// Minimum-zone circular deviation of an arc, µm, starting from the least-squares centre `c`.

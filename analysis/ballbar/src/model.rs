@@ -65,16 +65,13 @@ impl Compiled {
     /// The model's deviation at `pt`, µm.
     #[inline]
     pub fn eval(&self, pt: &Point) -> f64 {
-        let (c, s, g, u) = (pt.cos, pt.sin, pt.sense.sign(), pt.progress);
-        let sgn = |x: f64| {
-            if x > 0.0 {
-                1.0
-            } else if x < 0.0 {
-                -1.0
-            } else {
-                0.0
-            }
-        };
+        self.eval_at(pt.cos, pt.sin, pt.sense.sign(), pt.progress)
+    }
+
+    /// The model's deviation at cos θ `c`, sin θ `s`, sense sign `g` and progress `u`, µm.
+    #[inline]
+    pub fn eval_at(&self, c: f64, s: f64, g: f64, u: f64) -> f64 {
+        let sgn = |x: f64| f64::from(u8::from(x > 0.0)) - f64::from(u8::from(x < 0.0));
         let w = &self.w;
         w[0] + w[1] * c
             + w[2] * s
@@ -88,9 +85,33 @@ impl Compiled {
     }
 }
 
+/// The [`SHAPES`] shape functions of [`Compiled`] at `pt`.
+#[inline]
+pub fn shapes(pt: &Point) -> [f64; SHAPES] {
+    let (c, s, g, u) = (pt.cos, pt.sin, pt.sense.sign(), pt.progress);
+    let sgn = |x: f64| f64::from(u8::from(x > 0.0)) - f64::from(u8::from(x < 0.0));
+    [
+        1.0,
+        c,
+        s,
+        c * c - s * s,
+        s * c,
+        g * sgn(s) * c,
+        g * sgn(c) * s,
+        g * s.abs(),
+        g * c.abs(),
+        c * c * s,
+        s * s * c,
+        u,
+        u * c,
+        u * s,
+        g * s * c,
+    ]
+}
+
 impl Term {
     /// The shape function (index in [`Compiled`]) and its weight per unit of this term.
-    fn shape(self, plane: Plane, radius_um: f64, feed_um_per_ms: f64) -> (usize, f64) {
+    pub fn shape(self, plane: Plane, radius_um: f64, feed_um_per_ms: f64) -> (usize, f64) {
         match self {
             Term::Radius => (0, 1.0),
             Term::Pivot(i) => (1 + i, -1.0),
@@ -236,17 +257,12 @@ pub struct Fit {
 }
 
 impl Fit {
-    /// Fits `terms` to the prepared traces of a test.
-    pub fn new(
-        plane: Plane,
-        terms: &[Term],
-        traces: &[(&Trace, &Samples)],
-    ) -> Result<Self, FitError> {
-        let groups: Vec<(Point, f64, usize)> = traces
-            .iter()
-            .flat_map(|(t, s)| s.fit_groups(&t.angle_deg))
-            .collect();
-        let (m, n) = (groups.len(), terms.len());
+    /// Fits `terms` to the prepared traces of a test: the normal equations are accumulated
+    /// group by group from the [`SHAPES`] shape functions (each term is one of them times a
+    /// factor of the trace's set-up), without a design matrix.
+    pub fn new(plane: Plane, terms: &[Term], traces: &[&Samples]) -> Result<Self, FitError> {
+        let m: usize = traces.iter().map(|s| s.fit_groups().count()).sum();
+        let n = terms.len();
         if m <= n {
             return Err(FitError::TooFewSamples {
                 groups: m,
@@ -255,26 +271,48 @@ impl Fit {
         }
         let mut ata = DMatrix::<f64>::zeros(n, n);
         let mut aty = DVector::<f64>::zeros(n);
-        let mut row = DVector::<f64>::zeros(n);
-        for (pt, y, w) in &groups {
-            for (r, term) in row.iter_mut().zip(terms) {
-                *r = term.basis(pt, plane);
+        let mut maps: Vec<Vec<(usize, f64)>> = Vec::new();
+        for s in traces {
+            let map: Vec<(usize, f64)> = terms
+                .iter()
+                .map(|t| t.shape(plane, s.radius_um, s.feed_um_per_ms))
+                .collect();
+            let mut sum = [[0.0; SHAPES]; SHAPES];
+            let mut sum_y = [0.0; SHAPES];
+            for (pt, y, w) in s.fit_groups() {
+                let f = shapes(pt);
+                let w = *w as f64;
+                for i in 0..SHAPES {
+                    let wf = w * f[i];
+                    sum_y[i] += wf * y;
+                    for j in i..SHAPES {
+                        sum[i][j] += wf * f[j];
+                    }
+                }
             }
-            let w = *w as f64;
-            ata.syger(w, &row, &row, 1.0);
-            aty.axpy(w * y, &row, 1.0);
+            for (i, (si, ki)) in map.iter().enumerate() {
+                aty[i] += ki * sum_y[*si];
+                for (j, (sj, kj)) in map.iter().enumerate() {
+                    let (a, b) = if si <= sj { (*si, *sj) } else { (*sj, *si) };
+                    ata[(i, j)] += ki * kj * sum[a][b];
+                }
+            }
+            maps.push(map);
         }
         let chol = ata.cholesky().ok_or(FitError::Singular)?;
         let x = chol.solve(&aty);
         let inv = chol.inverse();
         let mut rss = 0.0;
-        for (pt, y, w) in &groups {
-            let model: f64 = terms
-                .iter()
-                .zip(x.iter())
-                .map(|(t, v)| v * t.basis(pt, plane))
-                .sum();
-            rss += *w as f64 * (y - model).powi(2);
+        for (s, map) in traces.iter().zip(&maps) {
+            let mut w_shape = [0.0; SHAPES];
+            for ((si, k), v) in map.iter().zip(x.iter()) {
+                w_shape[*si] += k * v;
+            }
+            for (pt, y, w) in s.fit_groups() {
+                let f = shapes(pt);
+                let model: f64 = f.iter().zip(&w_shape).map(|(a, b)| a * b).sum();
+                rss += *w as f64 * (y - model).powi(2);
+            }
         }
         let sigma = (rss / (m - n) as f64).sqrt();
         Ok(Self {
@@ -286,6 +324,35 @@ impl Fit {
                 .collect(),
             sample_sigma_um: sigma,
         })
+    }
+
+    /// Peak-to-valley (µm) of one unit of each term's signature over the groups of the traces
+    /// (in the order of `terms`).
+    pub fn unit_contributions(&self, traces: &[&Samples]) -> Vec<f64> {
+        let mut ranges = vec![(f64::INFINITY, f64::NEG_INFINITY); self.terms.len()];
+        for s in traces {
+            let (mut lo, mut hi) = ([f64::INFINITY; SHAPES], [f64::NEG_INFINITY; SHAPES]);
+            for (pt, _, _) in &s.groups {
+                let f = shapes(pt);
+                for i in 0..SHAPES {
+                    lo[i] = lo[i].min(f[i]);
+                    hi[i] = hi[i].max(f[i]);
+                }
+            }
+            for (term, range) in self.terms.iter().zip(&mut ranges) {
+                let (i, k) = term.shape(self.plane, s.radius_um, s.feed_um_per_ms);
+                if lo[i] > hi[i] {
+                    continue;
+                }
+                let (a, b) = (k * lo[i], k * hi[i]);
+                range.0 = range.0.min(a.min(b));
+                range.1 = range.1.max(a.max(b));
+            }
+        }
+        ranges
+            .iter()
+            .map(|(lo, hi)| if hi >= lo { hi - lo } else { 0.0 })
+            .collect()
     }
 
     /// Estimate and standard error of `term`, if it is in the model.
@@ -313,21 +380,6 @@ impl Fit {
             w[i] += v * k;
         }
         Compiled { w }
-    }
-
-    /// Peak-to-valley (µm) of one term's signature over the samples of the test.
-    pub fn contribution_um(&self, term: Term, samples: &[&Samples]) -> f64 {
-        let Some((v, _)) = self.get(term) else {
-            return 0.0;
-        };
-        let (lo, hi) = samples
-            .iter()
-            .flat_map(|s| (0..s.len()).map(move |i| s.point(i)))
-            .map(|p| v * term.basis(&p, self.plane))
-            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), x| {
-                (lo.min(x), hi.max(x))
-            });
-        if hi >= lo { hi - lo } else { 0.0 }
     }
 }
 

@@ -1,10 +1,9 @@
 //! A trace prepared for fitting: cos θ and sin θ of every sample, its progress, and the trace
 //! averaged into short groups of consecutive samples for the least-squares fit.
 //!
-//! The trigonometric functions are advanced by the rotation of each angle step,
-//! `(c, s)ᵢ = R(Δθ)(c, s)ᵢ₋₁` with `cos Δθ`, `sin Δθ` from their Taylor series to Δθ⁷ (exact to
-//! 1e-16 for steps under 2°, the largest gap a trace may have), and re-anchored on `sin_cos`
-//! every 256 samples so round-off cannot accumulate.
+//! The trigonometric functions come from a table of 1024 angles and the Taylor series of the
+//! remainder (see [`sin_cos_deg`]): exact to a few 1e-16, and each sample independent of the
+//! others, so the loop runs at the processor's throughput rather than waiting on a recurrence.
 
 use crate::signatures::Point;
 use crate::trace::{Sense, Trace};
@@ -14,7 +13,7 @@ pub const MAX_GROUPS: usize = 1024;
 
 /// The samples of one trace in the form the signatures take.
 #[derive(Clone, Debug)]
-pub struct Samples {
+pub struct Samples<'a> {
     /// cos θ per sample.
     pub cos: Vec<f64>,
     /// sin θ per sample.
@@ -22,28 +21,69 @@ pub struct Samples {
     /// Progress 0…1 per sample.
     pub progress: Vec<f64>,
     /// Deviation per sample, µm.
-    pub deviation_um: Vec<f64>,
+    pub deviation_um: &'a [f64],
     /// Sense of travel.
     pub sense: Sense,
     /// Nominal radius, µm.
     pub radius_um: f64,
     /// Feed, µm/ms.
     pub feed_um_per_ms: f64,
+    /// The trace averaged over groups of consecutive samples, at most [`MAX_GROUPS`] of them:
+    /// (point at the group's mean angle and progress, mean deviation, samples in the group).
+    pub groups: Vec<(Point, f64, usize)>,
+    /// Whether each group enters the fit (see [`Samples::fit_groups`]).
+    pub fitted: Vec<bool>,
 }
 
-impl Samples {
-    /// The samples of a validated trace with the progress of each sample over the test.
-    pub fn new(t: &Trace, progress: Vec<f64>) -> Self {
+impl<'a> Samples<'a> {
+    /// The samples of a validated trace with the progress of each sample over the test: one
+    /// pass computes cos θ, sin θ and the group sums.
+    pub fn new(t: &'a Trace, progress: Vec<f64>) -> Self {
         let (cos, sin) = trig(&t.angle_deg);
-        Self {
+        let angle_deg = &t.angle_deg;
+        let n = angle_deg.len();
+        let size = n.div_ceil(MAX_GROUPS).max(1);
+        let (radius_um, feed_um_per_ms) = (t.radius_mm * 1e3, t.feed_um_per_ms());
+        let table = table();
+        let groups: Vec<(Point, f64, usize)> = angle_deg
+            .chunks(size)
+            .zip(progress.chunks(size))
+            .zip(t.deviation_um.chunks(size))
+            .map(|((a, p), d)| {
+                let k = a.len() as f64;
+                let (s, c) = sin_cos_deg(a.iter().sum::<f64>() / k, table);
+                let point = Point {
+                    cos: c,
+                    sin: s,
+                    sense: t.sense,
+                    progress: p.iter().sum::<f64>() / k,
+                    radius_um,
+                    feed_um_per_ms,
+                };
+                (point, d.iter().sum::<f64>() / k, a.len())
+            })
+            .collect();
+        let mut s = Self {
             cos,
             sin,
             progress,
-            deviation_um: t.deviation_um.clone(),
+            deviation_um: &t.deviation_um,
             sense: t.sense,
-            radius_um: t.radius_mm * 1e3,
-            feed_um_per_ms: t.feed_um_per_ms(),
-        }
+            radius_um,
+            feed_um_per_ms,
+            groups,
+            fitted: Vec::new(),
+        };
+        let skip = s.transient_deg();
+        let (a, b) = (angle_deg[0], angle_deg[n - 1]);
+        let (lo, hi) = (a.min(b) + skip, a.max(b) - skip);
+        s.fitted = (0..s.groups.len())
+            .map(|k| {
+                let mid = (k * size + size / 2).min(n - 1);
+                (lo..=hi).contains(&angle_deg[mid])
+            })
+            .collect();
+        s
     }
 
     /// Number of samples.
@@ -67,31 +107,6 @@ impl Samples {
             feed_um_per_ms: self.feed_um_per_ms,
         }
     }
-
-    /// The trace averaged over groups of consecutive samples, at most [`MAX_GROUPS`] of them:
-    /// (point at the group's mean angle and progress, mean deviation, samples in the group).
-    pub fn groups(&self, angle_deg: &[f64]) -> Vec<(Point, f64, usize)> {
-        let n = self.len();
-        let size = n.div_ceil(MAX_GROUPS).max(1);
-        (0..n)
-            .step_by(size)
-            .map(|start| {
-                let end = (start + size).min(n);
-                let k = (end - start) as f64;
-                let mean = |v: &[f64]| v[start..end].iter().sum::<f64>() / k;
-                let (s, c) = mean(angle_deg).to_radians().sin_cos();
-                let point = Point {
-                    cos: c,
-                    sin: s,
-                    sense: self.sense,
-                    progress: mean(&self.progress),
-                    radius_um: self.radius_um,
-                    feed_um_per_ms: self.feed_um_per_ms,
-                };
-                (point, mean(&self.deviation_um), end - start)
-            })
-            .collect()
-    }
 }
 
 /// The start and end of a run the model is not fitted to, s: the acceleration from rest (or
@@ -102,7 +117,7 @@ pub const TRANSIENT_S: f64 = 0.15;
 /// The least angle left out at each end, deg.
 pub const TRANSIENT_MIN_DEG: f64 = 3.0;
 
-impl Samples {
+impl Samples<'_> {
     /// The angle left out of the fit at each end of the trace, deg: [`TRANSIENT_S`] of travel
     /// at the feed, at least [`TRANSIENT_MIN_DEG`].
     pub fn transient_deg(&self) -> f64 {
@@ -112,40 +127,82 @@ impl Samples {
             .max(TRANSIENT_MIN_DEG)
     }
 
-    /// [`Samples::groups`] without those within [`Samples::transient_deg`] of either end.
-    pub fn fit_groups(&self, angle_deg: &[f64]) -> Vec<(Point, f64, usize)> {
-        let skip = self.transient_deg();
-        let (a, b) = (angle_deg[0], angle_deg[angle_deg.len() - 1]);
-        let (lo, hi) = (a.min(b) + skip, a.max(b) - skip);
-        let n = self.len();
-        let size = n.div_ceil(MAX_GROUPS).max(1);
-        self.groups(angle_deg)
-            .into_iter()
-            .enumerate()
-            .filter(|(k, _)| {
-                let mid = (k * size + size / 2).min(n - 1);
-                (lo..=hi).contains(&angle_deg[mid])
-            })
-            .map(|(_, g)| g)
-            .collect()
+    /// The groups without those within [`Samples::transient_deg`] of either end.
+    pub fn fit_groups(&self) -> impl Iterator<Item = &(Point, f64, usize)> + '_ {
+        self.groups
+            .iter()
+            .zip(&self.fitted)
+            .filter(|(_, f)| **f)
+            .map(|(g, _)| g)
     }
 }
 
-/// cos and sin of every angle (deg), by rotation from the previous sample.
-pub fn trig(angle_deg: &[f64]) -> (Vec<f64>, Vec<f64>) {
-    let n = angle_deg.len();
-    let (mut cos, mut sin) = (Vec::with_capacity(n), Vec::with_capacity(n));
-    let (mut c, mut s) = (1.0, 0.0);
-    for (i, a) in angle_deg.iter().enumerate() {
-        if i % 256 == 0 {
-            (s, c) = a.to_radians().sin_cos();
-        } else {
-            let d = (a - angle_deg[i - 1]).to_radians();
-            let d2 = d * d;
-            let cd = 1.0 - d2 / 2.0 * (1.0 - d2 / 12.0 * (1.0 - d2 / 30.0));
-            let sd = d * (1.0 - d2 / 6.0 * (1.0 - d2 / 20.0 * (1.0 - d2 / 42.0)));
-            (c, s) = (c * cd - s * sd, s * cd + c * sd);
+/// Entries of the table [`sin_cos_deg`] reduces angles to: every 360/1024 deg.
+const TABLE_N: usize = 1024;
+
+fn table() -> &'static [(f64, f64)] {
+    static TABLE: std::sync::OnceLock<Vec<(f64, f64)>> = std::sync::OnceLock::new();
+    TABLE.get_or_init(|| {
+        (0..TABLE_N)
+            .map(|k| {
+                let (s, c) = (std::f64::consts::TAU * k as f64 / TABLE_N as f64).sin_cos();
+                (c, s)
+            })
+            .collect()
+    })
+}
+
+/// (sin, cos) of an angle in degrees: the nearest of 1024 tabulated angles rotated by the
+/// remainder ε (|ε| ≤ π/1024), whose sine and cosine are their Taylor series to ε⁵ and ε⁴
+/// (truncation below 1e-18). Agrees with `to_radians().sin_cos()` to a few 1e-16, and each
+/// sample is independent of the others (no recurrence to wait for).
+#[inline]
+pub fn sin_cos_deg(a: f64, table: &[(f64, f64)]) -> (f64, f64) {
+    const MAGIC: f64 = 6_755_399_441_055_744.0; // 1.5·2⁵²: adding it rounds to an integer
+    let x = a * (TABLE_N as f64 / 360.0);
+    if x.abs() >= 1e15 {
+        return a.to_radians().sin_cos();
+    }
+    let k = (x + MAGIC) - MAGIC;
+    let e = (x - k) * (std::f64::consts::TAU / TABLE_N as f64);
+    let (c0, s0) = table[(k as i64 & (TABLE_N as i64 - 1)) as usize];
+    let e2 = e * e;
+    let ce = 1.0 - e2 * (0.5 - e2 * (1.0 / 24.0));
+    let se = e * (1.0 - e2 * (1.0 / 6.0 - e2 * (1.0 / 120.0)));
+    (s0 * ce + c0 * se, c0 * ce - s0 * se)
+}
+
+thread_local! {
+    /// Per-sample buffers of finished diagnoses, reused by the next on this thread: a trace's
+    /// columns are hundreds of kB each, and fresh ones cost page faults and zeroing in the
+    /// kernel at every diagnosis.
+    static POOL: std::cell::RefCell<Vec<Vec<f64>>> = const { std::cell::RefCell::new(Vec::new()) };
+}
+
+/// An empty buffer for at least `capacity` values, reused from the pool when there is one.
+pub fn buffer(capacity: usize) -> Vec<f64> {
+    let mut v = POOL.with(|p| p.borrow_mut().pop()).unwrap_or_default();
+    v.clear();
+    v.reserve(capacity);
+    v
+}
+
+/// Returns a buffer to the pool for [`buffer`].
+pub fn recycle(v: Vec<f64>) {
+    POOL.with(|p| {
+        let mut p = p.borrow_mut();
+        if p.len() < 16 {
+            p.push(v);
         }
+    });
+}
+
+/// cos and sin of every angle (deg), see [`sin_cos_deg`].
+pub fn trig(angle_deg: &[f64]) -> (Vec<f64>, Vec<f64>) {
+    let t = table();
+    let (mut cos, mut sin) = (buffer(angle_deg.len()), buffer(angle_deg.len()));
+    for a in angle_deg {
+        let (s, c) = sin_cos_deg(*a, t);
         cos.push(c);
         sin.push(s);
     }
@@ -158,9 +215,9 @@ mod tests {
     use proptest::prelude::*;
 
     proptest! {
-        /// The rotation recurrence agrees with sin_cos over a full trace of any step ≤ 2°.
+        /// The tabulated sine and cosine agree with sin_cos over a full trace of any step ≤ 2°.
         #[test]
-        fn recurrence_matches_sin_cos(start in -720.0..720.0f64, step in 1e-4..2.0f64, n in 2usize..5000) {
+        fn tabulated_trig_matches_sin_cos(start in -720.0..720.0f64, step in 1e-4..2.0f64, n in 2usize..5000) {
             let a: Vec<f64> = (0..n).map(|i| start + step * i as f64).collect();
             let (c, s) = trig(&a);
             for (i, x) in a.iter().enumerate() {
