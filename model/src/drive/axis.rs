@@ -21,8 +21,8 @@
 //! this is stable for `h < (2/ω)(√(1+ζ²) - ζ)`; [`DriveParams::largest_stable_step_s`] applies it
 //! to the screw mode (k on the reduced mass of motor and carriage) and to the stuck bristles of
 //! both contacts (σ0 on the mass they hold), and a step beyond it is refused. The constants of
-//! a step (the current-lag factor `1 - exp(-h/Tc)`, `h/M_m`, `h/m` and the reciprocals of the
-//! LuGre parameters) are computed once per step size and parameter set, not every step.
+//! a step (the current-lag factor `1 - exp(-h/Tc)`, `h/M_m` and `h/m`) are computed once per
+//! step size and parameter set, not every step.
 
 use super::friction::{LuGre, LuGreParams};
 use super::servo::{AxisCommand, ServoController, ServoParams};

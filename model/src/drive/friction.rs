@@ -121,85 +121,27 @@ impl LuGreParams {
 pub struct LuGre {
     /// Bristle deflection z, m.
     pub z_m: f64,
-    /// Constants of the last step size and parameter set.
-    step: LuGreStep,
-}
-
-/// The constants of a step of `h` seconds for one parameter set: reciprocals and products
-/// that would otherwise cost a division or a multiplication every step. Kept with the values
-/// they were computed from, so that a change of either recomputes them.
-#[derive(Clone, Copy, Debug, PartialEq, Default)]
-struct LuGreStep {
-    key: Option<(LuGreParams, f64)>,
-    /// `1/vs`, s/m.
-    inv_stribeck: f64,
-    /// `1/σ0`, m/N.
-    inv_sigma0: f64,
-    /// `σ0·h`, N·s/m.
-    sigma0_h: f64,
-    /// `1/h`, 1/s.
-    inv_h: f64,
-    /// Whether the Stribeck term may be dropped far above vs (see [`LuGreParams::stribeck_force`]).
-    coulomb_far: bool,
-}
-
-impl LuGreStep {
-    #[inline]
-    fn get(&mut self, p: &LuGreParams, h: f64) -> &LuGreStep {
-        let key = Some((*p, h));
-        if key != self.key {
-            *self = LuGreStep {
-                key,
-                inv_stribeck: 1.0 / p.stribeck_m_s,
-                inv_sigma0: 1.0 / p.sigma0_n_per_m,
-                sigma0_h: p.sigma0_n_per_m * h,
-                inv_h: 1.0 / h,
-                coulomb_far: p.static_n - p.coulomb_n < 1e5 * p.coulomb_n,
-            };
-        }
-        self
-    }
 }
 
 impl LuGre {
     /// Advances the bristles by `h` seconds at sliding velocity `v` (m/s) and returns the
     /// friction force over the step, N (opposing the motion for positive parameters).
-    ///
-    /// The update is the exact one of the module docs, written without divisions but one:
-    /// with `Fs(v)` the Stribeck force, `a h = σ0 |v| h / Fs(v)` and `z_ss = sign(v) Fs(v)/σ0`.
     #[inline]
     pub fn step(&mut self, p: &LuGreParams, v: f64, h: f64) -> f64 {
         if p.static_n == 0.0 && p.sigma2_n_s_per_m == 0.0 {
             return 0.0;
         }
-        let c = *self.step.get(p, h);
-        let x = v.abs() * c.inv_stribeck;
-        // δ = 2 is the usual Gaussian shape: avoid the general power there.
-        let r = if p.stribeck_exponent == 2.0 {
-            x * x
-        } else {
-            x.powf(p.stribeck_exponent)
-        };
-        // Far above vs the Stribeck term is below half an ulp of Fc (see `stribeck_force`).
-        let force = if r > 50.0 && c.coulomb_far {
-            p.coulomb_n
-        } else {
-            p.coulomb_n + (p.static_n - p.coulomb_n) * (-r).exp()
-        };
+        let g = p.stribeck_deflection(v);
+        let a = if g > 0.0 { v.abs() / g } else { 0.0 };
         let z0 = self.z_m;
-        let ah = if force > 0.0 {
-            v.abs() * c.sigma0_h / force
-        } else {
-            0.0
-        };
-        let z1 = if ah > 1e-12 {
-            let zss = (force * c.inv_sigma0).copysign(v);
-            zss + (z0 - zss) * (-ah).exp()
+        let z1 = if a * h > 1e-12 {
+            let zss = v / a;
+            zss + (z0 - zss) * (-a * h).exp()
         } else {
             z0 + v * h
         };
         // dz/dt averaged over the step, consistent with the exact z update.
-        let dz = (z1 - z0) * c.inv_h;
+        let dz = (z1 - z0) / h;
         self.z_m = z1;
         p.sigma0_n_per_m * z1 + p.sigma1_n_s_per_m * dz + p.sigma2_n_s_per_m * v
     }
