@@ -21,8 +21,8 @@
 //! this is stable for `h < (2/ω)(√(1+ζ²) - ζ)`; [`DriveParams::largest_stable_step_s`] applies it
 //! to the screw mode (k on the reduced mass of motor and carriage) and to the stuck bristles of
 //! both contacts (σ0 on the mass they hold), and a step beyond it is refused. The constants of
-//! a step (the current-lag factor `1 - exp(-h/Tc)` and the reflected motor mass) are computed
-//! once per step size and parameter set, not every step.
+//! a step (the current-lag factor `1 - exp(-h/Tc)`, `h/M_m` and `h/m`) are computed once per
+//! step size and parameter set, not every step.
 
 use super::friction::{LuGre, LuGreParams};
 use super::servo::{AxisCommand, ServoController, ServoParams};
@@ -163,14 +163,16 @@ pub struct Drive {
     step: MotorStep,
 }
 
-/// The constants of a motor-side step of `h` seconds: the current-lag factor
-/// `1 - exp(-h/Tc)` and the reflected motor mass `M_m`, kg. Kept with the values they were
-/// computed from (`h`, `Tc`, `J`, lead), so that a change of any of them recomputes them.
+/// The constants of a step of `h` seconds: the current-lag factor `1 - exp(-h/Tc)`, and
+/// `h/M_m` and `h/m` for the velocity updates of the motor side (reflected motor mass `M_m`)
+/// and of a lumped carriage (mass `m`), s/kg. Kept with the values they were computed from
+/// (`h`, `Tc`, `J`, lead, `m`), so that a change of any of them recomputes them.
 #[derive(Clone, Copy, Debug, PartialEq)]
 struct MotorStep {
-    key: Option<[f64; 4]>,
+    key: Option<[f64; 5]>,
     lag: f64,
-    motor_mass_kg: f64,
+    h_over_motor_mass: f64,
+    h_over_carriage_mass: f64,
 }
 
 impl MotorStep {
@@ -178,26 +180,29 @@ impl MotorStep {
     const NONE: MotorStep = MotorStep {
         key: None,
         lag: 0.0,
-        motor_mass_kg: 0.0,
+        h_over_motor_mass: 0.0,
+        h_over_carriage_mass: 0.0,
     };
 
     /// The constants for a step of `h` (s), recomputed only if `h` or a parameter changed.
     #[inline]
-    fn get(&mut self, h: f64, params: &DriveParams, servo: &ServoParams) -> (f64, f64) {
+    fn get(&mut self, h: f64, params: &DriveParams, servo: &ServoParams) -> &MotorStep {
         let key = Some([
             h,
             servo.current_time_constant_s,
             params.motor_inertia_kg_m2,
             params.screw.lead_m,
+            params.carriage_mass_kg,
         ]);
         if key != self.key {
             *self = MotorStep {
                 key,
                 lag: 1.0 - (-h / servo.current_time_constant_s).exp(),
-                motor_mass_kg: params.reflected_motor_mass_kg(),
+                h_over_motor_mass: h / params.reflected_motor_mass_kg(),
+                h_over_carriage_mass: h / params.carriage_mass_kg,
             };
         }
-        (self.lag, self.motor_mass_kg)
+        self
     }
 }
 
@@ -265,12 +270,13 @@ impl Drive {
     /// on the carriage; the motor feels its reaction).
     #[inline]
     pub fn step_motor(&mut self, h: f64, screw_force_n: f64) {
-        let (lag, mm) = self.step.get(h, &self.params, &self.servo);
+        let c = self.step.get(h, &self.params, &self.servo);
+        let (lag, h_over_mm) = (c.lag, c.h_over_motor_mass);
         self.motor_force_n += (self.controller.force_reference_n - self.motor_force_n) * lag;
         let friction =
             self.screw_friction
                 .step(&self.params.screw_friction, self.motor_velocity_m_s, h);
-        self.motor_velocity_m_s += h * (self.motor_force_n - screw_force_n - friction) / mm;
+        self.motor_velocity_m_s += (self.motor_force_n - screw_force_n - friction) * h_over_mm;
         self.motor_position_m += h * self.motor_velocity_m_s;
         self.screw_friction_force_n = friction;
         self.screw_force_n = screw_force_n;
@@ -326,9 +332,9 @@ impl ReducedAxis {
         let screw = self.drive.screw_force(&self.carriage);
         let p = &self.drive.params;
         let force = carriage_force(p, &mut self.carriage, screw, external_n, h);
-        let mass = p.carriage_mass_kg;
         self.drive.step_motor(h, screw);
-        self.carriage.velocity_m_s += h * force / mass;
+        // step_motor has just refreshed the constants for this h.
+        self.carriage.velocity_m_s += force * self.drive.step.h_over_carriage_mass;
         self.carriage.position_m += h * self.carriage.velocity_m_s;
     }
 }

@@ -359,6 +359,18 @@ impl Interpolator {
         }
     }
 
+    /// A box (lower and upper corner, m) that holds the position of every setpoint: the start
+    /// and the bounds of every segment (setpoints lie on the segments' geometry, dwells at
+    /// their ends).
+    pub fn bounds(&self) -> (Vector3<f64>, Vector3<f64>) {
+        self.segments
+            .iter()
+            .map(|seg| seg.geometry.bounds())
+            .fold((self.start, self.start), |(lo, hi), (a, b)| {
+                (lo.inf(&a), hi.sup(&b))
+            })
+    }
+
     /// All setpoints from `t = 0` to the end, at the servo rate.
     pub fn iter(&self) -> impl Iterator<Item = Setpoint> + '_ {
         let mut cursor = Cursor::default();

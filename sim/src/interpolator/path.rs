@@ -299,6 +299,22 @@ impl Geometry {
         self.point(self.length()).tangent.normalize()
     }
 
+    /// A box (lower and upper corner, m) holding every point of the segment: the segment's
+    /// own box for a line; for an arc or helix the in-plane square of its largest radius about
+    /// the centre, and its rise, with the end point.
+    pub fn bounds(&self) -> (Vector3<f64>, Vector3<f64>) {
+        match self {
+            Geometry::Line(line) => (line.start.inf(&line.end), line.start.sup(&line.end)),
+            Geometry::Helix(h) => {
+                let [u, v, n] = h.basis;
+                let half = (u.abs() + v.abs()) * h.max_radius();
+                let (a, b) = (h.center, h.center + n * h.rise);
+                let (lo, hi) = (a.inf(&b) - half, a.sup(&b) + half);
+                (lo.inf(&h.end), hi.sup(&h.end))
+            }
+        }
+    }
+
     /// End point, m.
     pub fn end(&self) -> Vector3<f64> {
         match self {

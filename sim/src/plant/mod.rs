@@ -7,8 +7,10 @@
 //!   F_gravity`, integrated by semi-implicit Euler (see `vmt_model::drive::axis`).
 //! - [`MultibodyPlant`]: the carriages are the links of a rapier3d-f64 multibody (prismatic
 //!   multibody joints from the ground outwards on both sides of the topology, contacts off), with
-//!   their own masses; rapier integrates them under gravity and the net drive force we apply to
-//!   each link every step.
+//!   their own masses. Two rates: the drives and the joint coordinates advance every plant step
+//!   by semi-implicit Euler with the multibody's joint-space inverse mass and bias accelerations
+//!   (gravity, Coriolis), and rapier advances the multibody every macro step (about 1 ms) under
+//!   the mean drive forces, which refreshes those and sets the joint velocities.
 //!
 //! Coordinates: each axis' coordinate `q` is the commanded tool position relative to the
 //! workpiece (ISO 841). A carriage on the workpiece side moves the opposite way (`-q` along the

@@ -46,6 +46,6 @@ impl Plant for ReducedPlant {
     }
 
     fn carriages(&self) -> [CarriageState; 3] {
-        self.axes.map(|a| a.carriage)
+        std::array::from_fn(|i| self.axes[i].carriage)
     }
 }
