@@ -1,0 +1,100 @@
+//! `vmt lobes`: files written, the SD and ZOA columns against the library, and bad arguments
+//! refused by name.
+
+mod common;
+
+use common::{stderr, vmt};
+use vmt_chatter::stability::benchmark_1dof;
+use vmt_chatter::stability::sd::{SdSettings, critical_depth};
+use vmt_model::cutting::MillingDirection;
+
+#[test]
+fn lobes_writes_both_diagrams_and_the_image() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().to_str().unwrap();
+    let o = vmt(&[
+        "lobes",
+        "--immersion",
+        "0.5",
+        "--speeds",
+        "11",
+        "--depths",
+        "40",
+        "--speed-min-rpm",
+        "10000",
+        "--speed-max-rpm",
+        "20000",
+        "--depth-max-mm",
+        "4",
+        "--quiet",
+        "--out",
+        out,
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(dir.path().join("lobes.png").metadata().unwrap().len() > 10_000);
+    let csv = std::fs::read_to_string(dir.path().join("lobes.csv")).unwrap();
+    let mut rows = csv.lines();
+    assert_eq!(
+        rows.next(),
+        Some("case,speed_rpm,sd_critical_depth_mm,zoa_critical_depth_mm,zoa_chatter_hz,zoa_lobe")
+    );
+    let rows: Vec<Vec<&str>> = rows.map(|r| r.rsplitn(6, ',').collect()).collect();
+    assert_eq!(rows.len(), 11);
+    // 12 000 rpm: the grid's boundary (depth steps of 0.1 mm, linear in the radius between
+    // them) is within half a step of the library's bisection.
+    let row = rows
+        .iter()
+        .find(|r| r[4] == "12000")
+        .expect("a row at 12000 rpm");
+    let grid_mm: f64 = row[3].parse().unwrap();
+    let sys = benchmark_1dof(0.5, MillingDirection::Down);
+    let exact = critical_depth(&sys, 12_000.0, 0.004, &SdSettings::default())
+        .unwrap()
+        .unwrap();
+    assert!(
+        (grid_mm - exact * 1e3).abs() < 0.05,
+        "{grid_mm} mm vs {exact} m"
+    );
+    let map = std::fs::read_to_string(dir.path().join("sd_map.csv")).unwrap();
+    assert_eq!(map.lines().count(), 1 + 11 * 40);
+}
+
+#[test]
+fn bad_lobe_arguments_are_refused_by_name() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().to_str().unwrap();
+    let o = vmt(&["lobes", "--immersion", "1.5", "--out", out]);
+    assert!(!o.status.success());
+    assert!(stderr(&o).contains("--immersion 1.5"), "{}", stderr(&o));
+    let o = vmt(&[
+        "lobes",
+        "--immersion",
+        "1",
+        "--depth-max-mm",
+        "60",
+        "--out",
+        out,
+    ]);
+    assert!(!o.status.success());
+    assert!(stderr(&o).contains("flute length 50 mm"), "{}", stderr(&o));
+    let o = vmt(&[
+        "lobes",
+        "--speed-min-rpm",
+        "9000",
+        "--speed-max-rpm",
+        "8000",
+        "--out",
+        out,
+    ]);
+    assert!(!o.status.success());
+    assert!(stderr(&o).contains("spindle speed"), "{}", stderr(&o));
+    let o = vmt(&[
+        "lobes",
+        "--scenario",
+        "../scenarios/vmc500.toml",
+        "--out",
+        out,
+    ]);
+    assert!(!o.status.success());
+    assert!(stderr(&o).contains("no milling job"), "{}", stderr(&o));
+}
