@@ -1,6 +1,8 @@
 //! One gap diagnosis of Kwon's seven-step procedure (scenarios/kwon_seven_step.toml, 14 traces
-//! in XY, ZX and YZ): the "measured" runs come from the model with 3 µm more Z backlash, the
-//! library is that of the three planes. Goal (issue 6): at most 30 s on 2 cores.
+//! in XY, ZX and YZ): the "measured" runs come from the model with 3 µm more X backlash, the
+//! library is that of the three planes. (Not Z: gravity holds the Z nut on one flank, so 3 µm
+//! more Z backlash changes the held-out traces by 0.026 µm RMS, and nothing is to be found.)
+//! Goal (issue 6): at most 30 s on 2 cores.
 //! Run: `cargo bench -p vmt-gap --bench seven_step` (prints the wall time of each stage).
 
 use std::time::Instant;
@@ -16,11 +18,11 @@ fn main() {
     let text = std::fs::read_to_string(path).expect("the seven-step scenario");
     let dir = std::path::Path::new(path).parent().map(|p| p.to_path_buf());
     let model = ScenarioModel::new(&text, path, dir.clone()).expect("model");
-    let key = "machine.axes.z.drive.backlash_um";
-    let z = model.value(key).expect("Z backlash in the model");
+    let key = "machine.axes.x.drive.backlash_um";
+    let x = model.value(key).expect("X backlash in the model");
     let real_text = vmt_scenario::edit::Template::parse(&text, path)
         .unwrap()
-        .with(&[(key, z + 3.0)])
+        .with(&[(key, x + 3.0)])
         .unwrap();
     let t0 = Instant::now();
     let measured = ScenarioModel::instrumented(&real_text, path, dir)
@@ -51,10 +53,11 @@ fn main() {
         })
         .collect();
     println!(
-        "seven-step gap diagnosis: {total:.1} s on {} threads ({} + {} simulations; linearisation {t_lin:.1} s); found {found:?}; held-out shrink {:.1} %",
+        "seven-step gap diagnosis: {total:.1} s on {} threads ({} + {} simulations; linearisation {t_lin:.1} s); found {found:?}; held-out RMS before {:.3} um; held-out shrink {:.1} %",
         rayon::current_num_threads(),
         lin.simulations(),
         s.simulations,
+        s.held_out_before_um,
         100.0 * s.held_out_shrink()
     );
 }

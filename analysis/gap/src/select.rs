@@ -221,10 +221,15 @@ struct Available {
 /// Pairs each measured trace with a simulated one of the same test: the k-th measured trace
 /// of a (plane, direction, radius, feed) with the k-th simulated one, so repeated tests (Kwon's
 /// steps 1 and 2) pair in order.
+///
+/// Without `grid` the bins are the pairs' own; with it (the keyed bins of the model as given,
+/// per measured trace) every trace is binned on that grid, so that all simulations give vectors
+/// of one length, bin for bin at the same angles (see [`on_grid`]).
 fn residuals(
     measured: &[Trace],
     simulated: &[Trace],
     bin_deg: f64,
+    grid: Option<&Grid>,
 ) -> Result<(Vec<TracePair>, Vec<Vec<f64>>), GapError> {
     let same = |s: &Trace, m: &Trace| {
         s.plane == m.plane
@@ -242,7 +247,14 @@ fn residuals(
             .ok_or_else(|| not_in_job(m, simulated))?;
         pairs.push(TracePair::align(m, s)?);
     }
-    let bins = pairs.iter().map(|p| bin(p, bin_deg)).collect();
+    let bins = match grid {
+        None => pairs.iter().map(|p| values(&bin(p, bin_deg))).collect(),
+        Some(g) => pairs
+            .iter()
+            .zip(g)
+            .map(|(p, reference)| on_grid(p, bin_deg, reference))
+            .collect(),
+    };
     Ok((pairs, bins))
 }
 
@@ -269,24 +281,44 @@ fn not_in_job(m: &Trace, simulated: &[Trace]) -> GapError {
     }
 }
 
-/// Residual averaged into bins of the measured angle, in the run's order.
-fn bin(p: &TracePair, width: f64) -> Vec<f64> {
+/// Per measured trace, the keyed bins (angle bin index, mean residual µm) of the model as given.
+type Grid = Vec<Vec<(i64, f64)>>;
+
+/// Residual averaged into bins of the measured angle, in the run's order, each with its key
+/// ⌊angle/width⌋ (the aligned angle is monotone along a run, so keys do not repeat).
+fn bin(p: &TracePair, width: f64) -> Vec<(i64, f64)> {
     let mut out = Vec::new();
     let (mut sum, mut n, mut cur) = (0.0, 0usize, None);
     for (a, r) in p.angle_deg.iter().zip(&p.residual_um) {
         let b = (a / width).floor() as i64;
-        if cur.is_some_and(|c| c != b) {
-            out.push(sum / n as f64);
+        if let Some(c) = cur.filter(|c| *c != b) {
+            out.push((c, sum / n as f64));
             (sum, n) = (0.0, 0);
         }
         cur = Some(b);
         sum += r;
         n += 1;
     }
-    if n > 0 {
-        out.push(sum / n as f64);
+    if let Some(c) = cur {
+        out.push((c, sum / n as f64));
     }
     out
+}
+
+fn values(bins: &[(i64, f64)]) -> Vec<f64> {
+    bins.iter().map(|(_, v)| *v).collect()
+}
+
+/// The residual of `p` on the bins of `reference`. A simulation whose arc is cut differently
+/// (another start or end of the overlap with the measured arc) lacks some bins at the ends;
+/// they take the reference value: no change there, so a sensitivity of zero, instead of
+/// shifting every later bin against its neighbour.
+fn on_grid(p: &TracePair, width: f64, reference: &[(i64, f64)]) -> Vec<f64> {
+    let own: std::collections::BTreeMap<i64, f64> = bin(p, width).into_iter().collect();
+    reference
+        .iter()
+        .map(|(k, v)| own.get(k).copied().unwrap_or(*v))
+        .collect()
 }
 
 fn stack(bins: &[Vec<f64>], rows: &[usize]) -> Vec<f64> {
@@ -350,6 +382,8 @@ struct Selector<'a> {
     available: Vec<Available>,
     /// Per available parameter, per measured trace: the model's binned sensitivity.
     sensitivities: Vec<Vec<Vec<f64>>>,
+    /// The bins every simulation is read on.
+    grid: Grid,
     cal0: Vec<f64>,
     held0: Vec<f64>,
     simulations: usize,
@@ -414,6 +448,7 @@ impl Selector<'_> {
             &self.available,
             &c.params,
             &c.beta,
+            &self.grid,
             self.o,
         )?;
         self.simulations += 1;
@@ -430,6 +465,7 @@ impl Selector<'_> {
             &self.available,
             &c.params,
             &refined,
+            &self.grid,
             self.o,
         )?;
         self.simulations += 1;
@@ -450,7 +486,11 @@ impl Selector<'_> {
         let beta = match solve(&cal, &self.cal0) {
             Some(b) if !params.is_empty() => b,
             _ => {
-                let bins = given.iter().map(|p| bin(p, self.o.bin_deg)).collect();
+                let bins = given
+                    .iter()
+                    .zip(&self.grid)
+                    .map(|(p, reference)| on_grid(p, self.o.bin_deg, reference))
+                    .collect();
                 return Ok((Vec::new(), (given, bins)));
             }
         };
@@ -582,19 +622,24 @@ impl Linearisation {
     fn sensitivities(
         &self,
         measured: &[Trace],
-        base: &[Vec<f64>],
+        grid: &Grid,
         o: &Options,
     ) -> Result<Vec<Vec<Vec<f64>>>, GapError> {
         self.available
             .iter()
             .zip(&self.stepped)
             .map(|(p, traces)| {
-                let (_, bins) = residuals(measured, traces, o.bin_deg)?;
+                let (_, bins) = residuals(measured, traces, o.bin_deg, Some(grid))?;
                 // Residual = measured − model, so the model's sensitivity is the residual's drop.
-                Ok(base
+                Ok(grid
                     .iter()
                     .zip(&bins)
-                    .map(|(b0, b1)| b0.iter().zip(b1).map(|(x, y)| (x - y) / p.step).collect())
+                    .map(|(b0, b1)| {
+                        b0.iter()
+                            .zip(b1)
+                            .map(|((_, x), y)| (x - y) / p.step)
+                            .collect()
+                    })
                     .collect())
             })
             .collect()
@@ -625,8 +670,9 @@ pub fn select_without(
     split: Split,
     o: &Options,
 ) -> Result<Selection, GapError> {
-    let (given_pairs, base_bins) = residuals(measured, &lin.base, o.bin_deg)?;
-    let sensitivities = lin.sensitivities(measured, &base_bins, o)?;
+    let (given_pairs, base_bins) = residuals(measured, &lin.base, o.bin_deg, None)?;
+    let grid: Grid = given_pairs.iter().map(|p| bin(p, o.bin_deg)).collect();
+    let sensitivities = lin.sensitivities(measured, &grid, o)?;
     let mut sel = Selector {
         model,
         measured,
@@ -636,6 +682,7 @@ pub fn select_without(
         simulations: 0,
         available: lin.available.clone(),
         sensitivities,
+        grid,
         cal0: stack(&base_bins, &split.calibration),
         held0: stack(&base_bins, &split.held_out),
     };
@@ -722,6 +769,7 @@ fn simulate_at(
     available: &[Available],
     params: &[usize],
     beta: &[f64],
+    grid: &Grid,
     o: &Options,
 ) -> Result<Simulated, GapError> {
     let values: Vec<(String, f64)> = params
@@ -735,5 +783,38 @@ fn simulate_at(
         })
         .collect();
     let traces = model.traces(&values)?;
-    residuals(measured, &traces, o.bin_deg)
+    residuals(measured, &traces, o.bin_deg, Some(grid))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn pair(angles: std::ops::Range<i32>, residual: impl Fn(f64) -> f64) -> TracePair {
+        let angle_deg: Vec<f64> = angles.map(|a| a as f64 * 0.5).collect();
+        TracePair {
+            label: "t".into(),
+            plane: vmt_ballbar::Plane::Xy,
+            sense: vmt_ballbar::Sense::Ccw,
+            radius_mm: 100.0,
+            feed_mm_min: 1000.0,
+            time_s: angle_deg.iter().map(|a| a / 10.0).collect(),
+            residual_um: angle_deg.iter().map(|a| residual(*a)).collect(),
+            angle_deg,
+        }
+    }
+
+    #[test]
+    fn a_simulation_cut_shorter_is_read_on_the_reference_bins() {
+        // Reference: 0 … 99.5° in 1° bins; the other simulation covers 3 … 96.5° only and
+        // differs from the reference by 1 µm everywhere it has samples.
+        let reference = bin(&pair(0..200, |a| a), 1.0);
+        let short = pair(6..194, |a| a - 1.0);
+        let on = on_grid(&short, 1.0, &reference);
+        assert_eq!(on.len(), reference.len());
+        for ((key, r), v) in reference.iter().zip(&on) {
+            let expected = if (3..97).contains(key) { r - 1.0 } else { *r };
+            assert!((v - expected).abs() < 1e-12, "bin {key}: {v} vs {expected}");
+        }
+    }
 }
