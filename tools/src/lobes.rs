@@ -7,7 +7,7 @@
 //! With a scenario, the tool, material and engagement of its milling job (modes in X and Y).
 
 use crate::error::CliError;
-use crate::plot::{FONT, Format, register_font};
+use crate::plot::{DrawResult, FONT, Format, register_font};
 use indicatif::{ProgressBar, ProgressStyle};
 use plotters::coord::Shift;
 use plotters::prelude::*;
@@ -351,8 +351,6 @@ pub fn draw(cases: &[Case], path: &Path, format: Format) -> Result<(), CliError>
         }
     }
 }
-
-type DrawResult<DB> = Result<(), DrawingAreaErrorKind<<DB as DrawingBackend>::ErrorType>>;
 
 fn draw_on<DB: DrawingBackend>(
     root: &DrawingArea<DB, Shift>,

@@ -78,7 +78,8 @@ pub fn draw_map(map: &VolumetricMap, path: &Path, format: Format) -> Result<(), 
     }
 }
 
-type DrawResult<DB> = Result<(), DrawingAreaErrorKind<<DB as DrawingBackend>::ErrorType>>;
+pub(crate) type DrawResult<DB> =
+    Result<(), DrawingAreaErrorKind<<DB as DrawingBackend>::ErrorType>>;
 
 fn draw_on<DB: DrawingBackend>(
     root: &DrawingArea<DB, Shift>,
