@@ -5,6 +5,8 @@
 //! - [`cutting`]: milling: the end mill, cutting-force coefficients, the tool point's modes.
 //! - [`drive`]: feed drives: cascaded servo control, ball screw with backlash, LuGre friction.
 //! - [`geometric`]: the 21 direction-dependent geometric errors of ISO 230-1.
+//! - [`iso230_2`]: the positioning figures of ISO 230-2 (A, B, E, M, R), shared by the
+//!   simulator's ground truth and the analysis of laser runs.
 //! - [`machine`]: a whole machine: axes, error chain, thermal model.
 //! - [`kinematics`]: the 24 topologies and the exact homogeneous-transform chain that gives the
 //!   volumetric error.
@@ -17,6 +19,7 @@ pub mod axis;
 pub mod cutting;
 pub mod drive;
 pub mod geometric;
+pub mod iso230_2;
 pub mod kinematics;
 pub mod machine;
 pub mod thermal;

@@ -44,6 +44,8 @@ use rand::rngs::StdRng;
 use rand_distr::{Distribution, StandardNormal};
 use serde::Serialize;
 use vmt_model::Axis;
+pub use vmt_model::iso230_2::Approach;
+use vmt_model::iso230_2::{Deviation, Iso230_2};
 
 /// Refractivity change of air per kelvin at 20 °C, 1013.25 hPa, 633 nm (magnitude), 1/K.
 pub const DN_DT_PER_K: f64 = 0.925e-6;
@@ -103,25 +105,6 @@ impl LaserSpec {
         DN_DT_PER_K * self.air_temperature_error_k - DN_DP_PER_HPA * self.air_pressure_error_hpa
             + DN_DRH_PER_PERCENT * self.humidity_error_percent
             - self.material_alpha_per_k * self.material_temperature_error_k
-    }
-}
-
-/// Direction of approach to a target.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Approach {
-    /// Positive direction (ISO ↑).
-    Forward,
-    /// Negative direction (ISO ↓).
-    Backward,
-}
-
-impl Approach {
-    /// `forward` or `backward`.
-    pub fn name(self) -> &'static str {
-        match self {
-            Approach::Forward => "forward",
-            Approach::Backward => "backward",
-        }
     }
 }
 
@@ -360,6 +343,47 @@ pub struct LaserRun {
     pub readings: Vec<LaserReading>,
 }
 
+impl LaserRun {
+    /// The readings as ISO 230-2 deviations (targets 0-based).
+    pub fn deviations(&self) -> Vec<Deviation> {
+        self.readings
+            .iter()
+            .map(|r| Deviation {
+                target: r.target.saturating_sub(1),
+                approach: if r.direction == Approach::Forward.name() {
+                    Approach::Forward
+                } else {
+                    Approach::Backward
+                },
+                deviation_um: r.deviation_um,
+            })
+            .collect()
+    }
+
+    /// The ISO 230-2 figures of the readings.
+    pub fn iso230_2(&self) -> Iso230_2 {
+        Iso230_2::evaluate(&self.targets_mm, &self.deviations())
+    }
+}
+
+impl LaserSetup {
+    /// The ISO 230-2 figures of deviations `x_um` (µm), one per measurement of the set-up.
+    pub fn iso230_2(&self, x_um: &[f64]) -> Iso230_2 {
+        let targets_mm: Vec<f64> = self.test.targets_m.iter().map(|t| t * 1e3).collect();
+        let deviations: Vec<Deviation> = self
+            .measurements
+            .iter()
+            .zip(x_um)
+            .map(|(m, &deviation_um)| Deviation {
+                target: m.target,
+                approach: m.approach,
+                deviation_um,
+            })
+            .collect();
+        Iso230_2::evaluate(&targets_mm, &deviations)
+    }
+}
+
 /// Sums over one averaging window: measured samples, noise-free samples, error-chain samples.
 #[derive(Clone, Copy, Debug, Default)]
 struct Window {
@@ -512,157 +536,6 @@ impl Laser {
     }
 }
 
-/// ISO 230-2:2014 figures of a positioning test, µm.
-///
-/// With `x_ij = P_ij − P_i` the deviation at target `i` in run `j` (`n` runs), per direction
-/// (↑ forward, ↓ backward):
-///
-/// ```text
-/// x̄_i↑ = (1/n) Σ_j x_ij↑                          mean unidirectional positional deviation
-/// x̄_i  = (x̄_i↑ + x̄_i↓) / 2                        mean bidirectional positional deviation
-/// B_i  = x̄_i↑ − x̄_i↓                              reversal value at a position
-/// s_i↑ = sqrt(Σ_j (x_ij↑ − x̄_i↑)² / (n − 1))      unidirectional standard uncertainty estimator
-/// R_i↑ = 4 s_i↑                                   unidirectional repeatability
-/// R_i  = max(2 s_i↑ + 2 s_i↓ + |B_i|, R_i↑, R_i↓)  bidirectional repeatability
-/// B    = max_i |B_i|,  B̄ = mean_i B_i              reversal value, mean reversal value
-/// R↑   = max_i R_i↑,  R = max_i R_i
-/// E↑   = max_i x̄_i↑ − min_i x̄_i↑                   unidirectional systematic positioning error
-/// E    = max(x̄_i↑, x̄_i↓) − min(x̄_i↑, x̄_i↓)          bidirectional systematic positioning error
-/// M    = max_i x̄_i − min_i x̄_i                     mean bidirectional positioning error
-/// A↑   = max(x̄_i↑ + 2 s_i↑) − min(x̄_i↑ − 2 s_i↑)   unidirectional accuracy
-/// A    = max(x̄_i↑ + 2 s_i↑, x̄_i↓ + 2 s_i↓) − min(x̄_i↑ − 2 s_i↑, x̄_i↓ − 2 s_i↓)
-/// ```
-#[derive(Clone, Debug, PartialEq, Serialize)]
-pub struct Iso230_2 {
-    /// Target positions, mm.
-    pub targets_mm: Vec<f64>,
-    /// x̄_i↑, µm.
-    pub mean_forward_um: Vec<f64>,
-    /// x̄_i↓, µm.
-    pub mean_backward_um: Vec<f64>,
-    /// s_i↑, µm.
-    pub s_forward_um: Vec<f64>,
-    /// s_i↓, µm.
-    pub s_backward_um: Vec<f64>,
-    /// B_i, µm.
-    pub reversal_um: Vec<f64>,
-    /// B, µm.
-    pub b_um: f64,
-    /// B̄, µm.
-    pub b_mean_um: f64,
-    /// E↑, µm.
-    pub e_forward_um: f64,
-    /// E↓, µm.
-    pub e_backward_um: f64,
-    /// E, µm.
-    pub e_um: f64,
-    /// M, µm.
-    pub m_um: f64,
-    /// R↑, µm.
-    pub r_forward_um: f64,
-    /// R↓, µm.
-    pub r_backward_um: f64,
-    /// R, µm.
-    pub r_um: f64,
-    /// A↑, µm.
-    pub a_forward_um: f64,
-    /// A↓, µm.
-    pub a_backward_um: f64,
-    /// A, µm.
-    pub a_um: f64,
-}
-
-fn mean_sd(v: &[f64]) -> (f64, f64) {
-    let n = v.len() as f64;
-    let mean = v.iter().sum::<f64>() / n.max(1.0);
-    let ss = v.iter().map(|x| (x - mean).powi(2)).sum::<f64>();
-    (mean, (ss / (n - 1.0).max(1.0)).sqrt())
-}
-
-fn span(hi: impl Iterator<Item = f64>, lo: impl Iterator<Item = f64>) -> f64 {
-    hi.fold(f64::NEG_INFINITY, f64::max) - lo.fold(f64::INFINITY, f64::min)
-}
-
-impl Iso230_2 {
-    /// The figures of deviations `x_um[k]` (µm) of `measurements[k]` at `targets_m`.
-    pub fn evaluate(targets_m: &[f64], measurements: &[Measurement], x_um: &[f64]) -> Self {
-        let m = targets_m.len();
-        let stats = |approach: Approach| -> (Vec<f64>, Vec<f64>) {
-            (0..m)
-                .map(|i| {
-                    let v: Vec<f64> = measurements
-                        .iter()
-                        .zip(x_um)
-                        .filter(|(r, _)| r.target == i && r.approach == approach)
-                        .map(|(_, x)| *x)
-                        .collect();
-                    mean_sd(&v)
-                })
-                .unzip()
-        };
-        let (up, su) = stats(Approach::Forward);
-        let (down, sd) = stats(Approach::Backward);
-        let b: Vec<f64> = up.iter().zip(&down).map(|(u, d)| u - d).collect();
-        let r_i: Vec<f64> = (0..m)
-            .map(|i| (2.0 * su[i] + 2.0 * sd[i] + b[i].abs()).max(4.0 * su[i].max(sd[i])))
-            .collect();
-        let max = |v: &[f64]| v.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-        let plus = |x: &[f64], s: &[f64], k: f64| -> Vec<f64> {
-            x.iter().zip(s).map(|(x, s)| x + k * s).collect()
-        };
-        let bi: Vec<f64> = up.iter().zip(&down).map(|(u, d)| 0.5 * (u + d)).collect();
-        let (up_hi, up_lo) = (plus(&up, &su, 2.0), plus(&up, &su, -2.0));
-        let (dn_hi, dn_lo) = (plus(&down, &sd, 2.0), plus(&down, &sd, -2.0));
-        Self {
-            targets_mm: targets_m.iter().map(|t| t * 1e3).collect(),
-            b_um: b.iter().map(|v| v.abs()).fold(0.0, f64::max),
-            b_mean_um: b.iter().sum::<f64>() / m.max(1) as f64,
-            e_forward_um: span(up.iter().copied(), up.iter().copied()),
-            e_backward_um: span(down.iter().copied(), down.iter().copied()),
-            e_um: span(
-                up.iter().chain(&down).copied(),
-                up.iter().chain(&down).copied(),
-            ),
-            m_um: span(bi.iter().copied(), bi.iter().copied()),
-            r_forward_um: 4.0 * max(&su),
-            r_backward_um: 4.0 * max(&sd),
-            r_um: max(&r_i),
-            a_forward_um: span(up_hi.iter().copied(), up_lo.iter().copied()),
-            a_backward_um: span(dn_hi.iter().copied(), dn_lo.iter().copied()),
-            a_um: span(
-                up_hi.iter().chain(&dn_hi).copied(),
-                up_lo.iter().chain(&dn_lo).copied(),
-            ),
-            mean_forward_um: up,
-            mean_backward_um: down,
-            s_forward_um: su,
-            s_backward_um: sd,
-            reversal_um: b,
-        }
-    }
-
-    /// The figures of the readings of a [`LaserRun`].
-    pub fn of_run(run: &LaserRun) -> Self {
-        let targets: Vec<f64> = run.targets_mm.iter().map(|t| t * 1e-3).collect();
-        let ms: Vec<Measurement> = run
-            .readings
-            .iter()
-            .map(|r| Measurement {
-                block: 0,
-                target: r.target.saturating_sub(1),
-                approach: if r.direction == "forward" {
-                    Approach::Forward
-                } else {
-                    Approach::Backward
-                },
-                run: r.run.saturating_sub(1),
-            })
-            .collect();
-        let x: Vec<f64> = run.readings.iter().map(|r| r.deviation_um).collect();
-        Self::evaluate(&targets, &ms, &x)
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -711,48 +584,6 @@ mod tests {
         };
         assert!(bad.validate().is_err());
         assert!(PositioningTest { runs: 1, ..t }.validate().is_err());
-    }
-
-    #[test]
-    fn iso_figures_of_a_known_set() {
-        // Two targets, three runs: forward deviations 1, 2, 3 and 4, 4, 4; backward 0, 0, 0 and
-        // 6, 7, 8 (µm).
-        let mut ms = Vec::new();
-        let mut x = Vec::new();
-        let data = [
-            (0, Approach::Forward, [1.0, 2.0, 3.0]),
-            (1, Approach::Forward, [4.0, 4.0, 4.0]),
-            (0, Approach::Backward, [0.0, 0.0, 0.0]),
-            (1, Approach::Backward, [6.0, 7.0, 8.0]),
-        ];
-        for (target, approach, v) in data {
-            for (run, xv) in v.into_iter().enumerate() {
-                ms.push(Measurement {
-                    block: 0,
-                    target,
-                    approach,
-                    run,
-                });
-                x.push(xv);
-            }
-        }
-        let f = Iso230_2::evaluate(&[0.0, 0.1], &ms, &x);
-        assert_eq!(f.mean_forward_um, [2.0, 4.0]);
-        assert_eq!(f.mean_backward_um, [0.0, 7.0]);
-        assert_eq!(f.s_forward_um, [1.0, 0.0]);
-        assert_eq!(f.reversal_um, [2.0, -3.0]);
-        assert_eq!(f.b_um, 3.0);
-        assert_eq!(f.b_mean_um, -0.5);
-        assert_eq!(f.e_forward_um, 2.0);
-        assert_eq!(f.e_um, 7.0);
-        // Bidirectional means 1 and 5.5.
-        assert_eq!(f.m_um, 4.5);
-        assert_eq!(f.r_forward_um, 4.0);
-        // R_1 = max(2 + 0 + 2, 4, 0) = 4; R_2 = max(0 + 2 + 3, 0, 4) = 5.
-        assert_eq!(f.r_um, 5.0);
-        // A = max(2+2, 4, 0, 7+2) - min(2-2, 4, 0, 7-2) = 9.
-        assert_eq!(f.a_um, 9.0);
-        assert_eq!(f.a_forward_um, 4.0);
     }
 
     #[test]

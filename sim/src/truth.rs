@@ -1,7 +1,7 @@
 //! Ground truth of a run: every injected parameter, and the derived figures a diagnosis reports,
 //! in the same definitions and units.
 
-use crate::laser::{Iso230_2, LaserRun, LaserTruth};
+use crate::laser::{LaserRun, LaserTruth};
 use crate::nc::program::{ArcDirection, Plane};
 use crate::simulate::{AxisDynamics, BallbarSetup, Job};
 use nalgebra::Vector3;
@@ -169,7 +169,6 @@ fn ballbar_test(b: &BallbarSetup, axes: &[AxisDynamics; 3]) -> Value {
 fn laser_truth(setup: &crate::laser::LaserSetup, run: &LaserRun, truth: &LaserTruth) -> Value {
     let s = &setup.spec;
     let t = &setup.test;
-    let ms = &setup.measurements;
     json!({
         "axis": run.axis,
         "feed_mm_min": t.feed_m_s * 60_000.0,
@@ -184,8 +183,8 @@ fn laser_truth(setup: &crate::laser::LaserSetup, run: &LaserRun, truth: &LaserTr
         "air_drift_k_per_h": s.air_drift_k_per_s * 3600.0,
         "exact_deviation_um": truth.exact_um,
         "chain_deviation_um": truth.chain_um,
-        "iso230_2_exact": Iso230_2::evaluate(&t.targets_m, ms, &truth.exact_um),
-        "iso230_2_chain": Iso230_2::evaluate(&t.targets_m, ms, &truth.chain_um),
+        "iso230_2_exact": setup.iso230_2(&truth.exact_um),
+        "iso230_2_chain": setup.iso230_2(&truth.chain_um),
     })
 }
 

@@ -9,7 +9,7 @@ use vmt_model::drive::Feedback;
 use vmt_model::geometric::{Component, Directional, ErrorFunction, LegendreSeries};
 use vmt_model::machine::Machine;
 use vmt_sim::interpolator::{InterpolatorConfig, Limits};
-use vmt_sim::laser::{Iso230_2, LaserSetup, LaserSpec, PositioningTest};
+use vmt_sim::laser::{LaserSetup, LaserSpec, PositioningTest};
 use vmt_sim::nc::parse;
 use vmt_sim::plant::Fidelity;
 use vmt_sim::run::Run;
@@ -97,7 +97,7 @@ fn scale_error_comes_back_in_the_mean_deviations() {
     let run = positioning_run(&m, axes, spec);
     let laser = run.laser.as_ref().unwrap();
     assert_eq!(laser.readings.len(), 3 * 2 * 3);
-    let iso = Iso230_2::of_run(laser);
+    let iso = laser.iso230_2();
     let t = test();
     let datum = t.datum_m();
     let exx = |x: f64| EXX_C1_M * (2.0 * x / 0.5 - 1.0);
@@ -152,7 +152,7 @@ fn backlash_gives_the_reversal_value() {
     ];
     let run = positioning_run(&m, axes, spec(0.0));
     let laser = run.laser.as_ref().unwrap();
-    let iso = Iso230_2::of_run(laser);
+    let iso = laser.iso230_2();
     let seen = run.ground_truth["drives"]["x"]["backlash_seen_um"]
         .as_f64()
         .unwrap();

@@ -11,7 +11,6 @@ use crate::plot::{self, Format};
 use indicatif::{ProgressBar, ProgressStyle};
 use std::path::{Path, PathBuf};
 use vmt_scenario::Scenario;
-use vmt_sim::laser::Iso230_2;
 use vmt_sim::machining::simulate_machining;
 use vmt_sim::plant::Fidelity;
 use vmt_sim::run::Run;
@@ -107,8 +106,8 @@ pub fn write(run: &Run, dir: &Path) -> Result<Written, CliError> {
     }
     if let Some(l) = &run.laser {
         let path = dir.join("laser_iso230_2.json");
-        let text = serde_json::to_string_pretty(&Iso230_2::of_run(l))
-            .map_err(|e| CliError::output(&path, e))?;
+        let text =
+            serde_json::to_string_pretty(&l.iso230_2()).map_err(|e| CliError::output(&path, e))?;
         std::fs::write(&path, text).map_err(|e| CliError::output(&path, e))?;
         files.push(path);
     }
@@ -125,7 +124,7 @@ pub fn write(run: &Run, dir: &Path) -> Result<Written, CliError> {
 /// figures of the laser readings.
 pub fn summary_figures(run: &Run) -> String {
     let laser = run.laser.as_ref().map(|l| {
-        let f = Iso230_2::of_run(l);
+        let f = l.iso230_2();
         format!(
             "ISO 230-2 {} ({} targets, {} runs): A {:.2} um, B {:.2} um, E {:.2} um, M {:.2} um, R {:.2} um",
             l.axis,

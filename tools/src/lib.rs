@@ -14,6 +14,7 @@ pub mod lobes;
 pub mod map;
 pub mod plot;
 pub mod points;
+pub mod positioning;
 pub mod program;
 pub mod thermal;
 pub mod traces;

@@ -59,16 +59,20 @@ enum Command {
     /// writes the MCAP, the Rerun recording and the polar plot, diagnoses the traces and prints
     /// the diagnosis beside the run's ground truth.
     Demo(RunArgs),
-    /// Diagnose ball-bar traces: ISO 230-4 figures and the machine errors behind them.
+    /// Diagnose ball-bar traces (ISO 230-4 figures and the machine errors behind them) or a
+    /// laser positioning test (ISO 230-2 figures, trend, compensation table).
     ///
-    /// FILE is a run of ours (run.mcap from `vmt run`; every circular test in it is diagnosed
-    /// and compared with the run's ground truth) or an instrument's CSV export with columns
-    /// angle_deg,deviation_um,direction (cw/ccw) and optionally time_s, whose set-up is given
-    /// with --radius-mm, --feed-mm-min and --plane.
+    /// FILE is a run of ours (run.mcap from `vmt run`; every circular test in it is diagnosed,
+    /// or its laser readings evaluated, and compared with the run's ground truth) or an
+    /// instrument's CSV export: a ball-bar trace with columns angle_deg,deviation_um,direction
+    /// (cw/ccw) and optionally time_s, whose set-up is given with --radius-mm, --feed-mm-min and
+    /// --plane; or laser readings with columns target_mm,direction (forward/backward),run and
+    /// deviation_um (or reading_mm), the axis named with --axis.
     ///
     /// Examples:
     ///   vmt diagnose out/run.mcap --out out/diagnosis
     ///   vmt diagnose trace.csv --radius-mm 150 --feed-mm-min 1000 --plane XY
+    ///   vmt diagnose laser.csv --axis X --out laser_report
     #[command(verbatim_doc_comment)]
     Diagnose(DiagnoseArgs),
     /// Simulate N random machines drawn from the scenario's [dataset] distributions: writes
@@ -180,6 +184,9 @@ struct DiagnoseArgs {
     /// Test plane of a CSV trace: XY, ZX or YZ.
     #[arg(long)]
     plane: Option<String>,
+    /// Axis name of a positioning test's CSV (for the report).
+    #[arg(long)]
+    axis: Option<String>,
     /// Also write report.txt, report.md, report.json and the polar plots into this folder.
     #[arg(long)]
     out: Option<PathBuf>,
@@ -205,6 +212,9 @@ fn diagnose_cmd(args: DiagnoseArgs) -> Result<(), CliError> {
             ));
         }
     };
+    if let Some(p) = vmt_tools::positioning::read(&args.file, args.axis.as_deref())? {
+        return positioning_report(&p, args.json, args.out.as_deref());
+    }
     let options = vmt_ballbar::Options {
         minimum_zone: args.minimum_zone,
         ..Default::default()
@@ -217,6 +227,25 @@ fn diagnose_cmd(args: DiagnoseArgs) -> Result<(), CliError> {
     }
     if let Some(dir) = &args.out {
         for f in vmt_tools::diagnose::write(&d, dir)? {
+            eprintln!("wrote {}", f.display());
+        }
+    }
+    Ok(())
+}
+
+/// Prints (and with `out`, writes) the report of a positioning test.
+fn positioning_report(
+    p: &vmt_tools::positioning::Positioning,
+    json: bool,
+    out: Option<&Path>,
+) -> Result<(), CliError> {
+    if json {
+        println!("{:#}", vmt_tools::positioning::json(p));
+    } else {
+        print!("{}", vmt_tools::positioning::text(p));
+    }
+    if let Some(dir) = out {
+        for f in vmt_tools::positioning::write(p, dir)? {
             eprintln!("wrote {}", f.display());
         }
     }

@@ -1,0 +1,407 @@
+//! `vmt diagnose` of a linear positioning test (laser interferometer, ISO 230-2): readings in
+//! from a run of ours or an instrument's CSV export, the evaluation of `vmt-positioning` out as
+//! text, Markdown, JSON and a plot of the deviations.
+//!
+//! # CSV format
+//!
+//! One row per reading, a header naming the columns (any order, extra columns ignored):
+//!
+//! | column | unit | meaning |
+//! |---|---|---|
+//! | `target_mm` | mm | target position P_i |
+//! | `direction` | — | `forward` (approached from below, ISO ↑) or `backward` (↓) |
+//! | `run` | — | run number j (a positive integer) |
+//! | `deviation_um` | µm | x_ij = P_ij − P_i, the reading minus the target |
+//! | `reading_mm` | mm | or, instead of `deviation_um`, the reading P_ij itself |
+//!
+//! A file is a positioning test when its header has `target_mm` (and an MCAP run when it has a
+//! `/laser` topic); the axis name comes from `--axis` (CSV) or the run.
+
+use crate::error::CliError;
+use crate::plot::{DrawResult, FONT, Figure, Format, register_font, render};
+use mcap::MessageStream;
+use plotters::coord::Shift;
+use plotters::prelude::*;
+use serde_json::{Value, json};
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+use vmt_positioning::{Approach, Evaluation, PositioningRun, Reading, evaluate, report};
+
+/// An evaluated positioning test.
+pub struct Positioning {
+    /// The file read.
+    pub file: String,
+    /// The checked readings.
+    pub run: PositioningRun,
+    /// Their evaluation.
+    pub evaluation: Evaluation,
+    /// The `laser` section of a simulated run's ground truth.
+    pub truth: Option<Value>,
+}
+
+/// Reads and evaluates `path` if it is a positioning test (an MCAP run with a `/laser` topic or
+/// a CSV with a `target_mm` column); `None` for any other file.
+pub fn read(path: &Path, axis: Option<&str>) -> Result<Option<Positioning>, CliError> {
+    let file = path.display().to_string();
+    let bytes = std::fs::read(path).map_err(|e| CliError::input(&file, None, e.to_string()))?;
+    let found = if bytes.starts_with(mcap::MAGIC) {
+        read_mcap(&bytes, &file)?
+    } else {
+        read_csv(&bytes, &file, axis.unwrap_or("?"))?.map(|r| (r, None))
+    };
+    let Some((run, truth)) = found else {
+        return Ok(None);
+    };
+    let evaluation = evaluate(&run);
+    Ok(Some(Positioning {
+        file,
+        run,
+        evaluation,
+        truth,
+    }))
+}
+
+fn direction(s: &str) -> Option<Approach> {
+    match s.to_ascii_lowercase().as_str() {
+        "forward" => Some(Approach::Forward),
+        "backward" => Some(Approach::Backward),
+        _ => None,
+    }
+}
+
+fn read_mcap(
+    bytes: &[u8],
+    file: &str,
+) -> Result<Option<(PositioningRun, Option<Value>)>, CliError> {
+    let bad = |m: String| CliError::input(file, None, m);
+    let mut readings = Vec::new();
+    let mut axis = None;
+    let mut truth = None;
+    for message in
+        MessageStream::new(bytes).map_err(|e| bad(format!("not a readable MCAP file: {e}")))?
+    {
+        let m = message.map_err(|e| bad(format!("a damaged MCAP record: {e}")))?;
+        match m.channel.topic.as_str() {
+            "/ground_truth" => {
+                truth = serde_json::from_slice::<Value>(&m.data)
+                    .ok()
+                    .map(|t| t["laser"].clone());
+            }
+            "/laser" => {
+                axis = m.channel.metadata.get("axis").cloned();
+                let v: Value = serde_json::from_slice(&m.data)
+                    .map_err(|e| bad(format!("/laser: a message that is not JSON: {e}")))?;
+                let num = |k: &str| {
+                    v[k].as_f64()
+                        .ok_or_else(|| bad(format!("/laser: a message without a number `{k}`")))
+                };
+                let d = v["direction"].as_str().unwrap_or("");
+                readings.push(Reading {
+                    target_mm: num("target_mm")?,
+                    approach: direction(d).ok_or_else(|| {
+                        bad(format!("/laser: direction `{d}`; forward or backward"))
+                    })?,
+                    run: num("run")? as usize,
+                    deviation_um: num("deviation_um")?,
+                });
+            }
+            _ => {}
+        }
+    }
+    if readings.is_empty() {
+        return Ok(None);
+    }
+    let run = PositioningRun::new(axis.as_deref().unwrap_or("?"), readings)
+        .map_err(|e| bad(e.to_string()))?;
+    Ok(Some((run, truth.filter(|t| !t.is_null()))))
+}
+
+fn read_csv(bytes: &[u8], file: &str, axis: &str) -> Result<Option<PositioningRun>, CliError> {
+    let mut reader = csv::ReaderBuilder::new()
+        .trim(csv::Trim::All)
+        .from_reader(bytes);
+    let header = reader
+        .headers()
+        .map_err(|e| CliError::input(file, Some(1), e.to_string()))?
+        .clone();
+    let find = |name: &str| header.iter().position(|h| h == name);
+    let Some(target) = find("target_mm") else {
+        return Ok(None);
+    };
+    let need = |name: &str| {
+        find(name).ok_or_else(|| {
+            CliError::input(
+                file,
+                Some(1),
+                format!(
+                    "no `{name}` column; a positioning test has target_mm, direction (forward or backward), run, and deviation_um or reading_mm (found: {})",
+                    header.iter().collect::<Vec<_>>().join(", ")
+                ),
+            )
+        })
+    };
+    let (dir_col, run_col) = (need("direction")?, need("run")?);
+    let value = match (find("deviation_um"), find("reading_mm")) {
+        (Some(k), _) => Measured::Deviation(k),
+        (None, Some(k)) => Measured::Reading(k),
+        (None, None) => Measured::Deviation(need("deviation_um")?),
+    };
+    let mut readings = Vec::new();
+    let mut lines = Vec::new();
+    for (i, record) in reader.records().enumerate() {
+        let line = i + 2;
+        let rec = record.map_err(|e| CliError::input(file, Some(line), e.to_string()))?;
+        let at = |msg: String| CliError::input(file, Some(line), msg);
+        let number = |k: usize, name: &str| -> Result<f64, CliError> {
+            let s = rec.get(k).unwrap_or("");
+            match s.parse::<f64>() {
+                Ok(v) if v.is_finite() => Ok(v),
+                _ => Err(at(format!("{name} `{s}` is not accepted; a finite number"))),
+            }
+        };
+        let d = rec.get(dir_col).unwrap_or("");
+        let approach = direction(d).ok_or_else(|| {
+            at(format!(
+                "direction `{d}` is not accepted; forward (approached from below) or backward"
+            ))
+        })?;
+        let r = rec.get(run_col).unwrap_or("");
+        let run = r
+            .parse::<usize>()
+            .ok()
+            .filter(|&j| j > 0)
+            .ok_or_else(|| at(format!("run `{r}` is not accepted; a positive integer")))?;
+        let target_mm = number(target, "target_mm")?;
+        let deviation_um = match value {
+            Measured::Deviation(k) => number(k, "deviation_um")?,
+            Measured::Reading(k) => (number(k, "reading_mm")? - target_mm) * 1e3,
+        };
+        readings.push(Reading {
+            target_mm,
+            approach,
+            run,
+            deviation_um,
+        });
+        lines.push(line);
+    }
+    PositioningRun::new(axis, readings).map(Some).map_err(|e| {
+        // Name the line of the reading the check points at, if it points at one.
+        let line = match &e {
+            vmt_positioning::PositioningError::NotFinite { reading, .. }
+            | vmt_positioning::PositioningError::Duplicate { reading, .. } => {
+                lines.get(*reading).copied()
+            }
+            _ => None,
+        };
+        CliError::input(file, line, e.to_string())
+    })
+}
+
+/// Which column holds the measured value.
+#[derive(Clone, Copy)]
+enum Measured {
+    Deviation(usize),
+    Reading(usize),
+}
+
+/// The figures of the noise-free truth against the measured ones.
+fn truth_rows(p: &Positioning) -> Vec<(&'static str, f64, f64)> {
+    let Some(t) = p.truth.as_ref().map(|t| &t["iso230_2_exact"]) else {
+        return Vec::new();
+    };
+    let f = &p.evaluation.iso230_2;
+    [
+        ("A", "a_um", f.a_um),
+        ("B", "b_um", f.b_um),
+        ("B mean", "b_mean_um", f.b_mean_um),
+        ("E", "e_um", f.e_um),
+        ("M", "m_um", f.m_um),
+        ("R", "r_um", f.r_um),
+    ]
+    .into_iter()
+    .filter_map(|(name, key, measured)| Some((name, t[key].as_f64()?, measured)))
+    .collect()
+}
+
+/// The report as text, with the simulated run's truth beside it.
+pub fn text(p: &Positioning) -> String {
+    let mut s = report::text(&p.evaluation);
+    let rows = truth_rows(p);
+    if !rows.is_empty() {
+        let _ = writeln!(
+            s,
+            "\nAgainst the run's ground truth (the tool point without instrument noise)"
+        );
+        let _ = writeln!(
+            s,
+            "  {:<8} {:>10} {:>10} {:>10}",
+            "figure", "truth", "measured", "error"
+        );
+        for (name, t, m) in rows {
+            let _ = writeln!(s, "  {name:<8} {t:>10.3} {m:>10.3} {:>+10.3}", m - t);
+        }
+    }
+    s
+}
+
+/// The report as JSON.
+pub fn json(p: &Positioning) -> Value {
+    json!({
+        "file": p.file,
+        "positioning": p.evaluation,
+        "ground_truth": p.truth.as_ref().map(|t| &t["iso230_2_exact"]),
+    })
+}
+
+/// Writes `report.txt`, `report.md`, `report.json` and `positioning.png` into `dir`.
+pub fn write(p: &Positioning, dir: &Path) -> Result<Vec<PathBuf>, CliError> {
+    std::fs::create_dir_all(dir).map_err(|e| CliError::output(dir, e))?;
+    let mut files = Vec::new();
+    let mut put = |name: &str, text: String| -> Result<(), CliError> {
+        let path = dir.join(name);
+        std::fs::write(&path, text).map_err(|e| CliError::output(&path, e))?;
+        files.push(path);
+        Ok(())
+    };
+    put("report.txt", text(p))?;
+    put("report.md", report::markdown(&p.evaluation))?;
+    let js = serde_json::to_string_pretty(&json(p)).map_err(|e| CliError::output(dir, e))?;
+    put("report.json", js)?;
+    let png = dir.join("positioning.png");
+    draw(&p.evaluation, &png, Format::Png)?;
+    files.push(png);
+    Ok(files)
+}
+
+/// The deviation curves as ISO 230-2 draws them: the mean deviation per direction with its
+/// ±2s band, the mean bidirectional deviation, and the figures.
+pub fn draw(e: &Evaluation, path: &Path, format: Format) -> Result<(), CliError> {
+    register_font();
+    struct Curves<'a>(&'a Evaluation);
+    impl Figure for Curves<'_> {
+        fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> DrawResult<DB> {
+            draw_on(root, self.0)
+        }
+    }
+    render(&Curves(e), path, format, (1200, 800))
+}
+
+fn draw_on<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, e: &Evaluation) -> DrawResult<DB> {
+    root.fill(&WHITE)?;
+    let f = &e.iso230_2;
+    let t = &f.targets_mm;
+    let band = |m: &[f64], s: &[f64], k: f64| -> Vec<(f64, f64)> {
+        t.iter()
+            .zip(m.iter().zip(s))
+            .map(|(x, (m, s))| (*x, m + k * s))
+            .collect()
+    };
+    let curves = [
+        (
+            "forward mean",
+            band(&f.mean_forward_um, &f.s_forward_um, 0.0),
+            BLUE,
+            false,
+        ),
+        (
+            "forward mean ± 2s",
+            band(&f.mean_forward_um, &f.s_forward_um, 2.0),
+            BLUE,
+            true,
+        ),
+        (
+            "",
+            band(&f.mean_forward_um, &f.s_forward_um, -2.0),
+            BLUE,
+            true,
+        ),
+        (
+            "backward mean",
+            band(&f.mean_backward_um, &f.s_backward_um, 0.0),
+            RED,
+            false,
+        ),
+        (
+            "backward mean ± 2s",
+            band(&f.mean_backward_um, &f.s_backward_um, 2.0),
+            RED,
+            true,
+        ),
+        (
+            "",
+            band(&f.mean_backward_um, &f.s_backward_um, -2.0),
+            RED,
+            true,
+        ),
+    ];
+    let (lo, hi) = curves
+        .iter()
+        .flat_map(|c| c.1.iter().map(|p| p.1))
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
+            (a.min(v), b.max(v))
+        });
+    let pad = ((hi - lo) * 0.1).max(0.1);
+    let (x0, x1) = (t[0], t[t.len() - 1]);
+    let xpad = (x1 - x0) * 0.03;
+    let (plot, side) = root.split_horizontally(880);
+    let mut chart = ChartBuilder::on(&plot)
+        .caption(
+            format!("ISO 230-2 positioning, axis {} ({} runs)", e.axis, e.runs),
+            (FONT, 22),
+        )
+        .margin(12)
+        .x_label_area_size(40)
+        .y_label_area_size(60)
+        .build_cartesian_2d((x0 - xpad)..(x1 + xpad), (lo - pad)..(hi + pad))?;
+    chart
+        .configure_mesh()
+        .x_desc("target position (mm)")
+        .y_desc("deviation (µm)")
+        .label_style((FONT, 14))
+        .axis_desc_style((FONT, 15))
+        .draw()?;
+    for (name, pts, colour, dashed) in curves {
+        let style = if dashed {
+            colour.mix(0.5).stroke_width(1)
+        } else {
+            colour.stroke_width(2)
+        };
+        if !dashed {
+            chart.draw_series(pts.iter().map(|p| Circle::new(*p, 3, colour.filled())))?;
+        }
+        let drawn = chart.draw_series(LineSeries::new(pts, style))?;
+        if !name.is_empty() {
+            drawn
+                .label(name)
+                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], style));
+        }
+    }
+    chart
+        .configure_series_labels()
+        .label_font((FONT, 14))
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK)
+        .draw()?;
+    let lines = [
+        format!("A {:.3} µm", f.a_um),
+        format!("A↑ {:.3} µm", f.a_forward_um),
+        format!("A↓ {:.3} µm", f.a_backward_um),
+        format!("E {:.3} µm", f.e_um),
+        format!("M {:.3} µm", f.m_um),
+        format!("R {:.3} µm", f.r_um),
+        format!("R↑ {:.3} µm", f.r_forward_um),
+        format!("R↓ {:.3} µm", f.r_backward_um),
+        format!("B {:.3} µm", f.b_um),
+        format!("B mean {:+.3} µm", f.b_mean_um),
+        String::new(),
+        format!("trend {:+.2} µm/m", e.trend.slope_um_per_m),
+    ];
+    for (k, l) in lines.iter().enumerate() {
+        side.draw(&Text::new(
+            l.as_str(),
+            (20, 80 + 26 * k as i32),
+            (FONT, 17).into_font(),
+        ))?;
+    }
+    Ok(())
+}
