@@ -7,7 +7,7 @@
 //! With a scenario, the tool, material and engagement of its milling job (modes in X and Y).
 
 use crate::error::CliError;
-use crate::plot::{DrawResult, FONT, Format, register_font};
+use crate::plot::{DrawResult, FONT, Figure, Format, register_font, render};
 use indicatif::{ProgressBar, ProgressStyle};
 use plotters::coord::Shift;
 use plotters::prelude::*;
@@ -337,19 +337,17 @@ pub fn draw(cases: &[Case], path: &Path, format: Format) -> Result<(), CliError>
     let cols = if cases.len() > 1 { 2 } else { 1 };
     let rows = cases.len().div_ceil(cols);
     let size = (800 * cols as u32, 560 * rows as u32);
-    let err = |e: &dyn std::fmt::Display| CliError::output(path, e);
-    match format {
-        Format::Png => {
-            let root = BitMapBackend::new(path, size).into_drawing_area();
-            draw_on(&root, cases, rows, cols).map_err(|e| err(&e))?;
-            root.present().map_err(|e| err(&e))
-        }
-        Format::Svg => {
-            let root = SVGBackend::new(path, size).into_drawing_area();
-            draw_on(&root, cases, rows, cols).map_err(|e| err(&e))?;
-            root.present().map_err(|e| err(&e))
+    struct Panels<'a> {
+        cases: &'a [Case],
+        rows: usize,
+        cols: usize,
+    }
+    impl Figure for Panels<'_> {
+        fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> DrawResult<DB> {
+            draw_on(root, self.cases, self.rows, self.cols)
         }
     }
+    render(&Panels { cases, rows, cols }, path, format, size)
 }
 
 fn draw_on<DB: DrawingBackend>(

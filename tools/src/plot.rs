@@ -1,4 +1,5 @@
-//! Images a person can read: volumetric error maps as heat maps with colour bars.
+//! Images a person can read: volumetric error maps as heat maps with colour bars, thermal runs,
+//! ball-bar polar plots, ISO 230-2 positioning curves; `render` writes any `Figure` as PNG or SVG.
 
 use crate::error::CliError;
 use crate::map::{APPROACHES, VolumetricMap};
@@ -62,17 +63,38 @@ fn diverging(t: f64) -> RGBColor {
 /// each column on one symmetric colour scale (µm).
 pub fn draw_map(map: &VolumetricMap, path: &Path, format: Format) -> Result<(), CliError> {
     register_font();
-    let size = (1500, 960);
+    struct Map<'a>(&'a VolumetricMap);
+    impl Figure for Map<'_> {
+        fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> DrawResult<DB> {
+            draw_on(root, self.0)
+        }
+    }
+    render(&Map(map), path, format, (1500, 960))
+}
+
+/// A picture drawn on one drawing area, whatever the backend.
+pub(crate) trait Figure {
+    /// Draws the picture on `root`.
+    fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> DrawResult<DB>;
+}
+
+/// Renders `figure` into `path` as `format`, `size` pixels.
+pub(crate) fn render(
+    figure: &impl Figure,
+    path: &Path,
+    format: Format,
+    size: (u32, u32),
+) -> Result<(), CliError> {
     let err = |e: &dyn std::fmt::Display| CliError::output(path, e);
     match format {
         Format::Png => {
             let root = BitMapBackend::new(path, size).into_drawing_area();
-            draw_on(&root, map).map_err(|e| err(&e))?;
+            figure.draw(&root).map_err(|e| err(&e))?;
             root.present().map_err(|e| err(&e))
         }
         Format::Svg => {
             let root = SVGBackend::new(path, size).into_drawing_area();
-            draw_on(&root, map).map_err(|e| err(&e))?;
+            figure.draw(&root).map_err(|e| err(&e))?;
             root.present().map_err(|e| err(&e))
         }
     }
@@ -187,20 +209,13 @@ pub fn draw_thermal(
     format: Format,
 ) -> Result<(), CliError> {
     register_font();
-    let size = (1200, 900);
-    let err = |e: &dyn std::fmt::Display| CliError::output(path, e);
-    match format {
-        Format::Png => {
-            let root = BitMapBackend::new(path, size).into_drawing_area();
-            draw_thermal_on(&root, h).map_err(|e| err(&e))?;
-            root.present().map_err(|e| err(&e))
-        }
-        Format::Svg => {
-            let root = SVGBackend::new(path, size).into_drawing_area();
-            draw_thermal_on(&root, h).map_err(|e| err(&e))?;
-            root.present().map_err(|e| err(&e))
+    struct Thermal<'a>(&'a crate::thermal::ThermalHistory);
+    impl Figure for Thermal<'_> {
+        fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> DrawResult<DB> {
+            draw_thermal_on(root, self.0)
         }
     }
+    render(&Thermal(h), path, format, (1200, 900))
 }
 
 fn draw_thermal_on<DB: DrawingBackend>(
@@ -343,23 +358,22 @@ pub fn draw_polar(
             path.display()
         ))
     })?;
-    let err = |e: &dyn std::fmt::Display| CliError::output(path, e);
-    match format {
-        Format::Png => {
-            let root = BitMapBackend::new(path, POLAR_SIZE).into_drawing_area();
-            polar
-                .draw_on(&root, traces, iso_figures)
-                .map_err(|e| err(&e))?;
-            root.present().map_err(|e| err(&e))
-        }
-        Format::Svg => {
-            let root = SVGBackend::new(path, POLAR_SIZE).into_drawing_area();
-            polar
-                .draw_on(&root, traces, iso_figures)
-                .map_err(|e| err(&e))?;
-            root.present().map_err(|e| err(&e))
+    struct Plot<'a> {
+        polar: Polar,
+        traces: &'a [BallbarTrace],
+        iso_figures: Option<&'a str>,
+    }
+    impl Figure for Plot<'_> {
+        fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> DrawResult<DB> {
+            self.polar.draw_on(root, self.traces, self.iso_figures)
         }
     }
+    let plot = Plot {
+        polar,
+        traces,
+        iso_figures,
+    };
+    render(&plot, path, format, POLAR_SIZE)
 }
 
 /// The geometry of a polar plot: where the nominal circle is and how deviations are magnified.
