@@ -31,6 +31,7 @@ fn table_drive(backlash_m: f64) -> (DriveParams, ServoParams) {
             stiffness_n_per_m: 1.8e8,
             damping_n_s_per_m: 2e4,
             backlash_m,
+            cyclic_m: [0.0; 2],
         },
         carriage_mass_kg: 250.0,
         guide_friction: guide_friction(),
@@ -103,6 +104,29 @@ fn ramp(v: f64) -> impl Fn(f64) -> AxisCommand {
 }
 
 proptest! {
+    /// The screw's periodic lead error: the nut leads the motor by e(x) with the lead as its
+    /// period and sqrt(e_c² + e_s²) as its amplitude, and the nut's velocity is the derivative
+    /// of its position (central difference).
+    #[test]
+    fn a_lead_error_is_periodic_in_the_lead(
+        x in -0.5..0.5f64,
+        c in -5e-6..5e-6f64,
+        s in -5e-6..5e-6f64,
+        v in -0.1..0.1f64,
+    ) {
+        let screw = ScrewParams { cyclic_m: [c, s], ..table_drive(0.0).0.screw };
+        let (nut, v_nut) = screw.nut(x, v);
+        let (next, _) = screw.nut(x + screw.lead_m, v);
+        prop_assert!((next - screw.lead_m - nut).abs() < 1e-15);
+        prop_assert!((nut - x).abs() <= c.hypot(s) + 1e-18);
+        let h = 1e-7;
+        let slope = (screw.nut(x + h, 0.0).0 - screw.nut(x - h, 0.0).0) / (2.0 * h);
+        prop_assert!((v_nut - v * slope).abs() < 1e-9 * (1.0 + v.abs()), "{v_nut} vs {}", v * slope);
+        // Without a lead error the nut is where the motor is.
+        let plain = ScrewParams { cyclic_m: [0.0; 2], ..screw };
+        prop_assert_eq!(plain.nut(x, v), (x, v));
+    }
+
     /// In steady sliding LuGre gives the Stribeck curve plus viscous friction.
     #[test]
     fn lugre_steady_sliding_is_the_stribeck_curve(v in prop_oneof![-0.2..-1e-5f64, 1e-5..0.2f64]) {

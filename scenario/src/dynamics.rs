@@ -24,6 +24,9 @@ pub struct DriveToml {
     pub screw_stiffness_n_per_um: f64,
     pub screw_damping_n_s_per_m: f64,
     pub backlash_um: f64,
+    /// Periodic lead error of the screw, cosine and sine amplitudes over one revolution, µm.
+    #[serde(default)]
+    pub screw_cyclic_um: [f64; 2],
     pub encoder_counts_per_rev: f64,
     pub torque_constant_n_m_per_a: f64,
     #[serde(default = "motor_encoder")]
@@ -349,6 +352,7 @@ pub fn drive(d: &DriveToml, moving_mass_kg: f64, p: &KeyPath) -> R<DriveParams> 
                 "a damping",
             )?,
             backlash_m: nonneg(d.backlash_um, &p.key("backlash_um"), "a backlash")? * 1e-6,
+            cyclic_m: cyclic(d.screw_cyclic_um, &p.key("screw_cyclic_um"))?,
         },
         carriage_mass_kg: moving_mass_kg,
         guide_friction: friction(&d.guide_friction, &p.key("guide_friction"))?,
@@ -365,6 +369,20 @@ pub fn drive(d: &DriveToml, moving_mass_kg: f64, p: &KeyPath) -> R<DriveParams> 
         )?,
         feedback,
     })
+}
+
+/// The screw's periodic lead error, µm -> m: finite, and under a tenth of a millimetre (a
+/// larger one is a wrong unit, not a ball screw).
+fn cyclic(v: [f64; 2], path: &KeyPath) -> R<[f64; 2]> {
+    if v.iter().any(|x| !x.is_finite() || x.abs() > 100.0) {
+        return Err(Invalid::new(
+            path.clone(),
+            format!(
+                "{v:?} is not accepted; the cosine and sine amplitudes of the lead error in µm, each finite and within ±100"
+            ),
+        ));
+    }
+    Ok(v.map(|x| x * 1e-6))
 }
 
 /// The servo of an axis driving `drive`: the velocity gain from the bandwidth and total mass.

@@ -61,6 +61,9 @@ pub fn ground_truth(
             json!({
                 "backlash_um": p.screw.backlash_m * 1e6,
                 "backlash_seen_um": seen * 1e6,
+                "screw_cyclic_um": p.screw.cyclic_m.map(|v| v * 1e6),
+                "cyclic_seen_um": cyclic_seen_m(p) * 1e6,
+                "screw_lead_mm": p.screw.lead_m * 1e3,
                 "screw_stiffness_n_per_um": p.screw.stiffness_n_per_m * 1e-6,
                 "guide_coulomb_n": p.guide_friction.coulomb_n,
                 "guide_static_n": p.guide_friction.static_n,
@@ -133,6 +136,15 @@ fn backlash_seen_m(d: &AxisDynamics, feed: f64) -> f64 {
     let friction = p.guide_friction.steady_state_force(feed.max(1e-9));
     match p.feedback {
         Feedback::MotorEncoder => p.screw.backlash_m + 2.0 * friction / p.screw.stiffness_n_per_m,
+        Feedback::LinearScale { .. } => 0.0,
+    }
+}
+
+/// The amplitude of the screw's periodic lead error at the carriage, m: all of it under
+/// semi-closed loop, none with a linear scale closing the loop on the carriage.
+fn cyclic_seen_m(p: &vmt_model::drive::DriveParams) -> f64 {
+    match p.feedback {
+        Feedback::MotorEncoder => p.screw.cyclic_m[0].hypot(p.screw.cyclic_m[1]),
         Feedback::LinearScale { .. } => 0.0,
     }
 }
@@ -283,6 +295,10 @@ pub fn test_figures(inputs: &TruthInputs, b: &BallbarSetup) -> serde_json::Map<S
         let l = axis.to_string().to_lowercase();
         put(format!("backlash_{l}"), (drive + along) * k);
         put(format!("lateral_play_{l}"), across * k);
+        put(
+            format!("cyclic_{l}"),
+            cyclic_seen_m(&axes[axis.index()].drive) * 1e6 * k,
+        );
     }
     m
 }

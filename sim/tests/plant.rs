@@ -25,6 +25,7 @@ fn drive(mass: f64, backlash: f64, q0: f64) -> Drive {
             stiffness_n_per_m: 1.8e8,
             damping_n_s_per_m: 2e4,
             backlash_m: backlash,
+            cyclic_m: [0.0; 2],
         },
         carriage_mass_kg: mass,
         guide_friction: friction,

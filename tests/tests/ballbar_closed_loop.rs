@@ -9,7 +9,11 @@ use vmt_sim::simulate::simulate;
 
 /// The built-in machine with its [job] replaced by `job` (a TOML fragment).
 fn run(job: &str, instruments: &str) -> Run {
-    let text = vmt_scenario::BUILTIN_DEFAULT;
+    run_on(vmt_scenario::BUILTIN_DEFAULT, job, instruments)
+}
+
+/// The machine of scenario `text` with its [job] replaced by `job`.
+fn run_on(text: &str, job: &str, instruments: &str) -> Run {
     let cut = text.find("[job]").expect("the built-in scenario has a job");
     let toml = format!("{}{job}\n{instruments}\n", &text[..cut]);
     let s = vmt_scenario::parse(&toml, "closed_loop.toml", None).expect("the scenario loads");
@@ -109,5 +113,46 @@ setup_eccentricity_um = [12.0, -7.0, 0.0]
 setup_drift_um_per_min = [4.0, -2.0, 0.0]"#;
     let r = run(job, bar);
     let d = diagnose(&traces(&r), &Options::default()).expect("diagnosis");
+    compare(&r, &d, tolerance(100.0));
+}
+
+/// Periodic lead errors of the X and Y screws (1.5 µm and 1.0 µm over their 10 mm lead, at
+/// other phases) on the built-in machine: the diagnosis finds each axis' cyclic error with the
+/// lead as its pitch, and every other figure stays within tolerance.
+#[test]
+fn screw_lead_errors_are_diagnosed_as_cyclic_errors_of_their_pitch() {
+    let text = vmt_scenario::BUILTIN_DEFAULT
+        // The first zero lead error is X's, the next Y's.
+        .replacen(
+            "screw_cyclic_um = [0.0, 0.0]",
+            "screw_cyclic_um = [1.2, 0.9]",
+            1,
+        )
+        .replacen(
+            "screw_cyclic_um = [0.0, 0.0]",
+            "screw_cyclic_um = [0.0, -1.0]",
+            1,
+        );
+    let job = r#"[job]
+kind = "ballbar"
+plane = "XY"
+center_mm = [250.0, 200.0, 200.0]
+radius_mm = 100.0
+feed_mm_min = 2000.0
+arc_deg = 360.0
+directions = ["cw", "ccw"]"#;
+    let r = run_on(&text, job, "[instruments.ballbar]\nnoise_um = 0.3");
+    let figures = &r.ground_truth["ballbar"]["tests"][0]["figures"];
+    assert!((figures["cyclic_x"].as_f64().unwrap() - 1.5).abs() < 1e-9);
+    assert!((figures["cyclic_y"].as_f64().unwrap() - 1.0).abs() < 1e-9);
+    let d = diagnose(&traces(&r), &Options::default()).expect("diagnosis");
+    for axis in ["x", "y"] {
+        let f = d
+            .finding(&format!("cyclic_{axis}"))
+            .expect("a cyclic finding");
+        let pitch = f.details.iter().find(|(k, _)| k == "pitch_mm").unwrap().1;
+        assert!(f.present, "cyclic_{axis} not reported present: {f:?}");
+        assert!((pitch - 10.0).abs() < 0.2, "cyclic_{axis} pitch {pitch} mm");
+    }
     compare(&r, &d, tolerance(100.0));
 }

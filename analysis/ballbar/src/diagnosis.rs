@@ -136,6 +136,39 @@ impl Diagnosis {
 
 /// Diagnoses a test of one or two traces (CW and CCW of the same circle).
 pub fn diagnose(traces: &[Trace], options: &Options) -> Result<Diagnosis, DiagnosisError> {
+    let (first, cyclic) = diagnose_once(traces, options)?;
+    let present: Vec<features::Cyclic> = cyclic
+        .iter()
+        .filter(|(_, f)| f.present)
+        .map(|(c, _)| *c)
+        .collect();
+    if present.is_empty() {
+        return Ok(first);
+    }
+    // Near its reversals an axis stays within one pitch of its turning point (stationary
+    // phase), so a cyclic error leaks into the first-order signatures there (a 10 mm pitch on
+    // a 100 mm circle moves the fitted scale by several ppm): the first-order model is fitted
+    // again with the cyclic errors found taken out of the traces. The ISO figures stay those
+    // of the traces as measured.
+    let corrected = without_cyclic(traces, &present);
+    let no_search = Options {
+        cyclic: false,
+        ..*options
+    };
+    let (mut second, _) = diagnose_once(&corrected, &no_search)?;
+    second.iso = first.iso;
+    second.findings.extend(cyclic.into_iter().map(|(_, f)| f));
+    second
+        .findings
+        .sort_by(|a, b| b.contribution_um.total_cmp(&a.contribution_um));
+    Ok(second)
+}
+
+/// One pass of the diagnosis, with the cyclic errors searched (if asked) in its residual.
+fn diagnose_once(
+    traces: &[Trace],
+    options: &Options,
+) -> Result<(Diagnosis, Vec<(features::Cyclic, Finding)>), DiagnosisError> {
     check_test(traces)?;
     let refs: Vec<&Trace> = traces.iter().collect();
     let first = &traces[0];
@@ -162,16 +195,14 @@ pub fn diagnose(traces: &[Trace], options: &Options) -> Result<Diagnosis, Diagno
             .collect(),
     );
     findings.extend(closing_errors(&fit, traces, &samples));
-    let local = local_findings(
-        &mut findings,
-        &fit,
-        &residuals,
-        traces,
-        &samples,
-        noise,
-        options,
-    );
+    let local = local_findings(&mut findings, &fit, &residuals, traces, noise);
     findings.extend(local);
+    let cyclic = if options.cyclic {
+        cyclic_findings(&fit, &residuals, &samples)
+    } else {
+        Vec::new()
+    };
+    findings.extend(cyclic.iter().map(|(_, f)| f.clone()));
     findings.sort_by(|a, b| b.contribution_um.total_cmp(&a.contribution_um));
     let n: usize = residuals.iter().map(|r| r.r.len()).sum();
     let rss: f64 = residuals.iter().flat_map(|r| &r.r).map(|x| x * x).sum();
@@ -191,7 +222,7 @@ pub fn diagnose(traces: &[Trace], options: &Options) -> Result<Diagnosis, Diagno
             crate::samples::recycle(v);
         }
     }
-    Ok(Diagnosis {
+    let diagnosis = Diagnosis {
         plane,
         radius_mm: first.radius_mm,
         feed_mm_min: first.feed_mm_min,
@@ -201,7 +232,8 @@ pub fn diagnose(traces: &[Trace], options: &Options) -> Result<Diagnosis, Diagno
         not_computed: not_computed(&terms, first),
         residual_rms_um: (rss / n as f64).sqrt(),
         noise_um: noise,
-    })
+    };
+    Ok((diagnosis, cyclic))
 }
 
 fn check_test(traces: &[Trace]) -> Result<(), DiagnosisError> {
@@ -487,9 +519,7 @@ fn local_findings(
     fit: &Fit,
     residuals: &[Residual],
     traces: &[Trace],
-    samples: &[Samples],
     noise: f64,
-    options: &Options,
 ) -> Vec<Finding> {
     let (p, q) = fit.plane.axes();
     let mut out = Vec::new();
@@ -558,9 +588,6 @@ fn local_findings(
                 details: Vec::new(),
             });
         }
-    }
-    if options.cyclic {
-        out.extend(cyclic_findings(fit, residuals, samples));
     }
     out
 }
@@ -660,7 +687,11 @@ fn vibration_finding(residuals: &[Residual], noise: f64) -> Option<Finding> {
     })
 }
 
-fn cyclic_findings(fit: &Fit, residuals: &[Residual], samples: &[Samples]) -> Vec<Finding> {
+fn cyclic_findings(
+    fit: &Fit,
+    residuals: &[Residual],
+    samples: &[Samples],
+) -> Vec<(features::Cyclic, Finding)> {
     let (p, q) = fit.plane.axes();
     let mut points = Vec::new();
     let mut r = Vec::new();
@@ -679,7 +710,7 @@ fn cyclic_findings(fit: &Fit, residuals: &[Residual], samples: &[Samples]) -> Ve
             let c = features::cyclic(&points, &r, &w, axis, fit.sample_sigma_um)?;
             let letter = if axis == 0 { p } else { q };
             let threshold = (MIN_CONTRIBUTION_UM / 2.0).max(5.0 * c.std_error_um);
-            Some(Finding {
+            let finding = Finding {
                 key: format!("cyclic_{}", letter.to_ascii_lowercase()),
                 name: format!("Cyclic error {letter}"),
                 value: c.amplitude_um,
@@ -689,7 +720,33 @@ fn cyclic_findings(fit: &Fit, residuals: &[Residual], samples: &[Samples]) -> Ve
                 threshold,
                 present: c.amplitude_um >= threshold,
                 details: vec![("pitch_mm".into(), c.pitch_mm)],
-            })
+            };
+            Some((c, finding))
+        })
+        .collect()
+}
+
+/// The traces with the radial deviation of `cyclic` taken out.
+fn without_cyclic(traces: &[Trace], cyclic: &[features::Cyclic]) -> Vec<Trace> {
+    traces
+        .iter()
+        .map(|t| {
+            let deviation_um = t
+                .angle_deg
+                .iter()
+                .zip(&t.deviation_um)
+                .map(|(a, d)| {
+                    let (s, c) = a.to_radians().sin_cos();
+                    d - cyclic
+                        .iter()
+                        .map(|e| e.radial_um(c, s, t.radius_mm))
+                        .sum::<f64>()
+                })
+                .collect();
+            Trace {
+                deviation_um,
+                ..t.clone()
+            }
         })
         .collect()
 }

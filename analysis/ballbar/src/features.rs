@@ -511,12 +511,27 @@ pub fn start_transient(res: &Residual) -> Option<f64> {
 /// A cyclic error of one axis: pitch (mm), amplitude (µm), and the amplitude's standard error.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Cyclic {
+    /// The axis: p (0) or q (1).
+    pub axis: usize,
     /// Pitch, mm.
     pub pitch_mm: f64,
     /// Amplitude, µm.
     pub amplitude_um: f64,
     /// Standard error of the amplitude, µm.
     pub std_error_um: f64,
+    /// Sine and cosine amplitudes of the axis error over its coordinate from the centre, µm.
+    pub sin_cos_um: [f64; 2],
+}
+
+impl Cyclic {
+    /// Its radial deviation (µm) at the angle with cosine `c` and sine `s` on a circle of
+    /// `radius_mm`: the axis error `a sin(2πx/P) + b cos(2πx/P)` at `x = R c` (p) or `R s` (q),
+    /// projected on the bar.
+    pub fn radial_um(&self, c: f64, s: f64, radius_mm: f64) -> f64 {
+        let g = if self.axis == 0 { c } else { s };
+        let (sin, cos) = (std::f64::consts::TAU * radius_mm * g / self.pitch_mm).sin_cos();
+        g * (self.sin_cos_um[0] * sin + self.sin_cos_um[1] * cos)
+    }
 }
 
 /// Searches a cyclic error of the p (`axis` 0) or q axis in the residuals evaluated at the
@@ -562,7 +577,7 @@ pub fn cyclic(
     }
     let (za, zb) = nufft(&t, &a, &b, n_max);
     let total = zb[0].re;
-    let mut best: Option<(f64, f64, f64, f64)> = None;
+    let mut best: Option<(f64, f64, [f64; 2], f64)> = None;
     for (m, k) in ks.iter().enumerate() {
         let n = n0 + m;
         let z2 = zb[2 * n];
@@ -574,14 +589,16 @@ pub fn cyclic(
             let b = (ss * rc - sc * rs) / det;
             let gain = a * rs + b * rc;
             if best.is_none_or(|x| gain > x.0) {
-                best = Some((gain, *k, (a * a + b * b).sqrt(), (2.0 / (ss + cc)).sqrt()));
+                best = Some((gain, *k, [a, b], (2.0 / (ss + cc)).sqrt()));
             }
         }
     }
-    best.map(|(_, k, amp, se)| Cyclic {
+    best.map(|(_, k, [a, b], se)| Cyclic {
+        axis,
         pitch_mm: 1.0 / k,
-        amplitude_um: amp,
+        amplitude_um: a.hypot(b),
         std_error_um: sigma_um * se,
+        sin_cos_um: [a, b],
     })
 }
 

@@ -121,6 +121,24 @@ pub fn library(p: char, q: char) -> Vec<Effect> {
             )],
         ));
         out.push(effect(
+            &format!("cyclic_{a}"),
+            &format!("periodic lead error of the {up} screw, once per revolution (cyclic error)"),
+            ["cos", "sin"]
+                .iter()
+                .enumerate()
+                .map(|(i, part)| {
+                    param(
+                        &format!("lead error {up} {part}"),
+                        "um",
+                        &[format!("{axis}.drive.screw_cyclic_um[{i}]")],
+                        // Both parts at 0.7 µm: an amplitude of 1 µm (ISO 3408-3 v2π of
+                        // 1-6 µm by accuracy class).
+                        (0.5, 0.7),
+                    )
+                })
+                .collect(),
+        ));
+        out.push(effect(
             &format!("straightness_{a}"),
             &format!("straightness of {up} in {other}: the bow (Legendre c2) of E{other}{up}"),
             vec![param(

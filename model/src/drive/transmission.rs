@@ -13,6 +13,18 @@
 //! `F` pushes the carriage towards +x and the motor towards -x (N). `k` is the series axial
 //! stiffness of screw, nut and thrust bearings (N/m), `c` its damping (N·s/m), `b` the total
 //! gap between the nut's flanks (m). With `b = 0` this is a plain spring-damper.
+//!
+//! The screw's periodic lead error (ISO 230-2 calls its trace the periodic or cyclic
+//! positioning error; ISO 3408-3 grades ball screws by it, `v_2π`: the deviation within one
+//! revolution) moves the nut by `e(x_m)` more than the motor angle says, once per revolution:
+//!
+//! ```text
+//! e(x_m) = e_c cos(2π x_m / lead) + e_s sin(2π x_m / lead)          (m)
+//! δ      = x_m + e(x_m) - x_c,   relative velocity (1 + e'(x_m)) v_m - v_c
+//! ```
+//!
+//! Under semi-closed loop (motor encoder) the control does not see it and the carriage carries
+//! `e` (amplitude `sqrt(e_c² + e_s²)`, pitch the lead); a linear scale removes it.
 
 /// Ball screw and nut parameters, SI units.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -25,6 +37,8 @@ pub struct ScrewParams {
     pub damping_n_s_per_m: f64,
     /// Total gap b between the nut's flanks (the backlash), m.
     pub backlash_m: f64,
+    /// Periodic lead error `[e_c, e_s]`: cosine and sine amplitudes over one revolution, m.
+    pub cyclic_m: [f64; 2],
 }
 
 impl ScrewParams {
@@ -37,14 +51,31 @@ impl ScrewParams {
     /// velocity `x_m`, `v_m` and carriage position and velocity `x_c`, `v_c` (m, m/s).
     #[inline]
     pub fn force(&self, x_m: f64, v_m: f64, x_c: f64, v_c: f64) -> f64 {
+        let (nut, v_nut) = self.nut(x_m, v_m);
         let half = 0.5 * self.backlash_m;
-        let delta = x_m - x_c;
+        let delta = nut - x_c;
         if delta > half {
-            self.stiffness_n_per_m * (delta - half) + self.damping_n_s_per_m * (v_m - v_c)
+            self.stiffness_n_per_m * (delta - half) + self.damping_n_s_per_m * (v_nut - v_c)
         } else if delta < -half {
-            self.stiffness_n_per_m * (delta + half) + self.damping_n_s_per_m * (v_m - v_c)
+            self.stiffness_n_per_m * (delta + half) + self.damping_n_s_per_m * (v_nut - v_c)
         } else {
             0.0
         }
+    }
+
+    /// Where the screw puts the nut for a motor side at `x_m`, `v_m`: `x_m + e(x_m)` and its
+    /// velocity, m and m/s.
+    #[inline]
+    pub fn nut(&self, x_m: f64, v_m: f64) -> (f64, f64) {
+        let [c, s] = self.cyclic_m;
+        if c == 0.0 && s == 0.0 {
+            return (x_m, v_m);
+        }
+        let k = std::f64::consts::TAU / self.lead_m;
+        let (sin, cos) = (k * x_m).sin_cos();
+        (
+            x_m + c * cos + s * sin,
+            v_m * (1.0 + k * (s * cos - c * sin)),
+        )
     }
 }

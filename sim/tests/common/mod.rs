@@ -25,6 +25,7 @@ pub fn axis(moving_mass_kg: f64, backlash_m: f64, kv_per_s: f64) -> AxisDynamics
             stiffness_n_per_m: 1.8e8,
             damping_n_s_per_m: 2e4,
             backlash_m,
+            cyclic_m: [0.0; 2],
         },
         carriage_mass_kg: moving_mass_kg,
         guide_friction: guide_friction(),
