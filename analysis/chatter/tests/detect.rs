@@ -325,9 +325,9 @@ fn noise_only_is_not_flagged() {
 
 /// The formula chatter of these cuts rises as 1 − e^{−τ/30 ms} to a level that, for the weaker
 /// ones over resonant harmonics, holds a share below the developed 0.12: such a line is found
-/// only while it grows (by 4 in power within 25 ms), so two of the 20 chatter runs are missed
-/// and a few are found late (p90 0.13 s); the median stays under 50 ms and no stable cut is
-/// flagged.
+/// while it grows (power ×4 within the 0.15 s look-back). With the earlier 25 ms look-back two
+/// of the 20 chatter runs were missed and the p90 latency was 0.13 s; now none is missed, the
+/// median latency is 39 ms and the p90 85 ms, and no stable cut is flagged.
 #[test]
 fn better_detector_classifies_random_cuts_quickly() {
     let (_, runs) = random_runs(40, 7);
@@ -335,17 +335,13 @@ fn better_detector_classifies_random_cuts_quickly() {
     eprintln!("better detector on 40 random cuts: {s:?}");
     assert!(s.accuracy >= 0.95, "accuracy {}", s.accuracy);
     assert_eq!(s.false_positive_rate, 0.0);
-    assert!(
-        s.false_negative_rate <= 0.1,
-        "missed {}",
-        s.false_negative_rate
-    );
+    assert_eq!(s.false_negative_rate, 0.0, "missed chatter runs");
     assert!(
         s.median_latency_s < 0.05,
         "median latency {}",
         s.median_latency_s
     );
-    assert!(s.p90_latency_s < 0.15, "p90 latency {}", s.p90_latency_s);
+    assert!(s.p90_latency_s < 0.1, "p90 latency {}", s.p90_latency_s);
     assert!(
         s.latencies_s.iter().all(|&l| l > 0.0),
         "fired before onset: {:?}",
@@ -431,7 +427,7 @@ fn a_stationary_line_below_the_developed_share_is_not_chatter() {
 
 /// Self-excitation: the same line growing as e^{t/20 ms} from 0.02 m/s² at 0.1 s, capped at
 /// 0.35 m/s² (share ≈ 0.085 < 0.12, the tool leaving the cut): its power grows by e² ≈ 7.4 per
-/// 20 ms, past the factor 4 within the 25 ms look-back, so it is chatter, detected while it
+/// 20 ms, past the factor 4 within the 0.15 s look-back, so it is chatter, detected while it
 /// crosses the 0.05 share: the amplitude reaches 0.26 m/s² (share 0.05) at 0.1 + 0.02·ln 13 =
 /// 0.151 s, and a frame of 512 samples (25.6 ms) plus two hops (12.8 ms) later at the most.
 #[test]
@@ -455,6 +451,40 @@ fn a_growing_line_below_the_developed_share_is_chatter() {
     assert!((0.151..0.151 + 0.04).contains(&t), "detected at {t} s");
     let f = r.verdict.chatter_frequency_hz.unwrap();
     assert!((f - 3130.0).abs() < 10.0, "{f} Hz");
+}
+
+/// Chatter just past the boundary: the line grows slowly (amplitude e^{t/70 ms} from 0.05 m/s²
+/// at 0.05 s: power ×2 per 25 ms) and settles at 0.33 m/s² (share ≈ 0.077 < 0.12), the limit
+/// cycle of a cut whose teeth leave the thin chip at the exit (the 20 000 rpm, 0.3 mm cut of
+/// `vmt chatter compensate`). Its power grows by 4 within the 0.15 s look-back, so it is
+/// chatter, found once its share passes 0.05 (amplitude 0.26 m/s² at 0.05 + 0.07·ln 5.2 =
+/// 0.165 s) within a frame and two hops. A look-back of 25 ms, where the growth is only ×2,
+/// never flags it.
+#[test]
+fn a_slowly_growing_line_that_settles_below_the_developed_share_is_chatter() {
+    let x = line_over_harmonics(
+        |t| {
+            if t < 0.05 {
+                0.0
+            } else {
+                (0.05 * ((t - 0.05) / 0.07).exp()).min(0.33)
+            }
+        },
+        45,
+    );
+    let r = spectral::detect(&[&x], FS, &settings_500()).unwrap();
+    assert!(r.frames.iter().all(|f| f.share < 0.12));
+    let t = r
+        .verdict
+        .detection_time_s
+        .expect("slowly growing line not flagged");
+    assert!((0.165..0.165 + 0.045).contains(&t), "detected at {t} s");
+    let short = SpectralSettings {
+        growth_window_s: 0.025,
+        ..settings_500()
+    };
+    let r = spectral::detect(&[&x], FS, &short).unwrap();
+    assert!(!r.verdict.chatter, "{:?}", r.verdict);
 }
 
 /// Developed chatter from the first frame (fast chatter at deep cuts: the tool leaves the cut
