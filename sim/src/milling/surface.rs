@@ -43,6 +43,24 @@ pub struct SurfaceReport {
     pub profile_depth_m: Vec<f64>,
 }
 
+impl SurfaceReport {
+    /// (Ra, Rz), m, of the stretch of the profile from `from_m` to `to_m` along the feed (m from
+    /// the start of the cut), about that stretch's own least-squares line: the roughness of a
+    /// part of the wall, e.g. the part cut after a controller changed the spindle speed (the
+    /// whole wall's figures also see the step in surface location error between the parts).
+    /// Zero when the stretch holds fewer than five samples.
+    pub fn roughness_between(&self, from_m: f64, to_m: f64) -> (f64, f64) {
+        let (xs, zs): (Vec<f64>, Vec<f64>) = self
+            .profile_x_m
+            .iter()
+            .zip(&self.profile_depth_m)
+            .filter(|(x, _)| (from_m..=to_m).contains(*x))
+            .map(|(x, z)| (*x, *z))
+            .unzip();
+        roughness(&xs, &zs)
+    }
+}
+
 /// The wall being machined.
 pub(crate) struct Wall {
     /// Outward normal's Y component (±1); the finishing angle is 0 (+1) or π (-1).
@@ -166,4 +184,47 @@ pub(crate) fn roughness(x: &[f64], z: &[f64]) -> (f64, f64) {
         .sum::<f64>()
         / 5.0;
     (ra, rz)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A wall cut 5 µm deeper over its first half, then with a sinusoidal profile of amplitude
+    /// A: over the second half alone Ra = 2A/π about its mean line, whatever the step.
+    #[test]
+    fn roughness_of_a_stretch_ignores_the_rest_of_the_wall() {
+        let a = 1e-6;
+        let x: Vec<f64> = (0..2000).map(|i| i as f64 * 1e-6).collect();
+        let z: Vec<f64> = x
+            .iter()
+            .map(|&x| {
+                if x < 1e-3 {
+                    5e-6
+                } else {
+                    a * (std::f64::consts::TAU * x / 1e-4).sin()
+                }
+            })
+            .collect();
+        let (ra_all, _) = roughness(&x, &z);
+        let report = SurfaceReport {
+            sle_mean_m: 0.0,
+            sle_max_abs_m: 0.0,
+            ra_m: ra_all,
+            rz_m: 0.0,
+            profile_x_m: x,
+            profile_depth_m: z,
+        };
+        let (ra, rz) = report.roughness_between(1e-3, 2e-3);
+        assert!(
+            (ra - 2.0 * a / std::f64::consts::PI).abs() < 0.02 * a,
+            "{ra}"
+        );
+        assert!((rz - 2.0 * a).abs() < 0.02 * a, "{rz}");
+        assert!(
+            ra_all > 1.5 * ra,
+            "the step dominates the whole wall: {ra_all}"
+        );
+        assert_eq!(report.roughness_between(3e-3, 4e-3), (0.0, 0.0));
+    }
 }
