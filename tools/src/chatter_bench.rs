@@ -16,9 +16,12 @@ use vmt_model::cutting::{
     CutGeometry, CuttingCoefficients, EndMill, MillingDirection, Mode, ToolDynamics,
 };
 use vmt_sim::milling::{
-    AccelWindow, AccelerometerParams, Feed, MillingDrive, MillingSetup, SupervisorCommand,
-    simulate_milling, simulate_milling_with,
+    AccelWindow, AccelerometerParams, Feed, MillingDrive, MillingRun, MillingSetup,
+    SupervisorCommand, simulate_milling, simulate_milling_with,
 };
+
+/// Programmed feed per tooth of every cut, m.
+const FEED_PER_TOOTH: f64 = 0.05e-3;
 
 /// The bench's tool: a 12 mm four-flute end mill, 30° helix, on a two-mode tool point whose
 /// upper mode (6.5 kHz) sits in Kim's 6–7 kHz band; aluminium coefficients.
@@ -51,7 +54,7 @@ fn setup(depth_mm: f64, seed: u64) -> MillingSetup {
             radial_depth: 0.006,
             direction: MillingDirection::Down,
         },
-        feed_per_tooth: 0.05e-3,
+        feed_per_tooth: FEED_PER_TOOTH,
         accelerometer: AccelerometerParams::default(),
         step_s: 1.0 / 160_000.0,
         seed,
@@ -61,7 +64,7 @@ fn setup(depth_mm: f64, seed: u64) -> MillingSetup {
 fn drive(rpm: f64, duration_s: f64) -> MillingDrive {
     MillingDrive {
         spindle_rpm: rpm,
-        feed: Feed::PerTooth(0.05e-3),
+        feed: Feed::PerTooth(FEED_PER_TOOTH),
         duration_s,
         supervisor_window_s: 0.025,
     }
@@ -126,6 +129,9 @@ pub struct BenchArgs {
     /// The better detector's growth factor of the peak power (default: the library's).
     #[arg(long)]
     pub growth: Option<f64>,
+    /// The better detector's look-back of the growth test, s (default: the library's).
+    #[arg(long)]
+    pub growth_window_s: Option<f64>,
 }
 
 impl BenchArgs {
@@ -135,6 +141,7 @@ impl BenchArgs {
             tooth_passing_hz: Some(spectral::tooth_passing_hz(r.spindle_rpm, r.teeth)),
             developed_share: self.developed_share.unwrap_or(d.developed_share),
             growth: self.growth.unwrap_or(d.growth),
+            growth_window_s: self.growth_window_s.unwrap_or(d.growth_window_s),
             ..d
         }
     }
@@ -342,7 +349,20 @@ fn speed_supervisor(teeth: u32) -> impl FnMut(&AccelWindow<'_>) -> SupervisorCom
     }
 }
 
-fn row(out: &mut String, name: &str, truth: &Value, ra_um: f64) {
+/// Ra of the wall cut over the second half of the cut's length (to 3 f_t before the end of the
+/// profile, where the last stamps are partial), m: the part cut after a controller acted.
+fn ra_second_half(run: &MillingRun) -> f64 {
+    let x = &run.surface.profile_x_m;
+    let (Some(first), Some(last)) = (x.first(), x.last()) else {
+        return f64::NAN;
+    };
+    run.surface
+        .roughness_between(0.5 * (first + last), last - 3.0 * FEED_PER_TOOTH)
+        .0
+}
+
+fn row(out: &mut String, name: &str, run: &MillingRun) {
+    let truth = &run.ground_truth;
     let f = |k: &str| truth[k].as_f64().unwrap_or(f64::NAN);
     let intervals = truth["chatter_intervals_s"]
         .as_array()
@@ -358,13 +378,28 @@ fn row(out: &mut String, name: &str, truth: &Value, ra_um: f64) {
         ),
         (None, None) => "no".into(),
     };
+    let commands = truth["supervisor_commands"]
+        .as_array()
+        .cloned()
+        .unwrap_or_default();
+    let acts = commands.first().map_or("-".into(), |c| at(&c["time_s"]));
+    // What the machine runs at the end: the last command, else as programmed.
+    let last = |k: &str, programmed: f64| {
+        commands
+            .last()
+            .and_then(|c| c[k].as_f64())
+            .unwrap_or(programmed)
+    };
+    let end_rpm = last("spindle_rpm", f("spindle_rpm"));
+    let end_feed = last("feed_override", 1.0) * f("feed_mm_min");
     let _ = writeln!(
         out,
-        "| {name} | {chatter} | {:.0} | {:.0} | {:.0} | {:.2} |",
+        "| {name} | {chatter} | {acts} | {:.0} / {end_rpm:.0} | {:.0} / {end_feed:.0} | {:.0} | {:.2} | {:.2} |",
         f("mean_spindle_rpm"),
         f("mean_feed_mm_min"),
         f("removal_rate_mm3_s"),
-        ra_um
+        run.surface.ra_m * 1e6,
+        ra_second_half(run) * 1e6
     );
 }
 
@@ -385,25 +420,14 @@ pub fn compensate(a: &CompensateArgs) -> Result<(), CliError> {
     );
     let _ = writeln!(
         out,
-        "| Control | Chatter | Mean speed (rpm) | Mean feed (mm/min) | Removal rate (mm³/s) | Ra (µm) |\n|---|---|---|---|---|---|"
+        "| Control | Chatter | First action | Speed, mean / at the end (rpm) | Feed, mean / at the end (mm/min) | Removal rate (mm³/s) | Ra (µm) | Ra, second half (µm) |\n|---|---|---|---|---|---|---|---|"
     );
-    row(
-        &mut out,
-        "none",
-        &none.ground_truth,
-        none.surface.ra_m * 1e6,
-    );
-    row(
-        &mut out,
-        "Kim: feed override = limit / RMS",
-        &kim.ground_truth,
-        kim.surface.ra_m * 1e6,
-    );
+    row(&mut out, "none", &none);
+    row(&mut out, "Kim: feed override = limit / RMS", &kim);
     row(
         &mut out,
         "better detector: spindle speed to a stable lobe",
-        &speed.ground_truth,
-        speed.surface.ra_m * 1e6,
+        &speed,
     );
     let _ = writeln!(
         out,
