@@ -11,7 +11,11 @@
 //! at the first of as many with d < [`OFF_FRACTION`]·f_t. It is chatter if d grows in it (see
 //! `growth_onset`): a transient after the start of the cut or a change of speed decays,
 //! while regenerative chatter grows until the tool leaves the cut. The onset is where that
-//! growth starts. A chatter vibration of the threshold's size changes the
+//! growth starts. A cut so deep that its entry transient alone throws the tool out of the cut
+//! has no room to grow: an interval that lasts to the end of the cut with d at
+//! [`SATURATED_FRACTION`]·f_t or more and not decaying (its last third at least half its first
+//! third, see `saturated`) is chatter from the start of the interval; a stable cut's transient
+//! decays by the monodromy's radius every tooth period, far below half over a third of a cut. A chatter vibration of the threshold's size changes the
 //! chip by a few per cent at least; a developed one throws the tool out of the cut (d ≈ f_t).
 //!
 //! Frequency: the strongest peak of the Hann-windowed spectrum of u_x and u_y (output rate, from
@@ -31,6 +35,8 @@ pub const OFF_FRACTION: f64 = 0.01;
 pub const CONSECUTIVE: usize = 5;
 /// Growth of d that makes an interval chatter.
 pub const GROWTH: f64 = 5.0;
+/// Fraction of f_t at or above which a sustained, non-decaying d is saturated chatter.
+pub const SATURATED_FRACTION: f64 = 0.25;
 
 /// Once-per-tooth samples of the tool point.
 #[derive(Default)]
@@ -57,10 +63,24 @@ pub(crate) fn chatter_intervals(
         .into_iter()
         .filter_map(|(a, b)| {
             let seg = &d[a..b.unwrap_or(d.len())];
-            let onset = growth_onset(seg, on)?;
+            let onset = growth_onset(seg, on).or_else(|| {
+                (b.is_none() && saturated(seg, SATURATED_FRACTION * feed_per_tooth)).then_some(0)
+            })?;
             Some((time(a + onset), b.map(time)))
         })
         .collect()
+}
+
+/// Whether `d` (an interval to the end of the cut) holds at `level` or more without decaying:
+/// the mean of its last third at least `level` and at least half the mean of its first third.
+fn saturated(d: &[f64], level: f64) -> bool {
+    let third = d.len() / 3;
+    if third < CONSECUTIVE {
+        return false;
+    }
+    let mean = |s: &[f64]| s.iter().sum::<f64>() / s.len() as f64;
+    let (first, last) = (mean(&d[..third]), mean(&d[d.len() - third..]));
+    last >= level && last >= 0.5 * first
 }
 
 /// Index ranges where d is above `on` (switched after [`CONSECUTIVE`] samples above `on`,
@@ -229,5 +249,29 @@ mod tests {
             iv[0].1.is_some_and(|e| (e - 0.091).abs() < 1.5e-3),
             "{iv:?}"
         );
+    }
+
+    /// Chatter saturated from the first teeth (the tool leaving the cut at once) is chatter
+    /// from the start; a transient of the same size decaying by 0.98 per tooth is not.
+    #[test]
+    fn saturated_chatter_is_chatter_and_a_large_slow_transient_is_not() {
+        let run = |amp: &dyn Fn(i32) -> f64| {
+            let mut s = ToothSamples::default();
+            for n in 0..300 {
+                let a = amp(n);
+                s.times_s.push(n as f64 * 1e-3);
+                s.u.push([if n % 2 == 0 { a } else { -a }, 0.0]);
+            }
+            chatter_intervals(&s, 1, 1e-4)
+        };
+        // d = 2·amp: 60 µm from the start, 0.6 f_t, wobbling but not decaying.
+        let saturated = run(&|n| 3e-5 * (1.0 + 0.2 * (n as f64 * 0.37).sin()));
+        assert_eq!(saturated.len(), 1, "{saturated:?}");
+        assert!(
+            saturated[0].0 < 0.01 && saturated[0].1.is_none(),
+            "{saturated:?}"
+        );
+        let decaying = run(&|n| 3e-5 * 0.98f64.powi(n));
+        assert!(decaying.is_empty(), "{decaying:?}");
     }
 }
