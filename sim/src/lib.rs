@@ -8,7 +8,8 @@
 //! - [`plant`]: the moving assemblies and their drives, reduced or rapier3d multibody.
 //! - [`simulate`]: runs a job through interpolator, controllers, plant, error chain and
 //!   instruments ([`ballbar`], [`laser`]: the ISO 230-2 positioning test); [`truth`] writes its
-//!   ground truth.
+//!   ground truth; [`replay`] reads the ball bar of a run again on a machine with other
+//!   geometric errors or another bar set-up, without simulating the motion again.
 //! - [`milling`]: time-domain milling with regenerative chatter: forces, tool modes, surface
 //!   memory, spindle-housing accelerometers, the machined wall and the chatter truth;
 //!   [`machining`] drives it from an NC program through the controller and feed drives, with a
@@ -22,6 +23,7 @@ pub mod machining;
 pub mod milling;
 pub mod nc;
 pub mod plant;
+pub mod replay;
 pub mod run;
 pub mod simulate;
 pub mod truth;

@@ -21,6 +21,7 @@ use crate::interpolator::{Cursor, Interpolator, InterpolatorConfig, Interpolator
 use crate::laser::{Laser, LaserSetup};
 use crate::nc::program::{ArcDirection, Plane, Program, Spindle};
 use crate::plant::{Fidelity, MultibodyPlant, Plant, PlantError, ReducedPlant, layout};
+use crate::replay::Replay;
 use crate::run::{BallbarTrace, Channel, MachineSummary, Run, Stream};
 use crate::truth::TruthInputs;
 use nalgebra::Vector3;
@@ -169,6 +170,55 @@ pub fn simulate(
     scenario_toml: &str,
     progress: &mut dyn FnMut(f64),
 ) -> Result<Run, SimError> {
+    let (run, _) = run_job(
+        machine,
+        axes,
+        ipo,
+        job,
+        settings,
+        scenario_toml,
+        progress,
+        false,
+    )?;
+    Ok(run)
+}
+
+/// [`simulate`], keeping what the ball bar read at every sample (axis states, thermal state,
+/// time) so that the traces can be read again on a machine with other geometric errors or
+/// another bar set-up without simulating the motion again (see [`crate::replay`]).
+pub fn simulate_replayable(
+    machine: &Machine,
+    axes: &[AxisDynamics; 3],
+    ipo: &InterpolatorConfig,
+    job: &Job,
+    settings: &SimSettings,
+    scenario_toml: &str,
+    progress: &mut dyn FnMut(f64),
+) -> Result<(Run, Replay), SimError> {
+    let (run, replay) = run_job(
+        machine,
+        axes,
+        ipo,
+        job,
+        settings,
+        scenario_toml,
+        progress,
+        true,
+    )?;
+    Ok((run, replay.expect("recorded when asked")))
+}
+
+#[allow(clippy::too_many_arguments)]
+fn run_job(
+    machine: &Machine,
+    axes: &[AxisDynamics; 3],
+    ipo: &InterpolatorConfig,
+    job: &Job,
+    settings: &SimSettings,
+    scenario_toml: &str,
+    progress: &mut dyn FnMut(f64),
+    replayable: bool,
+) -> Result<(Run, Option<Replay>), SimError> {
     let interpolator = Interpolator::new(&job.program, ipo)?;
     let tcp = machine.volumetric.kinematics.tool_offset;
     check_strokes(machine, &interpolator, &job.program, &tcp)?;
@@ -190,6 +240,7 @@ pub fn simulate(
     let mut heat = HeatTracker::new(machine)?;
     // Link and joint matrices of the current thermal state, rebuilt only when it changes.
     let mut evaluator = machine.volumetric.evaluator(&heat.deformation);
+    let mut replay = replayable.then(|| Replay::new(heat.deformation, recorder.traces.len()));
     let initial_deformation = heat.deformation;
     let mut trackers =
         Axis::ALL.map(|a| DirectionTracker::new(start[a.index()], Direction::Forward, 0.05e-6));
@@ -212,18 +263,19 @@ pub fn simulate(
         let direction = std::array::from_fn(|i| trackers[i].update(q[i]));
         if heat.accumulate(&sp, &carriages.map(|c| c.velocity_m_s), period, machine)? {
             evaluator = machine.volumetric.evaluator(&heat.deformation);
+            if let Some(r) = replay.as_mut() {
+                r.thermal_state(heat.deformation);
+            }
         }
-        recorder.record(
-            k,
-            &sp,
-            plant.as_ref(),
-            &AxisState {
-                position: q,
-                direction,
-            },
-            machine,
-            &evaluator,
-        )?;
+        let state = AxisState {
+            position: q,
+            direction,
+        };
+        if let Some(j) = recorder.record(k, &sp, plant.as_ref(), &state, machine, &evaluator)?
+            && let Some(r) = replay.as_mut()
+        {
+            r.sample(j, sp.time_s, state);
+        }
         if k.is_multiple_of((ticks / 100).max(1)) {
             progress(k as f64 / ticks as f64);
         }
@@ -236,7 +288,7 @@ pub fn simulate(
         job,
         initial: &machine.volumetric.evaluator(&initial_deformation),
     };
-    Ok(recorder.finish(&truth, settings, scenario_toml))
+    Ok((recorder.finish(&truth, settings, scenario_toml), replay))
 }
 
 pub(crate) fn check_strokes(
@@ -477,16 +529,9 @@ impl Recorder {
             .ballbar
             .iter()
             .enumerate()
-            .map(|(i, b)| {
-                let seed = settings.seed.wrapping_add(i as u64);
-                Ballbar::new(b.spec, b.center, b.radius_m, b.plane, seed)
-            })
+            .map(|(i, b)| test_bar(b, i, settings))
             .collect();
-        let traces: Vec<BallbarTrace> = job
-            .ballbar
-            .iter()
-            .flat_map(|b| b.data.iter().map(|(d, _)| new_trace(b, *d)))
-            .collect();
+        let traces: Vec<BallbarTrace> = job_traces(job).into_iter().map(|(_, t)| t).collect();
         let data = job
             .ballbar
             .iter()
@@ -530,7 +575,7 @@ impl Recorder {
         state: &AxisState,
         machine: &Machine,
         evaluator: &VolumetricEvaluator,
-    ) -> Result<(), SimError> {
+    ) -> Result<Option<usize>, SimError> {
         let log = k.is_multiple_of(self.log_every);
         let bar = !self.ballbar.is_empty() && k.is_multiple_of(self.bar_every);
         let laser = self
@@ -538,7 +583,7 @@ impl Recorder {
             .as_ref()
             .and_then(|l| l.window_at(k, sp.time_s, sp.block));
         if !log && !bar && laser.is_none() {
-            return Ok(());
+            return Ok(None);
         }
         let tool = evaluator.tool_point(state);
         if let (Some(l), Some(i)) = (&mut self.laser, laser) {
@@ -600,16 +645,10 @@ impl Recorder {
                     });
                 }
             }
-            let t = &mut self.traces[j];
-            let mut deg = angle.to_degrees();
-            if let Some(last) = t.angle_deg.last() {
-                deg += 360.0 * ((last - deg) / 360.0).round();
-            }
-            t.times_s.push(sp.time_s);
-            t.angle_deg.push(deg);
-            t.deviation_um.push(reading * 1e6);
+            push_sample(&mut self.traces[j], sp.time_s, angle, reading);
+            return Ok(Some(j));
         }
-        Ok(())
+        Ok(None)
     }
 
     fn finish(self, truth: &TruthInputs, settings: &SimSettings, scenario_toml: &str) -> Run {
@@ -657,6 +696,38 @@ impl Recorder {
             laser: laser.map(|(run, _)| run),
         }
     }
+}
+
+/// Appends a bar reading (m) at `angle` (rad, wrapped) to a trace, the angle unwrapped onto the
+/// trace's previous sample.
+pub(crate) fn push_sample(t: &mut BallbarTrace, time_s: f64, angle: f64, reading: f64) {
+    let mut deg = angle.to_degrees();
+    if let Some(last) = t.angle_deg.last() {
+        deg += 360.0 * ((last - deg) / 360.0).round();
+    }
+    t.times_s.push(time_s);
+    t.angle_deg.push(deg);
+    t.deviation_um.push(reading * 1e6);
+}
+
+/// The empty traces of a job's circular tests, in the order they run, and the test of each.
+pub(crate) fn job_traces(job: &Job) -> Vec<(usize, BallbarTrace)> {
+    job.ballbar
+        .iter()
+        .enumerate()
+        .flat_map(|(i, b)| b.data.iter().map(move |(d, _)| (i, new_trace(b, *d))))
+        .collect()
+}
+
+/// Test `i`'s bar, drawing its noise from the run's seed plus `i`.
+pub(crate) fn test_bar(b: &BallbarSetup, i: usize, settings: &SimSettings) -> Ballbar {
+    Ballbar::new(
+        b.spec,
+        b.center,
+        b.radius_m,
+        b.plane,
+        settings.seed.wrapping_add(i as u64),
+    )
 }
 
 fn new_trace(b: &BallbarSetup, d: ArcDirection) -> BallbarTrace {

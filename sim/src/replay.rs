@@ -1,0 +1,102 @@
+//! Reading the ball bar of a finished run again, on a machine with other geometric errors or
+//! with another bar set-up, without simulating the motion again.
+//!
+//! The geometric errors (ISO 230-1: the axis error functions and squareness) act only through
+//! the error chain `P_tool = f(q, d, thermal state)` and the bar's set-up (pivot offset and
+//! drift, bar temperature) only through its reading `|P_tool − P_pivot(t)| − L(1 + αΔT)`: neither
+//! enters the drives, the controller or the thermal network, so the axis positions `q`, their
+//! direction states `d` and the thermal state at every bar sample are those of the run whatever
+//! their values. A [`Replay`] keeps them (from [`simulate_replayable`]); [`replay`] evaluates
+//! the chain and the bar again with the new values, and gives the traces the simulation would
+//! give, to rounding (a test compares both).
+//!
+//! [`simulate_replayable`]: crate::simulate::simulate_replayable
+
+use crate::run::BallbarTrace;
+use crate::simulate::{Job, SimError, SimSettings, job_traces, push_sample, test_bar};
+use vmt_model::kinematics::AxisState;
+use vmt_model::machine::Machine;
+use vmt_model::thermal_deformation::ThermalDeformation;
+
+/// One bar sample of a run: its time, the axis states and the thermal state in effect.
+#[derive(Clone, Copy, Debug)]
+struct Sample {
+    time_s: f64,
+    state: AxisState,
+    thermal: u32,
+}
+
+/// What the ball bar read at every sample of a run, per trace.
+#[derive(Clone, Debug)]
+pub struct Replay {
+    /// The thermal states of the run in order; a sample names the one in effect.
+    thermal: Vec<ThermalDeformation>,
+    /// Per trace, its samples in order.
+    samples: Vec<Vec<Sample>>,
+}
+
+impl Replay {
+    /// An empty record of `traces` traces starting in thermal state `initial`.
+    pub(crate) fn new(initial: ThermalDeformation, traces: usize) -> Self {
+        Self {
+            thermal: vec![initial],
+            samples: vec![Vec::new(); traces],
+        }
+    }
+
+    /// The thermal state changed.
+    pub(crate) fn thermal_state(&mut self, d: ThermalDeformation) {
+        self.thermal.push(d);
+    }
+
+    /// The bar read trace `trace` at `time_s` with the axes in `state`.
+    pub(crate) fn sample(&mut self, trace: usize, time_s: f64, state: AxisState) {
+        let thermal = u32::try_from(self.thermal.len() - 1).unwrap_or(u32::MAX);
+        self.samples[trace].push(Sample {
+            time_s,
+            state,
+            thermal,
+        });
+    }
+}
+
+/// The ball-bar traces of `job` read on `machine` at the samples of `replay` (a run of a job
+/// with the same program and tests). The bars read in the run's order, so their noise draws
+/// (from `settings.seed`) are the run's too.
+pub fn replay(
+    machine: &Machine,
+    job: &Job,
+    settings: &SimSettings,
+    replay: &Replay,
+) -> Result<Vec<BallbarTrace>, SimError> {
+    let traces = job_traces(job);
+    if traces.len() != replay.samples.len() {
+        return Err(SimError::Settings(format!(
+            "replay: the job has {} ball-bar traces, the recorded run {}",
+            traces.len(),
+            replay.samples.len()
+        )));
+    }
+    let mut bars: Vec<_> = job
+        .ballbar
+        .iter()
+        .enumerate()
+        .map(|(i, b)| test_bar(b, i, settings))
+        .collect();
+    let mut current: Option<(u32, _)> = None;
+    let mut out = Vec::with_capacity(traces.len());
+    for ((test, mut trace), samples) in traces.into_iter().zip(&replay.samples) {
+        for s in samples {
+            if current.as_ref().is_none_or(|(k, _)| *k != s.thermal) {
+                let d = &replay.thermal[s.thermal as usize];
+                current = Some((s.thermal, machine.volumetric.evaluator(d)));
+            }
+            let (_, evaluator) = current.as_ref().expect("set above");
+            let tool = evaluator.tool_point(&s.state);
+            let (reading, angle) = bars[test].read(&tool, s.time_s);
+            push_sample(&mut trace, s.time_s, angle, reading);
+        }
+        out.push(trace);
+    }
+    Ok(out)
+}
