@@ -2,11 +2,20 @@
 //! re-simulated (vmt-sim, the scenario's own fidelity and controller) to give the traces the
 //! model predicts. The ball bar is simulated without noise and without resolution rounding, so
 //! that the model's traces and their sensitivities are smooth; the measured traces keep theirs.
+//!
+//! Offsets of geometric errors (`machine.errors.…`) and of the bar's set-up
+//! (`instruments.ballbar.setup_…`, `instruments.ballbar.bar_…`) do not change the motion, only
+//! what the bar reads: they are read again from the recorded motion of the model as given
+//! (`vmt_sim::replay`, the same traces as a new simulation to rounding) instead of simulated.
 
 use crate::align::GapError;
 use std::path::PathBuf;
+use std::sync::OnceLock;
+use std::sync::atomic::{AtomicUsize, Ordering};
 use vmt_ballbar::Trace;
 use vmt_scenario::edit::Template;
+use vmt_sim::replay::Replay;
+use vmt_sim::run::BallbarTrace;
 
 /// Simulates a model's job with parameter offsets.
 pub trait Forward: Sync {
@@ -21,7 +30,18 @@ pub struct ScenarioModel {
     template: Template,
     file: String,
     base_dir: Option<PathBuf>,
+    /// The recorded motion of the model as given, once simulated.
+    base: OnceLock<Replay>,
+    /// Evaluations answered by a replay instead of a simulation.
+    replays: AtomicUsize,
 }
+
+/// Key prefixes whose values change what the bar reads but not the motion.
+const KINEMATIC: [&str; 3] = [
+    "machine.errors.",
+    "instruments.ballbar.setup_",
+    "instruments.ballbar.bar_",
+];
 
 impl ScenarioModel {
     /// The model of scenario `text` (named `file`; table files resolved in `base_dir`), its
@@ -38,6 +58,11 @@ impl ScenarioModel {
         Self::instrumented(&quiet, file, base_dir)
     }
 
+    /// How many evaluations were replays of the recorded motion rather than simulations.
+    pub fn replays(&self) -> usize {
+        self.replays.load(Ordering::Relaxed)
+    }
+
     /// The scenario as written, instrument noise and resolution included: a stand-in for a
     /// real machine in closed-loop studies.
     pub fn instrumented(
@@ -50,6 +75,8 @@ impl ScenarioModel {
             template,
             file: file.to_string(),
             base_dir,
+            base: OnceLock::new(),
+            replays: AtomicUsize::new(0),
         };
         // Parse once now, so a bad model is refused before any fitting.
         model.scenario(text)?;
@@ -84,17 +111,47 @@ impl Forward for ScenarioModel {
         let Some(exec) = &s.execution else {
             return Err(GapError::Model("no job".into()));
         };
-        let run = vmt_sim::simulate::simulate(
-            &s.machine,
-            &exec.axes,
-            &exec.controller,
-            &exec.job,
-            &exec.settings,
-            &text,
-            &mut |_| {},
-        )
-        .map_err(|e| GapError::Model(format!("{}: {e}", self.file)))?;
-        run.ballbar
+        let sim_error =
+            |e: vmt_sim::simulate::SimError| GapError::Model(format!("{}: {e}", self.file));
+        let kinematic = values
+            .iter()
+            .all(|(k, _)| KINEMATIC.iter().any(|p| k.starts_with(p)));
+        let ballbar: Vec<BallbarTrace> = match self.base.get() {
+            Some(base) if kinematic => {
+                self.replays.fetch_add(1, Ordering::Relaxed);
+                vmt_sim::replay::replay(&s.machine, &exec.job, &exec.settings, base)
+                    .map_err(sim_error)?
+            }
+            // The model as given: simulated, its motion kept for the kinematic offsets.
+            _ if values.is_empty() => {
+                let (run, replay) = vmt_sim::simulate::simulate_replayable(
+                    &s.machine,
+                    &exec.axes,
+                    &exec.controller,
+                    &exec.job,
+                    &exec.settings,
+                    &text,
+                    &mut |_| {},
+                )
+                .map_err(sim_error)?;
+                let _ = self.base.set(replay);
+                run.ballbar
+            }
+            _ => {
+                vmt_sim::simulate::simulate(
+                    &s.machine,
+                    &exec.axes,
+                    &exec.controller,
+                    &exec.job,
+                    &exec.settings,
+                    &text,
+                    &mut |_| {},
+                )
+                .map_err(sim_error)?
+                .ballbar
+            }
+        };
+        ballbar
             .iter()
             .map(|t| {
                 Trace::new(
