@@ -142,3 +142,32 @@ fn an_effect_outside_the_library_is_left_unexplained() {
         s.held_out_before_um
     );
 }
+
+/// Geometric and bar set-up offsets are replayed from the model's recorded motion; a drive
+/// offset is simulated. The replay gives what a model that never ran would simulate.
+#[test]
+fn geometric_offsets_are_replays_that_match_a_simulation() {
+    let values = vec![
+        ("machine.errors.squareness.EC0Y_urad".to_string(), 30.0),
+        (
+            "instruments.ballbar.setup_eccentricity_um[1]".to_string(),
+            4.0,
+        ),
+    ];
+    let model = ScenarioModel::new(&short_test(), "model.toml", None).unwrap();
+    model.traces(&[]).unwrap();
+    let replayed = model.traces(&values).unwrap();
+    assert_eq!(model.replays(), 1);
+    let fresh = ScenarioModel::new(&short_test(), "model.toml", None).unwrap();
+    let simulated = fresh.traces(&values).unwrap();
+    assert_eq!(fresh.replays(), 0);
+    for (r, s) in replayed.iter().zip(&simulated) {
+        for (a, b) in r.deviation_um.iter().zip(&s.deviation_um) {
+            assert!((a - b).abs() < 1e-9, "{a} vs {b}");
+        }
+    }
+    model
+        .traces(&[("machine.axes.x.drive.backlash_um".to_string(), 2.0)])
+        .unwrap();
+    assert_eq!(model.replays(), 1, "a drive offset is simulated");
+}
