@@ -191,7 +191,7 @@ fn columns(header: &csv::StringRecord, file: &str) -> Result<Columns, CliError> 
                 file,
                 Some(1),
                 format!(
-                    "no `{name}` column; the columns are angle_deg, deviation_um, direction (cw or ccw) and optionally time_s (found: {})",
+                    "no `{name}` column; a ball-bar trace has angle_deg, deviation_um, direction (cw or ccw) and optionally time_s, a laser positioning test target_mm, direction, run and deviation_um (found: {})",
                     header.iter().collect::<Vec<_>>().join(", ")
                 ),
             )
