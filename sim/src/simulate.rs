@@ -241,7 +241,10 @@ fn run_job(
     // Link and joint matrices of the current thermal state, rebuilt only when it changes.
     let mut evaluator = machine.volumetric.evaluator(&heat.deformation);
     let mut replay = replayable.then(|| Replay::new(heat.deformation, recorder.traces.len()));
-    let initial_deformation = heat.deformation;
+    // The thermal state at the middle of each circular test, for the truth's figures.
+    let midpoints = test_midpoints(job, &interpolator.block_times());
+    let mut at_midpoint = vec![heat.deformation; midpoints.len()];
+    let mut next_midpoint = 0;
     let mut trackers =
         Axis::ALL.map(|a| DirectionTracker::new(start[a.index()], Direction::Forward, 0.05e-6));
     let mut cursor = Cursor::default();
@@ -267,6 +270,10 @@ fn run_job(
                 r.thermal_state(heat.deformation);
             }
         }
+        while next_midpoint < midpoints.len() && sp.time_s >= midpoints[next_midpoint] {
+            at_midpoint[next_midpoint] = heat.deformation;
+            next_midpoint += 1;
+        }
         let state = AxisState {
             position: q,
             direction,
@@ -282,13 +289,35 @@ fn run_job(
     }
     progress(1.0);
     recorder.end_closing(&evaluator);
+    let at_tests: Vec<VolumetricEvaluator> = at_midpoint
+        .iter()
+        .map(|d| machine.volumetric.evaluator(d))
+        .collect();
     let truth = TruthInputs {
         machine,
         axes,
         job,
-        initial: &machine.volumetric.evaluator(&initial_deformation),
+        at_tests: &at_tests,
     };
     Ok((recorder.finish(&truth, settings, scenario_toml), replay))
+}
+
+/// The time at the middle of each circular test's data arcs, s (tests in job order, which is
+/// their order in time).
+fn test_midpoints(job: &Job, block_times: &[(usize, f64, f64)]) -> Vec<f64> {
+    job.ballbar
+        .iter()
+        .map(|b| {
+            let (lo, hi) = block_times
+                .iter()
+                .filter(|(block, _, _)| b.data.iter().any(|(_, r)| r.contains(block)))
+                .fold(
+                    (f64::INFINITY, f64::NEG_INFINITY),
+                    |(lo, hi), (_, t0, t1)| (lo.min(*t0), hi.max(*t1)),
+                );
+            if lo <= hi { 0.5 * (lo + hi) } else { 0.0 }
+        })
+        .collect()
 }
 
 pub(crate) fn check_strokes(

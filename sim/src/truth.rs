@@ -14,7 +14,8 @@ use vmt_model::machine::Machine;
 use vmt_model::{Axis, Direction};
 
 /// What the truth of a run is computed from: the machine with its drives, the job, and the error
-/// chain at the machine's thermal state when the job began.
+/// chain at the machine's thermal state in the middle of each circular test (a test measures
+/// the machine as it is then: the heat of the earlier tests has moved it).
 pub struct TruthInputs<'a> {
     /// The machine.
     pub machine: &'a Machine,
@@ -22,8 +23,8 @@ pub struct TruthInputs<'a> {
     pub axes: &'a [AxisDynamics; 3],
     /// The job.
     pub job: &'a Job,
-    /// The error chain at the start of the job.
-    pub initial: &'a VolumetricEvaluator<'a>,
+    /// The error chain in the middle of each circular test of the job, in job order.
+    pub at_tests: &'a [VolumetricEvaluator<'a>],
 }
 
 /// The truth of a run of `job` on `machine` with drives `axes`, as JSON.
@@ -85,9 +86,10 @@ pub fn ground_truth(
         let tests: Vec<Value> = job
             .ballbar
             .iter()
-            .map(|t| {
+            .zip(inputs.at_tests)
+            .map(|(t, chain)| {
                 let mut v = ballbar_test(t, axes);
-                let mut figures = test_figures(inputs, t);
+                let mut figures = test_figures(inputs, t, chain);
                 for (d, _) in &t.data {
                     let dir = match d {
                         ArcDirection::Cw => "cw",
@@ -216,7 +218,7 @@ fn lag_s(d: &AxisDynamics) -> f64 {
 
 /// The figures a ball-bar diagnosis of circular test `b` reports, in its keys and units.
 ///
-/// From the error chain at the job's start (the tool-point error field `δ` on the nominal
+/// From the error chain `chain` in the middle of the test (the tool-point error field `δ` on the nominal
 /// circle, averaged over the approach directions of the two plane axes): its component along
 /// the bar `δ·u(θ)` (u from the pivot to the tool; in the plane unless the link is inclined)
 /// is expanded in Fourier series `A_k cos kθ + B_k sin kθ` over the full circle, and
@@ -229,12 +231,16 @@ fn lag_s(d: &AxisDynamics) -> f64 {
 /// axis when it reverses (backward minus forward) at its two reversal points on the circle,
 /// averaged; the backlash adds the drive's lost motion at the test feed. Servo mismatch:
 /// `(1 - k_vff,p)/K_v,p - (1 - k_vff,q)/K_v,q` (ms).
-pub fn test_figures(inputs: &TruthInputs, b: &BallbarSetup) -> serde_json::Map<String, Value> {
+pub fn test_figures(
+    inputs: &TruthInputs,
+    b: &BallbarSetup,
+    chain: &VolumetricEvaluator,
+) -> serde_json::Map<String, Value> {
     let (pa, qa) = plane_axes(b.plane);
     let (ep, eq) = (unit(pa), unit(qa));
     let r_um = b.radius_m * 1e6;
     let (centre, radius) = b.tool_circle();
-    let field = |th: f64| mean_error(inputs, b, th, pa, qa);
+    let field = |th: f64| mean_error(inputs, chain, b, th, pa, qa);
     let n = 720;
     let (mut a, mut bb) = ([0.0; 4], [0.0; 4]);
     for i in 0..n {
@@ -290,7 +296,7 @@ pub fn test_figures(inputs: &TruthInputs, b: &BallbarSetup) -> serde_json::Map<S
         (lag_s(&axes[pa.index()]) - lag_s(&axes[qa.index()])) * 1e3 * k,
     );
     for (axis, other) in [(pa, qa), (qa, pa)] {
-        let (along, across) = reversal_change(inputs, b, axis, other);
+        let (along, across) = reversal_change(inputs, chain, b, axis, other);
         let drive = backlash_seen_m(&axes[axis.index()], b.feed_m_s) * 1e6;
         let l = axis.to_string().to_lowercase();
         put(format!("backlash_{l}"), (drive + along) * k);
@@ -320,16 +326,21 @@ fn state(inputs: &TruthInputs, tool: Vector3<f64>, dirs: [(Axis, Direction); 2])
 
 /// The tool-point error (m) at angle `th` of the circle, averaged over the four approach
 /// directions of the plane's axes.
-fn mean_error(inputs: &TruthInputs, b: &BallbarSetup, th: f64, pa: Axis, qa: Axis) -> Vector3<f64> {
+fn mean_error(
+    inputs: &TruthInputs,
+    chain: &VolumetricEvaluator,
+    b: &BallbarSetup,
+    th: f64,
+    pa: Axis,
+    qa: Axis,
+) -> Vector3<f64> {
     let (centre, radius) = b.tool_circle();
     let tool = centre + (unit(pa) * th.cos() + unit(qa) * th.sin()) * radius;
     let dirs = [Direction::Forward, Direction::Backward];
     let mut sum = Vector3::zeros();
     for dp in dirs {
         for dq in dirs {
-            sum += inputs
-                .initial
-                .volumetric_error(&state(inputs, tool, [(pa, dp), (qa, dq)]));
+            sum += chain.volumetric_error(&state(inputs, tool, [(pa, dp), (qa, dq)]));
         }
     }
     sum / 4.0
@@ -337,18 +348,20 @@ fn mean_error(inputs: &TruthInputs, b: &BallbarSetup, th: f64, pa: Axis, qa: Axi
 
 /// The change of the tool-point error when `axis` reverses (backward minus forward), along it
 /// and along `other`, µm, averaged over its two reversal points and the directions of `other`.
-fn reversal_change(inputs: &TruthInputs, b: &BallbarSetup, axis: Axis, other: Axis) -> (f64, f64) {
+fn reversal_change(
+    inputs: &TruthInputs,
+    chain: &VolumetricEvaluator,
+    b: &BallbarSetup,
+    axis: Axis,
+    other: Axis,
+) -> (f64, f64) {
     let dirs = [Direction::Forward, Direction::Backward];
     let mut change = Vector3::zeros();
     let (centre, radius) = b.tool_circle();
     for side in [1.0, -1.0] {
         let tool = centre + unit(axis) * (side * radius);
         for d in dirs {
-            let at = |dir| {
-                inputs
-                    .initial
-                    .volumetric_error(&state(inputs, tool, [(axis, dir), (other, d)]))
-            };
+            let at = |dir| chain.volumetric_error(&state(inputs, tool, [(axis, dir), (other, d)]));
             change += at(Direction::Backward) - at(Direction::Forward);
         }
     }
