@@ -6,11 +6,11 @@
 //! drift, bar temperature) only through its reading `|P_tool − P_pivot(t)| − L(1 + αΔT)`: neither
 //! enters the drives, the controller or the thermal network, so the axis positions `q`, their
 //! direction states `d` and the thermal state at every bar sample are those of the run whatever
-//! their values. A [`Replay`] keeps them (from [`simulate_replayable`]); [`replay`] evaluates
+//! their values. A [`Replay`] keeps them (from [`simulate_with_replay`]); [`replay`] evaluates
 //! the chain and the bar again with the new values, and gives the traces the simulation would
 //! give, to rounding (a test compares both).
 //!
-//! [`simulate_replayable`]: crate::simulate::simulate_replayable
+//! [`simulate_with_replay`]: crate::simulate::simulate_with_replay
 
 use crate::run::BallbarTrace;
 use crate::simulate::{Job, SimError, SimSettings, job_traces, push_sample, test_bar};

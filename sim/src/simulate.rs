@@ -170,7 +170,7 @@ pub fn simulate(
     scenario_toml: &str,
     progress: &mut dyn FnMut(f64),
 ) -> Result<Run, SimError> {
-    let (run, _) = run_job(
+    let (run, _) = simulate_with_replay(
         machine,
         axes,
         ipo,
@@ -183,33 +183,12 @@ pub fn simulate(
     Ok(run)
 }
 
-/// [`simulate`], keeping what the ball bar read at every sample (axis states, thermal state,
-/// time) so that the traces can be read again on a machine with other geometric errors or
-/// another bar set-up without simulating the motion again (see [`crate::replay`]).
-pub fn simulate_replayable(
-    machine: &Machine,
-    axes: &[AxisDynamics; 3],
-    ipo: &InterpolatorConfig,
-    job: &Job,
-    settings: &SimSettings,
-    scenario_toml: &str,
-    progress: &mut dyn FnMut(f64),
-) -> Result<(Run, Replay), SimError> {
-    let (run, replay) = run_job(
-        machine,
-        axes,
-        ipo,
-        job,
-        settings,
-        scenario_toml,
-        progress,
-        true,
-    )?;
-    Ok((run, replay.expect("recorded when asked")))
-}
-
+/// [`simulate`], and with `replayable` also what the ball bar read at every sample (axis
+/// states, thermal state, time), so that the traces can be read again on a machine with other
+/// geometric errors or another bar set-up without simulating the motion again (see
+/// [`crate::replay`]).
 #[allow(clippy::too_many_arguments)]
-fn run_job(
+pub fn simulate_with_replay(
     machine: &Machine,
     axes: &[AxisDynamics; 3],
     ipo: &InterpolatorConfig,

@@ -5,7 +5,7 @@
 use vmt_scenario::edit::Template;
 use vmt_sim::replay::replay;
 use vmt_sim::run::BallbarTrace;
-use vmt_sim::simulate::{simulate, simulate_replayable};
+use vmt_sim::simulate::{simulate, simulate_with_replay};
 
 /// The built-in machine on a short XY test (100 mm, 2000 mm/min, CW and CCW), with noise.
 fn scenario_text() -> String {
@@ -41,7 +41,7 @@ fn a_replay_reads_what_a_new_simulation_reads() {
     let text = scenario_text();
     let s = vmt_scenario::parse(&text, "replay.toml", None).expect("loads");
     let e = s.execution.as_ref().expect("a job");
-    let (base, rec) = simulate_replayable(
+    let (base, rec) = simulate_with_replay(
         &s.machine,
         &e.axes,
         &e.controller,
@@ -49,8 +49,10 @@ fn a_replay_reads_what_a_new_simulation_reads() {
         &e.settings,
         &text,
         &mut |_| {},
+        true,
     )
     .expect("runs");
+    let rec = rec.expect("recorded when asked");
     // The machine as it ran: the same traces, noise draws included, to the bit.
     let same = replay(&s.machine, &e.job, &e.settings, &rec).expect("replays");
     assert_eq!(same, base.ballbar);

@@ -122,9 +122,9 @@ impl Forward for ScenarioModel {
                 vmt_sim::replay::replay(&s.machine, &exec.job, &exec.settings, base)
                     .map_err(sim_error)?
             }
-            // The model as given: simulated, its motion kept for the kinematic offsets.
-            _ if values.is_empty() => {
-                let (run, replay) = vmt_sim::simulate::simulate_replayable(
+            _ => {
+                // The model as given keeps its motion for the kinematic offsets.
+                let (run, replay) = vmt_sim::simulate::simulate_with_replay(
                     &s.machine,
                     &exec.axes,
                     &exec.controller,
@@ -132,23 +132,13 @@ impl Forward for ScenarioModel {
                     &exec.settings,
                     &text,
                     &mut |_| {},
+                    values.is_empty(),
                 )
                 .map_err(sim_error)?;
-                let _ = self.base.set(replay);
+                if let Some(replay) = replay {
+                    let _ = self.base.set(replay);
+                }
                 run.ballbar
-            }
-            _ => {
-                vmt_sim::simulate::simulate(
-                    &s.machine,
-                    &exec.axes,
-                    &exec.controller,
-                    &exec.job,
-                    &exec.settings,
-                    &text,
-                    &mut |_| {},
-                )
-                .map_err(sim_error)?
-                .ballbar
             }
         };
         ballbar
