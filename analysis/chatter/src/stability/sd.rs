@@ -251,28 +251,15 @@ impl Expm {
             matmul(a2, a, a, s);
             matmul(a4, a2, a2, s);
             matmul(a6, a4, a2, s);
+            let powers = [&*a2, &*a4, &*a6];
             // U = A·[A6·(b13·A6 + b11·A4 + b9·A2) + b7·A6 + b5·A4 + b3·A2 + b1·I]
-            w.fill(0.0);
-            axpy(w, b[13], a6);
-            axpy(w, b[11], a4);
-            axpy(w, b[9], a2);
-            matmul(u, a6, w, s);
-            axpy(u, b[7], a6);
-            axpy(u, b[5], a4);
-            axpy(u, b[3], a2);
-            identity(u, b[1]);
+            let odd = [b[13], b[11], b[9], b[7], b[5], b[3], b[1]];
+            pade13_half(u, w, powers, odd, s);
             matmul(t, a, u, s);
             u.copy_from_slice(t);
             // V = A6·(b12·A6 + b10·A4 + b8·A2) + b6·A6 + b4·A4 + b2·A2 + b0·I
-            w.fill(0.0);
-            axpy(w, b[12], a6);
-            axpy(w, b[10], a4);
-            axpy(w, b[8], a2);
-            matmul(v, a6, w, s);
-            axpy(v, b[6], a6);
-            axpy(v, b[4], a4);
-            axpy(v, b[2], a2);
-            identity(v, b[0]);
+            let even = [b[12], b[10], b[8], b[6], b[4], b[2], b[0]];
+            pade13_half(v, w, powers, even, s);
         }
         // (V - U)·X = V + U
         for i in 0..ss {
@@ -492,6 +479,22 @@ fn too_few_steps(m: usize) -> StabilityError {
         name: "steps per period",
         value: m as f64,
         accepted: "at least 2",
+    }
+}
+
+/// One half of the order-13 Padé approximant from the powers `[A2, A4, A6]` of an `s`×`s`
+/// matrix: `out = A6·(c0·A6 + c1·A4 + c2·A2) + c3·A6 + c4·A4 + c5·A2 + c6·I` (`w` scratch).
+fn pade13_half(out: &mut [f64], w: &mut [f64], [a2, a4, a6]: [&[f64]; 3], c: [f64; 7], s: usize) {
+    w.fill(0.0);
+    axpy(w, c[0], a6);
+    axpy(w, c[1], a4);
+    axpy(w, c[2], a2);
+    matmul(out, a6, w, s);
+    axpy(out, c[3], a6);
+    axpy(out, c[4], a4);
+    axpy(out, c[5], a2);
+    for i in 0..s {
+        out[i * s + i] += c[6];
     }
 }
 
