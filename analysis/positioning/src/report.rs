@@ -31,6 +31,24 @@ fn figures(e: &Evaluation) -> [(&'static str, &'static str, f64); 12] {
     ]
 }
 
+/// Per target: P_i (mm), then x̄↑, x̄↓, s↑, s↓, B_i, −x̄, −x̄↑, −x̄↓ (µm).
+fn target_rows(e: &Evaluation) -> impl Iterator<Item = [f64; 9]> + '_ {
+    let f = &e.iso230_2;
+    e.compensation.iter().enumerate().map(move |(i, c)| {
+        [
+            c.target_mm,
+            f.mean_forward_um[i],
+            f.mean_backward_um[i],
+            f.s_forward_um[i],
+            f.s_backward_um[i],
+            f.reversal_um[i],
+            c.bidirectional_um,
+            c.forward_um,
+            c.backward_um,
+        ]
+    })
+}
+
 fn header(e: &Evaluation) -> String {
     format!(
         "ISO 230-2 linear positioning, axis {}: {} targets from {:.3} to {:.3} mm, {} runs",
@@ -62,19 +80,13 @@ pub fn text(e: &Evaluation) -> String {
         "  {:>10} {:>9} {:>9} {:>7} {:>7} {:>8} {:>11}",
         "target mm", "mean fw", "mean bw", "s fw", "s bw", "B_i", "correction"
     );
-    let f = &e.iso230_2;
-    for (i, c) in e.compensation.iter().enumerate() {
-        let _ = writeln!(
-            s,
-            "  {:>10.3} {:>9.3} {:>9.3} {:>7.3} {:>7.3} {:>8.3} {:>11.3}",
-            c.target_mm,
-            f.mean_forward_um[i],
-            f.mean_backward_um[i],
-            f.s_forward_um[i],
-            f.s_backward_um[i],
-            f.reversal_um[i],
-            c.bidirectional_um
-        );
+    for row in target_rows(e) {
+        let cells: Vec<String> = row
+            .iter()
+            .zip([10, 9, 9, 7, 7, 8, 11])
+            .map(|(v, width)| format!("{v:>width$.3}"))
+            .collect();
+        let _ = writeln!(s, "  {}", cells.join(" "));
     }
     s.push_str(
         "  (um; correction = -mean bidirectional deviation, the pitch-error compensation)\n",
@@ -96,21 +108,9 @@ pub fn markdown(e: &Evaluation) -> String {
     }
     let _ = writeln!(s, "\n{}.\n", trend_line(e));
     s.push_str("| Target (mm) | x̄↑ (µm) | x̄↓ (µm) | s↑ (µm) | s↓ (µm) | B_i (µm) | Correction −x̄ (µm) | −x̄↑ (µm) | −x̄↓ (µm) |\n|---|---|---|---|---|---|---|---|---|\n");
-    let f = &e.iso230_2;
-    for (i, c) in e.compensation.iter().enumerate() {
-        let _ = writeln!(
-            s,
-            "| {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} |",
-            c.target_mm,
-            f.mean_forward_um[i],
-            f.mean_backward_um[i],
-            f.s_forward_um[i],
-            f.s_backward_um[i],
-            f.reversal_um[i],
-            c.bidirectional_um,
-            c.forward_um,
-            c.backward_um
-        );
+    for row in target_rows(e) {
+        let cells: Vec<String> = row.iter().map(|v| format!("{v:.3}")).collect();
+        let _ = writeln!(s, "| {} |", cells.join(" | "));
     }
     if !e.notes.is_empty() {
         s.push('\n');
