@@ -19,6 +19,7 @@
 
 use crate::error::CliError;
 use crate::plot::{DrawResult, FONT, Figure, Format, register_font, render};
+use crate::traces::{csv_with_header, finite_cell};
 use mcap::MessageStream;
 use plotters::coord::Shift;
 use plotters::prelude::*;
@@ -74,6 +75,12 @@ fn read_mcap(
     file: &str,
 ) -> Result<Option<(PositioningRun, Option<Value>)>, CliError> {
     let bad = |m: String| CliError::input(file, None, m);
+    // A run with a summary names its topics there: a ball-bar run is not read twice.
+    if let Ok(Some(summary)) = mcap::Summary::read(bytes)
+        && !summary.channels.values().any(|c| c.topic == "/laser")
+    {
+        return Ok(None);
+    }
     let mut readings = Vec::new();
     let mut axis = None;
     let mut truth = None;
@@ -117,13 +124,7 @@ fn read_mcap(
 }
 
 fn read_csv(bytes: &[u8], file: &str, axis: &str) -> Result<Option<PositioningRun>, CliError> {
-    let mut reader = csv::ReaderBuilder::new()
-        .trim(csv::Trim::All)
-        .from_reader(bytes);
-    let header = reader
-        .headers()
-        .map_err(|e| CliError::input(file, Some(1), e.to_string()))?
-        .clone();
+    let (mut reader, header) = csv_with_header(bytes, file)?;
     let find = |name: &str| header.iter().position(|h| h == name);
     let Some(target) = find("target_mm") else {
         return Ok(None);
@@ -152,13 +153,7 @@ fn read_csv(bytes: &[u8], file: &str, axis: &str) -> Result<Option<PositioningRu
         let line = i + 2;
         let rec = record.map_err(|e| CliError::input(file, Some(line), e.to_string()))?;
         let at = |msg: String| CliError::input(file, Some(line), msg);
-        let number = |k: usize, name: &str| -> Result<f64, CliError> {
-            let s = rec.get(k).unwrap_or("");
-            match s.parse::<f64>() {
-                Ok(v) if v.is_finite() => Ok(v),
-                _ => Err(at(format!("{name} `{s}` is not accepted; a finite number"))),
-            }
-        };
+        let number = |k: usize, name: &str| finite_cell(&rec, k, name, file, line);
         let d = rec.get(dir_col).unwrap_or("");
         let approach = direction(d).ok_or_else(|| {
             at(format!(
@@ -296,44 +291,16 @@ fn draw_on<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, e: &Evaluation) ->
             .map(|(x, (m, s))| (*x, m + k * s))
             .collect()
     };
-    let curves = [
-        (
-            "forward mean",
-            band(&f.mean_forward_um, &f.s_forward_um, 0.0),
-            BLUE,
-            false,
-        ),
-        (
-            "forward mean ± 2s",
-            band(&f.mean_forward_um, &f.s_forward_um, 2.0),
-            BLUE,
-            true,
-        ),
-        (
-            "",
-            band(&f.mean_forward_um, &f.s_forward_um, -2.0),
-            BLUE,
-            true,
-        ),
-        (
-            "backward mean",
-            band(&f.mean_backward_um, &f.s_backward_um, 0.0),
-            RED,
-            false,
-        ),
-        (
-            "backward mean ± 2s",
-            band(&f.mean_backward_um, &f.s_backward_um, 2.0),
-            RED,
-            true,
-        ),
-        (
-            "",
-            band(&f.mean_backward_um, &f.s_backward_um, -2.0),
-            RED,
-            true,
-        ),
-    ];
+    // Per direction: the mean (solid, with its points), and its ±2s band (thin).
+    let mut curves = Vec::new();
+    for (dir, m, sd, colour) in [
+        ("forward", &f.mean_forward_um, &f.s_forward_um, BLUE),
+        ("backward", &f.mean_backward_um, &f.s_backward_um, RED),
+    ] {
+        curves.push((format!("{dir} mean"), band(m, sd, 0.0), colour, false));
+        curves.push((format!("{dir} mean ± 2s"), band(m, sd, 2.0), colour, true));
+        curves.push((String::new(), band(m, sd, -2.0), colour, true));
+    }
     let (lo, hi) = curves
         .iter()
         .flat_map(|c| c.1.iter().map(|p| p.1))

@@ -214,7 +214,11 @@ struct Run {
     deviation: Vec<f64>,
 }
 
-fn read_csv(bytes: &[u8], file: &str, setup: CsvSetup) -> Result<Vec<Trace>, CliError> {
+/// A CSV reader over `bytes` (cells trimmed) and the header of `file`.
+pub(crate) fn csv_with_header<'a>(
+    bytes: &'a [u8],
+    file: &str,
+) -> Result<(csv::Reader<&'a [u8]>, csv::StringRecord), CliError> {
     let mut reader = csv::ReaderBuilder::new()
         .trim(csv::Trim::All)
         .from_reader(bytes);
@@ -222,22 +226,36 @@ fn read_csv(bytes: &[u8], file: &str, setup: CsvSetup) -> Result<Vec<Trace>, Cli
         .headers()
         .map_err(|e| CliError::input(file, Some(1), e.to_string()))?
         .clone();
+    Ok((reader, header))
+}
+
+/// Cell `k` of `rec`, line `line` of `file`, as a finite number; `name` names its column.
+pub(crate) fn finite_cell(
+    rec: &csv::StringRecord,
+    k: usize,
+    name: &str,
+    file: &str,
+    line: usize,
+) -> Result<f64, CliError> {
+    let s = rec.get(k).unwrap_or("");
+    match s.parse::<f64>() {
+        Ok(v) if v.is_finite() => Ok(v),
+        _ => Err(CliError::input(
+            file,
+            Some(line),
+            format!("{name} `{s}` is not accepted; a finite number"),
+        )),
+    }
+}
+
+fn read_csv(bytes: &[u8], file: &str, setup: CsvSetup) -> Result<Vec<Trace>, CliError> {
+    let (mut reader, header) = csv_with_header(bytes, file)?;
     let cols = columns(&header, file)?;
     let mut runs: Vec<Run> = Vec::new();
     for (i, record) in reader.records().enumerate() {
         let line = i + 2;
         let rec = record.map_err(|e| CliError::input(file, Some(line), e.to_string()))?;
-        let number = |k: usize, name: &str| -> Result<f64, CliError> {
-            let s = rec.get(k).unwrap_or("");
-            match s.parse::<f64>() {
-                Ok(v) if v.is_finite() => Ok(v),
-                _ => Err(CliError::input(
-                    file,
-                    Some(line),
-                    format!("{name} `{s}` is not accepted; a finite number"),
-                )),
-            }
-        };
+        let number = |k: usize, name: &str| finite_cell(&rec, k, name, file, line);
         let direction = rec.get(cols.direction).unwrap_or("").to_ascii_lowercase();
         if direction != "cw" && direction != "ccw" {
             return Err(CliError::input(
