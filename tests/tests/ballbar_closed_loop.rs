@@ -95,11 +95,8 @@ fn tolerance(radius_mm: f64) -> impl Fn(&str, f64) -> f64 {
     }
 }
 
-/// The built-in machine (geometric errors of an uncompensated VMC, drive backlash and friction,
-/// unequal gains) with a drifting pivot: every figure of the XY test within tolerance.
-#[test]
-fn builtin_machine_xy_test_is_diagnosed_within_tolerance() {
-    let job = r#"[job]
+/// An XY test of 100 mm at 2000 mm/min, CW and CCW, about the table's middle.
+const XY_TEST: &str = r#"[job]
 kind = "ballbar"
 plane = "XY"
 center_mm = [250.0, 200.0, 200.0]
@@ -107,11 +104,16 @@ radius_mm = 100.0
 feed_mm_min = 2000.0
 arc_deg = 360.0
 directions = ["cw", "ccw"]"#;
+
+/// The built-in machine (geometric errors of an uncompensated VMC, drive backlash and friction,
+/// unequal gains) with a drifting pivot: every figure of the XY test within tolerance.
+#[test]
+fn builtin_machine_xy_test_is_diagnosed_within_tolerance() {
     let bar = r#"[instruments.ballbar]
 noise_um = 0.3
 setup_eccentricity_um = [12.0, -7.0, 0.0]
 setup_drift_um_per_min = [4.0, -2.0, 0.0]"#;
-    let r = run(job, bar);
+    let r = run(XY_TEST, bar);
     let d = diagnose(&traces(&r), &Options::default()).expect("diagnosis");
     compare(&r, &d, tolerance(100.0));
 }
@@ -133,15 +135,7 @@ fn screw_lead_errors_are_diagnosed_as_cyclic_errors_of_their_pitch() {
             "screw_cyclic_um = [0.0, -1.0]",
             1,
         );
-    let job = r#"[job]
-kind = "ballbar"
-plane = "XY"
-center_mm = [250.0, 200.0, 200.0]
-radius_mm = 100.0
-feed_mm_min = 2000.0
-arc_deg = 360.0
-directions = ["cw", "ccw"]"#;
-    let r = run_on(&text, job, "[instruments.ballbar]\nnoise_um = 0.3");
+    let r = run_on(&text, XY_TEST, "[instruments.ballbar]\nnoise_um = 0.3");
     let figures = &r.ground_truth["ballbar"]["tests"][0]["figures"];
     assert!((figures["cyclic_x"].as_f64().unwrap() - 1.5).abs() < 1e-9);
     assert!((figures["cyclic_y"].as_f64().unwrap() - 1.0).abs() < 1e-9);
