@@ -296,6 +296,11 @@ pub(crate) fn key_path(key: &str) -> Result<KeyPath, String> {
 
 /// The number at `path`, if the document sets one there.
 pub(crate) fn number<'a>(doc: &'a DocumentMut, path: &KeyPath) -> Option<&'a Value> {
+    value_at(doc, path).filter(|v| v.is_float() || v.is_integer())
+}
+
+/// The value at `path`, whatever its type.
+pub(crate) fn value_at<'a>(doc: &'a DocumentMut, path: &KeyPath) -> Option<&'a Value> {
     let mut item: &Item = doc.as_item();
     for seg in &path.0 {
         item = match seg {
@@ -303,7 +308,7 @@ pub(crate) fn number<'a>(doc: &'a DocumentMut, path: &KeyPath) -> Option<&'a Val
             Seg::Index(i) => item.get(*i)?,
         };
     }
-    item.as_value().filter(|v| v.is_float() || v.is_integer())
+    item.as_value()
 }
 
 pub(crate) fn number_mut<'a>(doc: &'a mut DocumentMut, path: &KeyPath) -> Option<&'a mut Value> {

@@ -3,7 +3,7 @@
 //! every other byte of the file. The sim-to-real gap analysis fits model parameters this way,
 //! through the same parser and checks as any scenario.
 
-use crate::dataset::{key_path, number, number_mut};
+use crate::dataset::{key_path, number, number_mut, value_at};
 use crate::error::ScenarioError;
 use toml_edit::{DocumentMut, Value};
 
@@ -40,6 +40,12 @@ impl Template {
         )
     }
 
+    /// The string the scenario sets at `key`, if any (a job's tool name, say).
+    pub fn text(&self, key: &str) -> Result<Option<String>, ScenarioError> {
+        let path = key_path(key).map_err(|m| self.error(key, m))?;
+        Ok(value_at(&self.doc, &path).and_then(|v| v.as_str().map(str::to_string)))
+    }
+
     /// The scenario text with each `(key, value)` written in. Every key must already hold a
     /// number (a template does not invent structure): an error names the first that does not.
     pub fn with(&self, values: &[(&str, f64)]) -> Result<String, ScenarioError> {
@@ -56,6 +62,22 @@ impl Template {
             } else {
                 Value::from(*v)
             };
+            *slot.decor_mut() = decor;
+        }
+        Ok(doc.to_string())
+    }
+
+    /// The scenario text with each `(key, text)` written in as a string (a job's plane, say).
+    /// Every key must already hold a string: an error names the first that does not.
+    pub fn with_text(&self, values: &[(&str, &str)]) -> Result<String, ScenarioError> {
+        let mut doc = self.doc.clone();
+        for (key, v) in values {
+            let path = key_path(key).map_err(|m| self.error(key, m))?;
+            let slot = number_mut(&mut doc, &path)
+                .filter(|v| v.is_str())
+                .ok_or_else(|| self.error(key, "the scenario sets no string at this key".into()))?;
+            let decor = slot.decor().clone();
+            *slot = Value::from(*v);
             *slot.decor_mut() = decor;
         }
         Ok(doc.to_string())
@@ -113,5 +135,11 @@ mod tests {
         );
         let e = t.with(&[("a.z", 1.0)]).unwrap_err();
         assert!(e.to_string().contains("a.z"), "{e}");
+        let s = Template::parse("[job]\nplane = \"XY\" # the test\n", "t.toml").unwrap();
+        assert_eq!(s.text("job.plane").unwrap().as_deref(), Some("XY"));
+        let out = s.with_text(&[("job.plane", "ZX")]).unwrap();
+        assert_eq!(out, "[job]\nplane = \"ZX\" # the test\n");
+        let e = s.with_text(&[("job.radius", "1")]).unwrap_err();
+        assert!(e.to_string().contains("job.radius"), "{e}");
     }
 }

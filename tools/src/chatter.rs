@@ -71,6 +71,8 @@ pub struct Log {
     pub spindle_rpm: Option<f64>,
     /// Teeth from the ground truth.
     pub teeth: Option<u32>,
+    /// Axial depth of cut (mm) from the ground truth.
+    pub axial_depth_mm: Option<f64>,
 }
 
 const AXES: [&str; 3] = ["ax", "ay", "az"];
@@ -259,6 +261,7 @@ fn finish(
         teeth: milling
             .and_then(|m| m["teeth"].as_u64())
             .and_then(|t| u32::try_from(t).ok()),
+        axial_depth_mm: milling.and_then(|m| m["axial_depth_mm"].as_f64()),
     })
 }
 

@@ -13,8 +13,7 @@ use crate::traces::{self, CsvSetup};
 use serde_json::{Value, json};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
-use vmt_ballbar::Trace;
-use vmt_gap::effects::{library, library_for};
+use vmt_ballbar::{Plane, Trace};
 use vmt_gap::localise::{self, Localisation, Place};
 use vmt_gap::model::ScenarioModel;
 use vmt_gap::select::{self, Linearisation, Selection, Split};
@@ -71,7 +70,7 @@ pub fn analyse(model: &Path, files: &[PathBuf], measured: &[Trace]) -> Result<Ga
             planes.push(plane);
         }
     }
-    let lib = library_for(&planes);
+    let lib = forward.library(&planes);
     let err = |e: GapError| match e {
         GapError::Model(_) => model_error(&model_file, e),
         other => CliError::Argument(other.to_string()),
@@ -354,8 +353,9 @@ pub struct GapArgs {
     /// The model: a scenario whose job is the measured test(s).
     #[arg(long)]
     pub model: PathBuf,
-    /// Measured runs: our run.mcap files, or ball-bar CSV traces (angle_deg, deviation_um,
-    /// direction [, time_s]) with --radius-mm, --feed-mm-min and --plane.
+    /// Measured runs: our run.mcap files, ball-bar CSV traces (angle_deg, deviation_um,
+    /// direction [, time_s]) with --radius-mm, --feed-mm-min and --plane, or accelerometer
+    /// logs of a milling job (a milling run.mcap, or CSV time_s,ax,ay,az in s and m/s²).
     #[arg(long, num_args = 1.., required = true)]
     pub real: Vec<PathBuf>,
     /// Nominal radius of CSV traces, mm.
@@ -377,6 +377,20 @@ pub struct GapArgs {
 
 /// Runs `vmt gap`.
 pub fn command(a: &GapArgs) -> Result<(), CliError> {
+    let accelerometer = a
+        .real
+        .iter()
+        .map(|f| crate::vibration_gap::is_accelerometer(f))
+        .collect::<Result<Vec<bool>, CliError>>()?;
+    if accelerometer.iter().any(|x| *x) {
+        if let Some(i) = accelerometer.iter().position(|x| !x) {
+            return Err(CliError::Argument(format!(
+                "{}: not an accelerometer log, but others are; give either accelerometer logs (milling) or ball-bar runs",
+                a.real[i].display()
+            )));
+        }
+        return vibration_command(a);
+    }
     let csv = match (a.radius_mm, a.feed_mm_min, a.plane.as_deref()) {
         (Some(radius_mm), Some(feed_mm_min), Some(plane)) => Some(CsvSetup {
             plane,
@@ -409,6 +423,27 @@ pub fn command(a: &GapArgs) -> Result<(), CliError> {
     Ok(())
 }
 
+fn vibration_command(a: &GapArgs) -> Result<(), CliError> {
+    use crate::vibration_gap as vg;
+    let model = a.model.display().to_string();
+    let g = vg::analyse(&a.model, &a.real)?;
+    if a.json {
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&vg::json(&model, &a.real, &g))
+                .map_err(|e| CliError::Argument(e.to_string()))?
+        );
+    } else {
+        print!("{}", vg::text(&model, &a.real, &g));
+    }
+    if let Some(dir) = &a.out {
+        for f in vg::write(&model, &a.real, &g, dir)? {
+            eprintln!("wrote {}", f.display());
+        }
+    }
+    Ok(())
+}
+
 /// `vmt gap-bench` arguments.
 #[derive(clap::Args, Debug)]
 pub struct BenchArgs {
@@ -421,6 +456,9 @@ pub struct BenchArgs {
     /// Feed of that test, mm/min.
     #[arg(long, default_value_t = 2000.0)]
     pub feed_mm_min: f64,
+    /// Plane of that test: XY, ZX or YZ.
+    #[arg(long, default_value = "XY")]
+    pub plane: String,
     /// Nuisance: the other parameters' mismatch, as a fraction of their typical size.
     #[arg(long, default_value_t = 0.05)]
     pub nuisance: f64,
@@ -455,17 +493,23 @@ pub fn bench_command(a: &BenchArgs) -> Result<(), CliError> {
             vmt_scenario::BUILTIN_NAME.to_string(),
         ),
     };
+    let plane = Plane::parse(&a.plane).ok_or_else(|| {
+        CliError::Argument(format!("--plane {}: XY, ZX or YZ is accepted", a.plane))
+    })?;
     let text = vmt_scenario::edit::Template::parse(&text, &file)?.with(&[
         ("job.radius_mm", a.radius_mm),
         ("job.feed_mm_min", a.feed_mm_min),
     ])?;
+    let text = vmt_scenario::edit::Template::parse(&text, &file)?
+        .with_text(&[("job.plane", &plane.to_string())])?;
     let dir = a
         .model
         .as_deref()
         .and_then(Path::parent)
         .map(Path::to_path_buf);
     let model = ScenarioModel::new(&text, &file, dir).map_err(|e| model_error(&file, e))?;
-    let lib = library('x', 'y');
+    let (p, q) = plane.axes();
+    let lib = model.library(&[(p.to_ascii_lowercase(), q.to_ascii_lowercase())]);
     let settings = bench::Settings {
         nuisance: a.nuisance,
         nulls: a.nulls,
@@ -483,7 +527,7 @@ pub fn bench_command(a: &BenchArgs) -> Result<(), CliError> {
     let outcomes = bench::run(&text, &model, &lib, &cases, &o, &|| bar.inc(1))
         .map_err(|e| model_error(&file, e))?;
     bar.finish_and_clear();
-    let figures = bench::figures(&outcomes);
+    let figures = bench::figures(&outcomes, o.min_effect_um);
     let report = bench_markdown(&file, a, &figures, &outcomes);
     print!("{report}");
     if let Some(dir) = &a.out {
@@ -515,13 +559,13 @@ fn bench_markdown(
     let _ = writeln!(out, "# Sim-to-real gap: withheld-effect check\n");
     let _ = writeln!(
         out,
-        "Made by `vmt gap-bench --radius-mm {} --feed-mm-min {} --nuisance {} --nulls {} --seed {} --repeats {}` (the defaults).\n",
-        a.radius_mm, a.feed_mm_min, a.nuisance, a.nulls, a.seed, a.repeats
+        "Made by `vmt gap-bench --plane {} --radius-mm {} --feed-mm-min {} --nuisance {} --nulls {} --seed {} --repeats {}`.\n",
+        a.plane, a.radius_mm, a.feed_mm_min, a.nuisance, a.nulls, a.seed, a.repeats
     );
     let _ = writeln!(
         out,
-        "Model {file}, job: XY circle {} mm at {} mm/min, CW and CCW (CW fits, CCW judges); nuisance {} x typical on every other parameter, the bar's set-up drawn anew, instrument noise and resolution kept, a seed per case (first seed {}, {} draws of the list).\n",
-        a.radius_mm, a.feed_mm_min, a.nuisance, a.seed, a.repeats
+        "Model {file}, job: {} circle {} mm at {} mm/min, CW and CCW (CW fits, CCW judges); nuisance {} x typical on every other parameter, the bar's set-up drawn anew, instrument noise and resolution kept, a seed per case (first seed {}, {} draws of the list).\n",
+        a.plane, a.radius_mm, a.feed_mm_min, a.nuisance, a.seed, a.repeats
     );
     let _ = writeln!(
         out,
@@ -557,6 +601,14 @@ fn bench_markdown(
         pct(f.pairs_both_found),
         f.pair_cases
     );
+    if !f.below_floor.is_empty() {
+        let _ = writeln!(
+            out,
+            "Below the visibility floor ({} um of held-out change predicted for the withheld offsets after the set-up fit), so invisible on this job and left out of the figures: {}.\n",
+            f.floor_um,
+            f.below_floor.join("; ")
+        );
+    }
     let _ = writeln!(
         out,
         "## Confusion (withheld -> first effect found)\n\n| Withheld | Found |\n|---|---|"
@@ -567,13 +619,14 @@ fn bench_markdown(
     }
     let _ = writeln!(
         out,
-        "\n## Cases\n\n| Case | Found | Partial | Held-out RMS before (um) | after (um) | Shrink |\n|---|---|---|---|---|---|"
+        "\n## Cases\n\n| Case | Visible (um) | Found | Partial | Held-out RMS before (um) | after (um) | Shrink |\n|---|---|---|---|---|---|---|"
     );
     for o in outcomes {
         let _ = writeln!(
             out,
-            "| {} | {} | {} | {:.3} | {:.3} | {} |",
+            "| {} | {:.3} | {} | {} | {:.3} | {:.3} | {} |",
             o.case,
+            o.visible_um,
             o.found.join(", "),
             o.partial.join(", "),
             o.held_out_before_um,

@@ -18,5 +18,6 @@ pub mod positioning;
 pub mod program;
 pub mod thermal;
 pub mod traces;
+pub mod vibration_gap;
 
 pub use error::CliError;

@@ -115,3 +115,72 @@ fn measurements_of_another_test_are_refused_by_name() {
         "{e}"
     );
 }
+
+/// The shipped milling slot at 0.2 mm depth (a stable cut), with its NC program, in `dir`.
+fn milling_model(dir: &Path) -> PathBuf {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenarios");
+    let text = std::fs::read_to_string(root.join("milling_slot.toml"))
+        .unwrap()
+        .replace("axial_depth_mm = 0.5", "axial_depth_mm = 0.2");
+    std::fs::create_dir_all(dir.join("milling")).unwrap();
+    std::fs::copy(root.join("milling/slot.nc"), dir.join("milling/slot.nc")).unwrap();
+    let p = dir.join("milling.toml");
+    std::fs::write(&p, text).unwrap();
+    p
+}
+
+#[test]
+fn a_tool_mode_is_found_from_an_accelerometer_csv() {
+    let dir = tempfile::tempdir().unwrap();
+    let model = milling_model(dir.path());
+    // The "machine": its X mode 4 % lower than the model's, sensor noise kept, another seed.
+    let text = std::fs::read_to_string(&model)
+        .unwrap()
+        .replace("frequency_hz = 922.0", "frequency_hz = 885.0")
+        .replace("seed = 1", "seed = 5");
+    let log =
+        vmt_gap::vibration::MillingModel::instrumented(&text, "real", Some(dir.path().into()))
+            .unwrap()
+            .base;
+    let mut csv = String::from("time_s,ax,ay,az\n");
+    for i in 0..log.channels[0].1.len() {
+        let v: Vec<String> = log.channels.iter().map(|(_, x)| x[i].to_string()).collect();
+        csv += &format!("{},{}\n", i as f64 / log.sample_rate_hz, v.join(","));
+    }
+    let accel = dir.path().join("accel.csv");
+    std::fs::write(&accel, csv).unwrap();
+    let out = dir.path().join("gap");
+    let o = vmt(&[
+        "gap",
+        "--model",
+        model.to_str().unwrap(),
+        "--real",
+        accel.to_str().unwrap(),
+        "--json",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let r: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let step = &r["gap"]["steps"][0];
+    assert_eq!(step["effect"], "tool_mode_x1", "{r:#}");
+    let f = step["values"][1]["value"].as_f64().unwrap();
+    assert!((f - 885.0).abs() < 4.0, "fitted {f} Hz");
+    assert!(out.join("band_levels.png").exists());
+    // Ball-bar traces and accelerometer logs are not one analysis.
+    let trace = write_csv(dir.path(), "trace.csv", &traces(50.0, &Errors::default()));
+    let o = vmt(&[
+        "gap",
+        "--model",
+        model.to_str().unwrap(),
+        "--real",
+        accel.to_str().unwrap(),
+        trace.to_str().unwrap(),
+    ]);
+    assert!(!o.status.success());
+    assert!(
+        stderr(&o).contains("trace.csv: not an accelerometer log"),
+        "{}",
+        stderr(&o)
+    );
+}

@@ -8,7 +8,6 @@
 //! Run: `cargo bench -p vmt-gap --bench seven_step` (prints the wall time of each stage).
 
 use std::time::Instant;
-use vmt_gap::effects::library_for;
 use vmt_gap::model::{Forward, ScenarioModel};
 use vmt_gap::select::{Linearisation, Options, Split, select};
 
@@ -36,7 +35,7 @@ fn main() {
         t0.elapsed().as_secs_f64(),
         measured.len()
     );
-    let lib = library_for(&[('x', 'y'), ('z', 'x'), ('y', 'z')]);
+    let lib = model.library(&[('x', 'y'), ('z', 'x'), ('y', 'z')]);
     let t = Instant::now();
     let lin = Linearisation::new(&model, &lib).unwrap();
     let t_lin = t.elapsed().as_secs_f64();

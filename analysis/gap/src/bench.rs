@@ -56,6 +56,8 @@ pub struct Case {
     pub withheld: Withheld,
     /// Absolute values written into the model to make the measured machine.
     pub edits: Vec<(String, f64)>,
+    /// The withheld offsets alone (without the nuisance), from the model's values.
+    pub withheld_offsets: Vec<(String, f64)>,
     /// Seed of the nuisance draws and of the simulation.
     pub seed: u64,
     /// The effect left out of the candidates (out-of-library cases).
@@ -136,6 +138,7 @@ fn cases_once(model: &dyn Forward, library: &[Effect], s: &Settings) -> Vec<Case
             name,
             withheld,
             edits,
+            withheld_offsets: offsets,
             seed,
             hidden,
         });
@@ -226,10 +229,13 @@ pub struct Outcome {
     pub held_out_after_um: f64,
     /// Shrink of the held-out mean square.
     pub shrink: f64,
+    /// How far the withheld offsets stand out on the job's held-out runs, µm
+    /// ([`Linearisation::visibility`]).
+    pub visible_um: f64,
 }
 
 impl Outcome {
-    fn of(case: &Case, s: &Selection, o: &Options) -> Self {
+    fn of(case: &Case, s: &Selection, o: &Options, visible_um: f64) -> Self {
         let after = s.held_out_after_um();
         let chosen: Vec<String> = s.steps.iter().map(|x| x.effect.clone()).collect();
         let (found, partial) = if s.explained(o) {
@@ -245,6 +251,7 @@ impl Outcome {
             held_out_before_um: s.held_out_before_um,
             held_out_after_um: after,
             shrink: s.held_out_shrink(),
+            visible_um,
         }
     }
 }
@@ -276,13 +283,14 @@ pub fn run(
             let split = Split::automatic(&measured)?;
             let hidden: Vec<&str> = c.hidden.iter().map(String::as_str).collect();
             let s = select_without(model, &lin, &measured, library, &hidden, split, o)?;
+            let visible = lin.visibility(library, &c.withheld_offsets, o)?;
             progress();
-            Ok(Outcome::of(c, &s, o))
+            Ok(Outcome::of(c, &s, o, visible))
         })
         .collect()
 }
 
-/// The bench's figures.
+/// The bench's figures, with cases below the visibility floor `floor_um` set apart.
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct Figures {
     /// Single-effect cases whose first effect found is the withheld one, fraction.
@@ -305,10 +313,16 @@ pub struct Figures {
     pub median_shrink: f64,
     /// Confusion counts: withheld (or `null`, `outside`) → first found (or `none`).
     pub confusion: BTreeMap<String, BTreeMap<String, usize>>,
+    /// The visibility floor, µm: [`Options::min_effect_um`].
+    pub floor_um: f64,
+    /// Single-effect and out-of-library cases whose withheld offsets stand out by less than
+    /// the floor on the job ([`Outcome::visible_um`]): no analysis of these runs can see them,
+    /// so they are listed here and left out of the rates, the confusion and the shrink.
+    pub below_floor: Vec<String>,
 }
 
 /// The figures of a bench's outcomes.
-pub fn figures(outcomes: &[Outcome]) -> Figures {
+pub fn figures(outcomes: &[Outcome], floor_um: f64) -> Figures {
     let frac = |hits: usize, n: usize| {
         if n == 0 {
             f64::NAN
@@ -329,7 +343,13 @@ pub fn figures(outcomes: &[Outcome]) -> Figures {
         mut both,
     ) = (0, 0, 0, 0, 0, 0, 0, 0);
     let mut shrinks = Vec::new();
+    let mut below_floor = Vec::new();
     for o in outcomes {
+        let seen = o.visible_um >= floor_um;
+        if !seen && matches!(o.withheld, Withheld::One(_) | Withheld::Outside(_)) {
+            below_floor.push(o.case.clone());
+            continue;
+        }
         let row = match &o.withheld {
             Withheld::One(e) => {
                 single += 1;
@@ -373,5 +393,7 @@ pub fn figures(outcomes: &[Outcome]) -> Figures {
         pair_cases: pairs,
         median_shrink: shrinks.get(shrinks.len() / 2).copied().unwrap_or(f64::NAN),
         confusion,
+        floor_um,
+        below_floor,
     }
 }

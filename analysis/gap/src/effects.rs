@@ -261,6 +261,27 @@ pub fn library_for(planes: &[(char, char)]) -> Vec<Effect> {
     out
 }
 
+/// Thermal drift: the spindle head starts warm (the spindle ran before the test) and cools
+/// during the runs, so the tool moves as the head contracts (the thermal links of the model,
+/// e.g. 0.8 µm/K in Y and −3.5 µm/K in Z on the built-in machine, with the node's time
+/// constant C/G, about 21 min there). `node` is the thermal node the spindle's losses heat.
+/// The static part at the start of a test is the bar's set-up; what is seen is the drift, so
+/// it is strong in the vertical planes and in long jobs and weak in a short XY test.
+pub fn thermal_drift(node: usize) -> Effect {
+    effect(
+        "thermal_drift",
+        "thermal drift: the spindle head starts warm and cools during the runs",
+        vec![param(
+            "spindle head start excess",
+            "K",
+            &[format!("machine.thermal.nodes[{node}].initial_c")],
+            // 8 K: the spindle node's steady excess after running at 8000 rpm on the built-in
+            // machine (144 W over 18 W/K).
+            (2.0, 8.0),
+        )],
+    )
+}
+
 fn axis_index(a: char) -> usize {
     match a {
         'x' => 0,

@@ -9,7 +9,9 @@
 //! - [`effects`]: the library of candidate effects, as the scenario keys they change;
 //! - [`model`]: a scenario re-simulated with parameter offsets (the forward model);
 //! - [`select`]: which effects explain the gap, by forward selection judged on held-out runs;
-//! - [`bench`]: the withheld-effect check: effects switched off in the model, found again.
+//! - [`bench`]: the withheld-effect check: effects switched off in the model, found again;
+//! - [`spectrum`]: third-octave band levels of accelerometer signals;
+//! - [`vibration`]: the gap of a milling model against accelerometer logs, by band.
 
 pub mod align;
 pub mod bench;
@@ -17,6 +19,8 @@ pub mod effects;
 pub mod localise;
 pub mod model;
 pub mod select;
+pub mod spectrum;
+pub mod vibration;
 pub mod whiteness;
 
 pub use align::{GapError, TracePair};

@@ -9,10 +9,12 @@
 //! (`vmt_sim::replay`, the same traces as a new simulation to rounding) instead of simulated.
 
 use crate::align::GapError;
+use crate::effects::{Effect, library_for, thermal_drift};
 use std::path::PathBuf;
 use std::sync::OnceLock;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use vmt_ballbar::Trace;
+use vmt_model::thermal::HeatSource;
 use vmt_scenario::edit::Template;
 use vmt_sim::replay::Replay;
 use vmt_sim::run::BallbarTrace;
@@ -34,6 +36,8 @@ pub struct ScenarioModel {
     base: OnceLock<Replay>,
     /// Evaluations answered by a replay instead of a simulation.
     replays: AtomicUsize,
+    /// The thermal node the spindle's losses heat, if the model has one.
+    spindle_node: Option<usize>,
 }
 
 /// Key prefixes whose values change what the bar reads but not the motion.
@@ -71,16 +75,31 @@ impl ScenarioModel {
         base_dir: Option<PathBuf>,
     ) -> Result<Self, GapError> {
         let template = Template::parse(text, file).map_err(|e| GapError::Model(e.to_string()))?;
-        let model = Self {
+        let mut model = Self {
             template,
             file: file.to_string(),
             base_dir,
             base: OnceLock::new(),
             replays: AtomicUsize::new(0),
+            spindle_node: None,
         };
         // Parse once now, so a bad model is refused before any fitting.
-        model.scenario(text)?;
+        let s = model.scenario(text)?;
+        model.spindle_node = s.machine.thermal.as_ref().and_then(|t| {
+            t.network.sources().iter().find_map(|h| match h {
+                HeatSource::Spindle { node, .. } => Some(*node),
+                HeatSource::Axis { .. } => None,
+            })
+        });
         Ok(model)
+    }
+
+    /// The candidate library for tests in `planes` ([`library_for`]), with the thermal drift
+    /// of the spindle head when the model has a thermal node the spindle heats.
+    pub fn library(&self, planes: &[(char, char)]) -> Vec<Effect> {
+        let mut out = library_for(planes);
+        out.extend(self.spindle_node.map(thermal_drift));
+        out
     }
 
     fn scenario(&self, text: &str) -> Result<vmt_scenario::Scenario, GapError> {

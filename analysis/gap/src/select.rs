@@ -646,6 +646,58 @@ impl Linearisation {
     }
 }
 
+impl Linearisation {
+    /// How far offsets of the model's parameters (`(key, offset)`, keys the model cannot
+    /// express ignored; a parameter of several keys takes its first key's offset) stand out on
+    /// the model's own job: the RMS change of the held-out runs, µm, that the linearisation
+    /// predicts once the baseline (the bar's set-up) is fitted to the calibration runs, as the
+    /// selection fits it. Below [`Options::min_effect_um`] no selection can attribute them.
+    pub fn visibility(
+        &self,
+        library: &[Effect],
+        offsets: &[(String, f64)],
+        o: &Options,
+    ) -> Result<f64, GapError> {
+        let split = Split::automatic(&self.base)?;
+        let (pairs, _) = residuals(&self.base, &self.base, o.bin_deg, None)?;
+        let grid: Grid = pairs.iter().map(|p| bin(p, o.bin_deg)).collect();
+        let sens = self.sensitivities(&self.base, &grid, o)?;
+        let offset = |p: &Available| {
+            offsets
+                .iter()
+                .find(|(k, _)| *k == p.keys[0].0)
+                .map_or(0.0, |(_, v)| *v)
+        };
+        let signature: Vec<Vec<f64>> = (0..self.base.len())
+            .map(|t| {
+                (0..grid[t].len())
+                    .map(|b| {
+                        self.available
+                            .iter()
+                            .zip(&sens)
+                            .map(|(p, s)| s[t][b] * offset(p))
+                            .sum()
+                    })
+                    .collect()
+            })
+            .collect();
+        let baseline: Vec<usize> = (0..self.available.len())
+            .filter(|i| library[self.available[*i].effect].baseline)
+            .collect();
+        let columns = |rows: &[usize]| -> Vec<Vec<f64>> {
+            baseline.iter().map(|p| stack(&sens[*p], rows)).collect()
+        };
+        let (cal, held) = (columns(&split.calibration), columns(&split.held_out));
+        let cal: Vec<&[f64]> = cal.iter().map(Vec::as_slice).collect();
+        let held: Vec<&[f64]> = held.iter().map(Vec::as_slice).collect();
+        let y_cal = stack(&signature, &split.calibration);
+        let y_held = stack(&signature, &split.held_out);
+        let beta = solve(&cal, &y_cal).unwrap_or_else(|| vec![0.0; cal.len()]);
+        let left = minus(&y_held, &held, &beta);
+        Ok((rss(&left) / left.len().max(1) as f64).sqrt())
+    }
+}
+
 /// Runs the forward selection of `library` effects (the library `lin` was made from) on
 /// `model` against `measured`.
 pub fn select(
