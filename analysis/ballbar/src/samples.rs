@@ -187,7 +187,15 @@ pub fn buffer(capacity: usize) -> Vec<f64> {
     v
 }
 
-/// Returns a buffer to the pool for [`buffer`].
+/// A buffer of `len` values to be overwritten (left over from its last use, zero where it
+/// grows), from the pool when there is one.
+pub fn filled(len: usize) -> Vec<f64> {
+    let mut v = POOL.with(|p| p.borrow_mut().pop()).unwrap_or_default();
+    v.resize(len, 0.0);
+    v
+}
+
+/// Returns a buffer to the pool for [`buffer`] and [`filled`].
 pub fn recycle(v: Vec<f64>) {
     POOL.with(|p| {
         let mut p = p.borrow_mut();
