@@ -59,14 +59,13 @@ pub struct Residual<'a> {
     /// Sample period, ms.
     pub dt_ms: f64,
     /// Sample indices at which p (0) and q (1) reverse (see [`reversals`]).
-    pub reversals: [Vec<usize>; 2],
+    pub reversals: &'a [Vec<usize>; 2],
 }
 
 thread_local! {
-    /// Buffers reused between calls on a thread: the medians of whole traces need copies of a
-    /// trace's values, and allocating (and the kernel zeroing) them anew for every trace costs
-    /// more than the arithmetic.
-    static SCRATCH: RefCell<(Vec<f64>, Vec<f64>)> = const { RefCell::new((Vec::new(), Vec::new())) };
+    /// The buffer the medians select in, reused between calls on a thread: allocating (and the
+    /// kernel zeroing) one anew for every trace costs more than the arithmetic.
+    static SCRATCH: RefCell<Vec<f64>> = const { RefCell::new(Vec::new()) };
 }
 
 /// Robust white-noise σ of a series from its first differences.
@@ -74,70 +73,62 @@ pub fn noise_sigma(r: &[f64]) -> f64 {
     if r.len() < 2 {
         return 0.0;
     }
-    let m = SCRATCH.with(|cell| {
-        let (d, band) = &mut *cell.borrow_mut();
-        d.clear();
-        d.extend(r.windows(2).map(|w| (w[1] - w[0]).abs()));
-        let k = d.len() / 2;
-        select_with(d, k, band)
-    });
+    let n = r.len() - 1;
+    let m = select(n, n / 2, |i| (r[i + 1] - r[i]).abs());
     1.4826 * m / std::f64::consts::SQRT_2
 }
 
 /// Median (NaN-free input): the element of rank ⌊n/2⌋.
-pub fn median(mut v: Vec<f64>) -> f64 {
-    median_mut(&mut v)
-}
-
-/// [`median`] in place (the order of `v` is not kept).
-pub fn median_mut(v: &mut [f64]) -> f64 {
-    if v.is_empty() {
-        return 0.0;
-    }
-    let k = v.len() / 2;
-    if v.len() <= SELECT_DIRECT {
-        let (_, m, _) = v.select_nth_unstable_by(k, f64::total_cmp);
-        return *m;
-    }
-    SCRATCH.with(|cell| match cell.try_borrow_mut() {
-        Ok(mut s) => select_with(v, k, &mut s.1),
-        Err(_) => select_with(v, k, &mut Vec::new()),
-    })
+pub fn median(v: &[f64]) -> f64 {
+    median_of(0..v.len(), |i| v[i])
 }
 
 /// The median of the values `f(i)` for i in `range`.
 fn median_of(range: std::ops::Range<usize>, f: impl Fn(usize) -> f64) -> f64 {
+    if range.is_empty() {
+        return 0.0;
+    }
+    select(range.len(), range.len() / 2, |i| f(range.start + i))
+}
+
+/// The element of rank `k` (in `total_cmp` order) among the `n` values `f(0)…f(n − 1)`,
+/// exactly: by [`select_in_band`] when there are more than [`SELECT_DIRECT`], else (or when
+/// its bracket misses) among a copy of all of them. The values are never stored in place, so
+/// the callers need no copy of their own.
+fn select(n: usize, k: usize, f: impl Fn(usize) -> f64) -> f64 {
     SCRATCH.with(|cell| {
-        let (v, band) = &mut *cell.borrow_mut();
-        v.clear();
-        v.extend(range.map(f));
-        if v.is_empty() {
-            return 0.0;
+        let band = &mut *cell.borrow_mut();
+        // Grown only (zeroing it at every call would cost as much as the pass).
+        if band.len() < n {
+            band.resize(n, 0.0);
         }
-        let k = v.len() / 2;
-        select_with(v, k, band)
+        if n > SELECT_DIRECT
+            && let Some(x) = select_in_band(n, k, &f, band)
+        {
+            return x;
+        }
+        for (i, x) in band[..n].iter_mut().enumerate() {
+            *x = f(i);
+        }
+        let (_, x, _) = band[..n].select_nth_unstable_by(k, f64::total_cmp);
+        *x
     })
 }
 
 /// Up to this many values are selected among directly.
 const SELECT_DIRECT: usize = 2048;
 
-/// The element of rank `k` of `v` (in `total_cmp` order), exactly, by Floyd and Rivest's
-/// sampling: two values from a sorted sample of 256 bracket rank k with high probability; one
-/// branch-free pass counts the values below the bracket and copies those inside it to `band`,
-/// and only the band (about a tenth of the values) is selected among. When the bracket misses
-/// (rarely), the whole slice is selected among.
-fn select_with(v: &mut [f64], k: usize, band: &mut Vec<f64>) -> f64 {
-    let n = v.len();
-    if n <= SELECT_DIRECT {
-        let (_, m, _) = v.select_nth_unstable_by(k, f64::total_cmp);
-        return *m;
-    }
+/// The element of rank `k` of the `n` values `f(i)` by Floyd and Rivest's sampling: two values
+/// from a sorted sample of 256 bracket rank k with high probability; one branch-free pass
+/// counts the values below the bracket and copies those inside it to `band` (of at least `n`
+/// values), and only the band (about a tenth of the values) is selected among. None when the
+/// bracket misses (rarely).
+fn select_in_band(n: usize, k: usize, f: impl Fn(usize) -> f64, band: &mut [f64]) -> Option<f64> {
     const SAMPLE: usize = 256;
     let stride = n / SAMPLE;
     let mut sample = [0.0; SAMPLE];
     for (i, x) in sample.iter_mut().enumerate() {
-        *x = v[i * stride + stride / 2];
+        *x = f(i * stride + stride / 2);
     }
     sample.sort_unstable_by(f64::total_cmp);
     let at = k * SAMPLE / n;
@@ -145,23 +136,17 @@ fn select_with(v: &mut [f64], k: usize, band: &mut Vec<f64>) -> f64 {
         sample[at.saturating_sub(16)],
         sample[(at + 16).min(SAMPLE - 1)],
     );
-    // Grown only (zeroing it at every call would cost as much as the pass).
-    if band.len() < n {
-        band.resize(n, 0.0);
-    }
     let (mut below, mut m) = (0usize, 0usize);
-    for x in v.iter() {
-        let x = *x;
+    for i in 0..n {
+        let x = f(i);
         below += usize::from(x < lo);
         band[m] = x;
         m += usize::from(x >= lo && x <= hi);
     }
-    if below <= k && k < below + m {
+    (below <= k && k < below + m).then(|| {
         let (_, x, _) = band[..m].select_nth_unstable_by(k - below, f64::total_cmp);
-        return *x;
-    }
-    let (_, x, _) = v.select_nth_unstable_by(k, f64::total_cmp);
-    *x
+        *x
+    })
 }
 
 /// Moving mean over `w` samples (centred, shrinking at the ends).
@@ -281,8 +266,8 @@ pub fn reversals_cs(cos: &[f64], sin: &[f64]) -> [Vec<usize>; 2] {
 }
 
 impl<'a> Residual<'a> {
-    /// The residual `r` of a trace with angles `angle_deg`, cos θ, sin θ, sense and sample
-    /// period `dt_ms`.
+    /// The residual `r` of a trace with angles `angle_deg`, cos θ, sin θ, sense, sample
+    /// period `dt_ms` and its [`reversals_cs`].
     pub fn new(
         angle_deg: &'a [f64],
         cos: &'a [f64],
@@ -290,6 +275,7 @@ impl<'a> Residual<'a> {
         sense: Sense,
         r: Vec<f64>,
         dt_ms: f64,
+        reversals: &'a [Vec<usize>; 2],
     ) -> Self {
         let w = ((SMOOTH_MS / dt_ms).round() as usize).max(1);
         let mut res = Self {
@@ -302,7 +288,7 @@ impl<'a> Residual<'a> {
             high_pass_sq: 0.0,
             r,
             dt_ms,
-            reversals: reversals_cs(cos, sin),
+            reversals,
         };
         let w = (2.0 * res.per_deg()).round().max(3.0) as usize;
         let mut hp = moving_mean(&res.r, w);
@@ -365,12 +351,12 @@ pub fn spike(res: &Residual, i: usize) -> Option<Spike> {
         return None;
     }
     let smooth = &res.smooth;
-    let mut around: Vec<f64> = res
+    let around: Vec<f64> = res
         .window(i, -12.0, -2.0)
         .chain(res.window(i, SPIKE_ZONE_DEG + 2.0, 12.0))
         .map(|j| smooth[j])
         .collect();
-    let level = median_mut(&mut around);
+    let level = median(&around);
     let zone = res.window(i, 0.0, SPIKE_ZONE_DEG);
     let peak = zone.clone().max_by(|&a, &b| {
         (smooth[a] - level)
@@ -534,7 +520,7 @@ pub fn vibration(res: &Residual, min_hz: f64) -> Option<(f64, f64, f64)> {
         Some((
             k as f64 * df,
             a_line,
-            amplitude(median_mut(&mut power[first..last])),
+            amplitude(median(&power[first..last])),
         ))
     })
 }
