@@ -243,16 +243,17 @@ fn span(v: &[f64]) -> f64 {
     hi - lo
 }
 
-/// `x.rem_euclid(360.0)`, bit for bit, without the division: `x − 360 k` is exact for the
-/// integer k = ⌊x/360⌋, which the quotient by the reciprocal gives to within one either way
-/// (corrected after).
+/// `x.rem_euclid(360.0)`, bit for bit, without the division or a conversion to an integer:
+/// `x − 360 k` is exact for the integer k = ⌊x/360⌋, which the quotient by the reciprocal gives
+/// to within one either way (corrected after).
 #[inline]
 fn rem360(x: f64) -> f64 {
     let q = x * (1.0 / 360.0);
     if q.abs() >= 1e15 {
         return x.rem_euclid(360.0);
     }
-    let mut k = q as i64 as f64;
+    const MAGIC: f64 = 6_755_399_441_055_744.0; // 1.5·2⁵²: adding it rounds to an integer
+    let mut k = (q + MAGIC) - MAGIC;
     if k > q {
         k -= 1.0;
     }
@@ -294,14 +295,14 @@ fn hysteresis(a: &Arc, b: &Arc, c: &Circle) -> Option<f64> {
         pb.extend(path(b, c));
         pb.sort_by(|x, y| x.0.total_cmp(&y.0));
         let max_step = 2.0 * crate::trace::MAX_GAP_DEG;
-        let mut worst: Option<f64> = None;
+        let (mut worst, mut found) = (0.0f64, false);
         let mut k = 0;
         for (x, e) in path(a, c) {
             k = first_at_or_after(pb, x, k);
-            let (lo, hi) = match (k.checked_sub(1).map(|i| pb[i]), pb.get(k)) {
-                (Some(l), Some(h)) => (l, *h),
-                _ => continue,
-            };
+            if k == 0 || k == pb.len() {
+                continue;
+            }
+            let (lo, hi) = (pb[k - 1], pb[k]);
             if hi.0 - lo.0 > max_step {
                 continue;
             }
@@ -311,16 +312,17 @@ fn hysteresis(a: &Arc, b: &Arc, c: &Circle) -> Option<f64> {
                 0.0
             };
             let eb = lo.1 + w * (hi.1 - lo.1);
-            let d = (e - eb).abs();
-            worst = Some(worst.map_or(d, |m: f64| m.max(d)));
+            worst = worst.max((e - eb).abs());
+            found = true;
         }
-        worst
+        found.then_some(worst)
     })
 }
 
 /// The index of the first element of the sorted path `p` at or after angle `x`, stepping from
 /// `k` (the previous sample's) when it is a few steps away, else by bisection (where `a` wraps
 /// round).
+#[inline]
 fn first_at_or_after(p: &[(f64, f64)], x: f64, mut k: usize) -> usize {
     for _ in 0..8 {
         if k < p.len() && p[k].0 < x {
