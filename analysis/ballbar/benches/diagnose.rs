@@ -8,10 +8,18 @@
 //! Measured November 2026 on the shared 2-core machine under load (load average 5–10): about
 //! 39 diagnoses/s wall clock (25 ms each, the process getting a fifth to a third of a core);
 //! in CPU time about 6 ms per diagnosis (≈ 170/s per core-second), against about 22 ms before
-//! the rewrite of issue 4 (17–18/s wall clock then). The goal of 1000/s is not met: the
-//! remaining time is spread over a dozen full-rate passes of 1–8 % each (trig, residual,
-//! moving means, ISO sums and bounds, the hysteresis sort, reversal scan, the 56 250-point
-//! FFT and its amplitudes, medians of whole traces), see the issue notes.
+//! the rewrite of issue 4 (17–18/s wall clock then).
+//!
+//! After the perf-diagnose pass (same machine, load average 4–5; CPU time of the thread over
+//! 300 diagnoses, five alternating runs of the old and new build; instructions counted by
+//! `valgrind --tool=callgrind --toggle-collect=vmt_ballbar::diagnosis::diagnose`): about
+//! 4.5 ms CPU per diagnosis against 6.5 ms for the old build in the same runs (≈ 220/s per
+//! core-second), 55 M instructions against 69 M. Wall-clock criterion figures swing by ±50 %
+//! with the load and were no guide. The goal of 1000/s is still not met: the time is spread
+//! over a dozen full-rate passes over columns of 450 kB each that stream from the L3 cache
+//! (tabulated trig 9 %, residual 9 %, hysteresis 8 %, the 56 250-point FFTs 9 %, moving means
+//! 4 %, ISO sums and bounds 7 %, medians 9 %, cyclic search 4 %); the rest would need the
+//! passes fused into one blockwise sweep per trace.
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use vmt_ballbar::synthetic::{Errors, test};

@@ -11,7 +11,7 @@
 use crate::features::{self, Residual};
 use crate::iso230_4::{self, Figures};
 use crate::model::{Fit, FitError, Term, Terms, reversal_angles};
-use crate::samples::Samples;
+use crate::samples::{Placement, Samples};
 use crate::trace::{Plane, Trace, TraceError};
 use serde::Serialize;
 use thiserror::Error;
@@ -136,48 +136,102 @@ impl Diagnosis {
 
 /// Diagnoses a test of one or two traces (CW and CCW of the same circle).
 pub fn diagnose(traces: &[Trace], options: &Options) -> Result<Diagnosis, DiagnosisError> {
-    let (first, cyclic) = diagnose_once(traces, options)?;
+    check_test(traces)?;
+    let places: Vec<Placement> = traces
+        .iter()
+        .zip(progress(traces))
+        .map(|(t, p)| Placement::new(t, p))
+        .collect();
+    let reversals: Vec<[Vec<usize>; 2]> = places
+        .iter()
+        .map(|p| features::reversals_cs(&p.cos, &p.sin))
+        .collect();
+    let test = Test {
+        traces,
+        places: &places,
+        reversals: &reversals,
+    };
+    let measured: Vec<&[f64]> = traces.iter().map(|t| t.deviation_um.as_slice()).collect();
+    let result = diagnose_test(&test, &measured, options);
+    for p in places {
+        p.recycle();
+    }
+    result
+}
+
+/// A test with what its passes share: the place of every sample and the axis reversals.
+struct Test<'a> {
+    traces: &'a [Trace],
+    places: &'a [Placement],
+    reversals: &'a [[Vec<usize>; 2]],
+}
+
+/// [`diagnose`] of a checked test whose traces have the deviations `measured`.
+fn diagnose_test(
+    test: &Test,
+    measured: &[&[f64]],
+    options: &Options,
+) -> Result<Diagnosis, DiagnosisError> {
+    let (first, cyclic) = diagnose_once(test, measured, options.cyclic)?;
     let present: Vec<features::Cyclic> = cyclic
         .iter()
         .filter(|(_, f)| f.present)
         .map(|(c, _)| *c)
         .collect();
-    if present.is_empty() {
-        return Ok(first);
-    }
-    // Near its reversals an axis stays within one pitch of its turning point (stationary
-    // phase), so a cyclic error leaks into the first-order signatures there (a 10 mm pitch on
-    // a 100 mm circle moves the fitted scale by several ppm): the first-order model is fitted
-    // again with the cyclic errors found taken out of the traces. The ISO figures stay those
-    // of the traces as measured.
-    let corrected = without_cyclic(traces, &present);
-    let no_search = Options {
-        cyclic: false,
-        ..*options
+    let (mut findings, rms, noise) = if present.is_empty() {
+        first
+    } else {
+        // Near its reversals an axis stays within one pitch of its turning point (stationary
+        // phase), so a cyclic error leaks into the first-order signatures there (a 10 mm pitch
+        // on a 100 mm circle moves the fitted scale by several ppm): the first-order model is
+        // fitted again with the cyclic errors found taken out of the traces. The ISO figures
+        // stay those of the traces as measured.
+        let corrected = without_cyclic(test, &present);
+        let refs: Vec<&[f64]> = corrected.iter().map(Vec::as_slice).collect();
+        let (mut second, _) = diagnose_once(test, &refs, false)?;
+        second.0.extend(cyclic.into_iter().map(|(_, f)| f));
+        second
     };
-    let (mut second, _) = diagnose_once(&corrected, &no_search)?;
-    second.iso = first.iso;
-    second.findings.extend(cyclic.into_iter().map(|(_, f)| f));
-    second
-        .findings
-        .sort_by(|a, b| b.contribution_um.total_cmp(&a.contribution_um));
-    Ok(second)
+    findings.sort_by(|a, b| b.contribution_um.total_cmp(&a.contribution_um));
+    let traces = test.traces;
+    let first = &traces[0];
+    let refs: Vec<&Trace> = traces.iter().collect();
+    let trig: Vec<(&[f64], &[f64])> = test
+        .places
+        .iter()
+        .map(|p| (p.cos.as_slice(), p.sin.as_slice()))
+        .collect();
+    Ok(Diagnosis {
+        plane: first.plane,
+        radius_mm: first.radius_mm,
+        feed_mm_min: first.feed_mm_min,
+        traces: traces.iter().map(|t| t.label.clone()).collect(),
+        iso: iso230_4::figures_with_trig(&refs, &trig, options.minimum_zone),
+        findings,
+        not_computed: not_computed(&Terms::for_test(&refs), first),
+        residual_rms_um: rms,
+        noise_um: noise,
+    })
 }
 
-/// One pass of the diagnosis, with the cyclic errors searched (if asked) in its residual.
+/// The findings of one pass (ranked), the residual's RMS and the noise (µm).
+type Pass = (Vec<Finding>, f64, f64);
+
+/// One pass of the diagnosis on the deviations `deviation`, with the cyclic errors searched
+/// (if `cyclic`) in its residual.
 fn diagnose_once(
-    traces: &[Trace],
-    options: &Options,
-) -> Result<(Diagnosis, Vec<(features::Cyclic, Finding)>), DiagnosisError> {
-    check_test(traces)?;
+    test: &Test,
+    deviation: &[&[f64]],
+    cyclic: bool,
+) -> Result<(Pass, Vec<(features::Cyclic, Finding)>), DiagnosisError> {
+    let traces = test.traces;
     let refs: Vec<&Trace> = traces.iter().collect();
-    let first = &traces[0];
-    let plane = first.plane;
-    let progress = progress(traces);
+    let plane = traces[0].plane;
     let samples: Vec<Samples> = traces
         .iter()
-        .zip(progress)
-        .map(|(t, p)| Samples::new(t, p))
+        .zip(test.places)
+        .zip(deviation)
+        .map(|((t, p), d)| Samples::new(t, p, d))
         .collect();
     let sample_refs: Vec<&Samples> = samples.iter().collect();
     let terms = Terms::for_test(&refs);
@@ -186,18 +240,19 @@ fn diagnose_once(
     let residuals: Vec<Residual> = traces
         .iter()
         .zip(&samples)
-        .map(|(t, s)| residual(t, s, &fit))
+        .zip(test.reversals)
+        .map(|((t, s), rev)| residual(t, s, rev, &fit))
         .collect();
     let noise = features::median(
-        residuals
+        &residuals
             .iter()
             .map(|r| features::noise_sigma(&r.r))
-            .collect(),
+            .collect::<Vec<_>>(),
     );
     findings.extend(closing_errors(&fit, traces, &samples));
     let local = local_findings(&mut findings, &fit, &residuals, traces, noise);
     findings.extend(local);
-    let cyclic = if options.cyclic {
+    let cyclic = if cyclic {
         cyclic_findings(&fit, &residuals, &samples)
     } else {
         Vec::new()
@@ -205,35 +260,13 @@ fn diagnose_once(
     findings.extend(cyclic.iter().map(|(_, f)| f.clone()));
     findings.sort_by(|a, b| b.contribution_um.total_cmp(&a.contribution_um));
     let n: usize = residuals.iter().map(|r| r.r.len()).sum();
-    let rss: f64 = residuals.iter().flat_map(|r| &r.r).map(|x| x * x).sum();
-    let trig: Vec<(&[f64], &[f64])> = samples
-        .iter()
-        .map(|s| (s.cos.as_slice(), s.sin.as_slice()))
-        .collect();
-    let iso = iso230_4::figures_with_trig(&refs, &trig, options.minimum_zone);
-    drop(trig);
+    let rss: f64 = residuals.iter().map(|r| features::sum_sq(&r.r)).sum();
     for r in residuals {
         for v in [r.r, r.smooth, r.high_pass] {
             crate::samples::recycle(v);
         }
     }
-    for s in samples {
-        for v in [s.cos, s.sin, s.progress] {
-            crate::samples::recycle(v);
-        }
-    }
-    let diagnosis = Diagnosis {
-        plane,
-        radius_mm: first.radius_mm,
-        feed_mm_min: first.feed_mm_min,
-        traces: traces.iter().map(|t| t.label.clone()).collect(),
-        iso,
-        findings,
-        not_computed: not_computed(&terms, first),
-        residual_rms_um: (rss / n as f64).sqrt(),
-        noise_um: noise,
-    };
-    Ok((diagnosis, cyclic))
+    Ok(((findings, (rss / n as f64).sqrt(), noise), cyclic))
 }
 
 fn check_test(traces: &[Trace]) -> Result<(), DiagnosisError> {
@@ -315,18 +348,19 @@ fn progress(traces: &[Trace]) -> Vec<Vec<f64>> {
         .collect()
 }
 
-fn residual<'a>(t: &'a Trace, s: &'a Samples, fit: &Fit) -> Residual<'a> {
+fn residual<'a>(
+    t: &'a Trace,
+    s: &'a Samples,
+    reversals: &'a [Vec<usize>; 2],
+    fit: &Fit,
+) -> Residual<'a> {
     let model = fit.compiled(s.radius_um, s.feed_um_per_ms);
     let g = s.sense.sign();
-    let mut r = crate::samples::buffer(s.len());
-    r.extend(
-        s.cos
-            .iter()
-            .zip(&s.sin)
-            .zip(&s.progress)
-            .zip(s.deviation_um)
-            .map(|(((c, sn), u), d)| d - model.eval_at(*c, *sn, g, *u)),
-    );
+    let mut r = crate::samples::filled(s.len());
+    let inputs = s.cos.iter().zip(s.sin).zip(s.progress).zip(s.deviation_um);
+    for (r, (((c, sn), u), d)) in r.iter_mut().zip(inputs) {
+        *r = d - model.eval_at(*c, *sn, g, *u);
+    }
     let n = t.angle_deg.len();
     let dt_ms = match &t.time_s {
         Some(ts) => (ts[n - 1] - ts[0]) / (n - 1) as f64 * 1e3,
@@ -335,7 +369,7 @@ fn residual<'a>(t: &'a Trace, s: &'a Samples, fit: &Fit) -> Residual<'a> {
             deg.to_radians() * s.radius_um / s.feed_um_per_ms
         }
     };
-    Residual::new(&t.angle_deg, &s.cos, &s.sin, s.sense, r, dt_ms)
+    Residual::new(&t.angle_deg, s.cos, s.sin, s.sense, r, dt_ms, reversals)
 }
 
 /// Key, name and unit of a fitted term in `plane`.
@@ -726,27 +760,22 @@ fn cyclic_findings(
         .collect()
 }
 
-/// The traces with the radial deviation of `cyclic` taken out.
-fn without_cyclic(traces: &[Trace], cyclic: &[features::Cyclic]) -> Vec<Trace> {
-    traces
+/// The deviations of the traces with the radial deviation of `cyclic` taken out.
+fn without_cyclic(test: &Test, cyclic: &[features::Cyclic]) -> Vec<Vec<f64>> {
+    test.traces
         .iter()
-        .map(|t| {
-            let deviation_um = t
-                .angle_deg
+        .zip(test.places)
+        .map(|(t, p)| {
+            t.deviation_um
                 .iter()
-                .zip(&t.deviation_um)
-                .map(|(a, d)| {
-                    let (s, c) = a.to_radians().sin_cos();
+                .zip(p.cos.iter().zip(&p.sin))
+                .map(|(d, (c, s))| {
                     d - cyclic
                         .iter()
-                        .map(|e| e.radial_um(c, s, t.radius_mm))
+                        .map(|e| e.radial_um(*c, *s, t.radius_mm))
                         .sum::<f64>()
                 })
-                .collect();
-            Trace {
-                deviation_um,
-                ..t.clone()
-            }
+                .collect()
         })
         .collect()
 }

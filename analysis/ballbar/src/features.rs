@@ -59,14 +59,13 @@ pub struct Residual<'a> {
     /// Sample period, ms.
     pub dt_ms: f64,
     /// Sample indices at which p (0) and q (1) reverse (see [`reversals`]).
-    pub reversals: [Vec<usize>; 2],
+    pub reversals: &'a [Vec<usize>; 2],
 }
 
 thread_local! {
-    /// Buffers reused between calls on a thread: the medians of whole traces need copies of a
-    /// trace's values, and allocating (and the kernel zeroing) them anew for every trace costs
-    /// more than the arithmetic.
-    static SCRATCH: RefCell<(Vec<f64>, Vec<f64>)> = const { RefCell::new((Vec::new(), Vec::new())) };
+    /// The buffer the medians select in, reused between calls on a thread: allocating (and the
+    /// kernel zeroing) one anew for every trace costs more than the arithmetic.
+    static SCRATCH: RefCell<Vec<f64>> = const { RefCell::new(Vec::new()) };
 }
 
 /// Robust white-noise σ of a series from its first differences.
@@ -74,70 +73,62 @@ pub fn noise_sigma(r: &[f64]) -> f64 {
     if r.len() < 2 {
         return 0.0;
     }
-    let m = SCRATCH.with(|cell| {
-        let (d, band) = &mut *cell.borrow_mut();
-        d.clear();
-        d.extend(r.windows(2).map(|w| (w[1] - w[0]).abs()));
-        let k = d.len() / 2;
-        select_with(d, k, band)
-    });
+    let n = r.len() - 1;
+    let m = select(n, n / 2, |i| (r[i + 1] - r[i]).abs());
     1.4826 * m / std::f64::consts::SQRT_2
 }
 
 /// Median (NaN-free input): the element of rank ⌊n/2⌋.
-pub fn median(mut v: Vec<f64>) -> f64 {
-    median_mut(&mut v)
-}
-
-/// [`median`] in place (the order of `v` is not kept).
-pub fn median_mut(v: &mut [f64]) -> f64 {
-    if v.is_empty() {
-        return 0.0;
-    }
-    let k = v.len() / 2;
-    if v.len() <= SELECT_DIRECT {
-        let (_, m, _) = v.select_nth_unstable_by(k, f64::total_cmp);
-        return *m;
-    }
-    SCRATCH.with(|cell| match cell.try_borrow_mut() {
-        Ok(mut s) => select_with(v, k, &mut s.1),
-        Err(_) => select_with(v, k, &mut Vec::new()),
-    })
+pub fn median(v: &[f64]) -> f64 {
+    median_of(0..v.len(), |i| v[i])
 }
 
 /// The median of the values `f(i)` for i in `range`.
 fn median_of(range: std::ops::Range<usize>, f: impl Fn(usize) -> f64) -> f64 {
+    if range.is_empty() {
+        return 0.0;
+    }
+    select(range.len(), range.len() / 2, |i| f(range.start + i))
+}
+
+/// The element of rank `k` (in `total_cmp` order) among the `n` values `f(0)…f(n − 1)`,
+/// exactly: by [`select_in_band`] when there are more than [`SELECT_DIRECT`], else (or when
+/// its bracket misses) among a copy of all of them. The values are never stored in place, so
+/// the callers need no copy of their own.
+fn select(n: usize, k: usize, f: impl Fn(usize) -> f64) -> f64 {
     SCRATCH.with(|cell| {
-        let (v, band) = &mut *cell.borrow_mut();
-        v.clear();
-        v.extend(range.map(f));
-        if v.is_empty() {
-            return 0.0;
+        let band = &mut *cell.borrow_mut();
+        // Grown only (zeroing it at every call would cost as much as the pass).
+        if band.len() < n {
+            band.resize(n, 0.0);
         }
-        let k = v.len() / 2;
-        select_with(v, k, band)
+        if n > SELECT_DIRECT
+            && let Some(x) = select_in_band(n, k, &f, band)
+        {
+            return x;
+        }
+        for (i, x) in band[..n].iter_mut().enumerate() {
+            *x = f(i);
+        }
+        let (_, x, _) = band[..n].select_nth_unstable_by(k, f64::total_cmp);
+        *x
     })
 }
 
 /// Up to this many values are selected among directly.
 const SELECT_DIRECT: usize = 2048;
 
-/// The element of rank `k` of `v` (in `total_cmp` order), exactly, by Floyd and Rivest's
-/// sampling: two values from a sorted sample of 256 bracket rank k with high probability; one
-/// branch-free pass counts the values below the bracket and copies those inside it to `band`,
-/// and only the band (about a tenth of the values) is selected among. When the bracket misses
-/// (rarely), the whole slice is selected among.
-fn select_with(v: &mut [f64], k: usize, band: &mut Vec<f64>) -> f64 {
-    let n = v.len();
-    if n <= SELECT_DIRECT {
-        let (_, m, _) = v.select_nth_unstable_by(k, f64::total_cmp);
-        return *m;
-    }
+/// The element of rank `k` of the `n` values `f(i)` by Floyd and Rivest's sampling: two values
+/// from a sorted sample of 256 bracket rank k with high probability; one branch-free pass
+/// counts the values below the bracket and copies those inside it to `band` (of at least `n`
+/// values), and only the band (about a tenth of the values) is selected among. None when the
+/// bracket misses (rarely).
+fn select_in_band(n: usize, k: usize, f: impl Fn(usize) -> f64, band: &mut [f64]) -> Option<f64> {
     const SAMPLE: usize = 256;
     let stride = n / SAMPLE;
     let mut sample = [0.0; SAMPLE];
     for (i, x) in sample.iter_mut().enumerate() {
-        *x = v[i * stride + stride / 2];
+        *x = f(i * stride + stride / 2);
     }
     sample.sort_unstable_by(f64::total_cmp);
     let at = k * SAMPLE / n;
@@ -145,59 +136,97 @@ fn select_with(v: &mut [f64], k: usize, band: &mut Vec<f64>) -> f64 {
         sample[at.saturating_sub(16)],
         sample[(at + 16).min(SAMPLE - 1)],
     );
-    band.clear();
-    band.resize(n, 0.0);
     let (mut below, mut m) = (0usize, 0usize);
-    for x in v.iter() {
-        let x = *x;
+    for i in 0..n {
+        let x = f(i);
         below += usize::from(x < lo);
         band[m] = x;
         m += usize::from(x >= lo && x <= hi);
     }
-    if below <= k && k < below + m {
-        band.truncate(m);
-        let (_, x, _) = band.select_nth_unstable_by(k - below, f64::total_cmp);
-        return *x;
-    }
-    let (_, x, _) = v.select_nth_unstable_by(k, f64::total_cmp);
-    *x
+    (below <= k && k < below + m).then(|| {
+        let (_, x, _) = band[..m].select_nth_unstable_by(k - below, f64::total_cmp);
+        *x
+    })
 }
 
 /// Moving mean over `w` samples (centred, shrinking at the ends).
 pub fn moving_mean(r: &[f64], w: usize) -> Vec<f64> {
-    let mut out = crate::samples::buffer(r.len());
-    moving_mean_each(r, w, |_, m| out.push(m));
+    let mut out = crate::samples::filled(r.len());
+    moving_mean_into(r, w, &mut out);
     out
 }
 
-/// Calls `f(i, mean)` with the [`moving_mean`] at each sample in order, by a running sum: the
-/// ends (where the window shrinks) divide by the window's length, the interior multiplies by
-/// the reciprocal of the full length.
-fn moving_mean_each(r: &[f64], w: usize, mut f: impl FnMut(usize, f64)) {
+/// Running sums advanced side by side over consecutive stretches of a trace in
+/// [`moving_mean_into`]: one running sum waits on the latency of each addition, independent
+/// ones overlap.
+const CHAINS: usize = 4;
+
+/// [`moving_mean`] into `out` (of the length of `r`), by running sums: the ends (where the
+/// window shrinks) divide by the window's length, the interior multiplies by the reciprocal of
+/// the full length. The interior is cut into [`CHAINS`] stretches, each starting from its own
+/// sum of the window before it.
+fn moving_mean_into(r: &[f64], w: usize, out: &mut [f64]) {
     let n = r.len();
     let half = w / 2;
     let full = 2 * half + 1;
     if n < full {
-        for i in 0..n {
+        for (i, o) in out.iter_mut().enumerate() {
             let (a, b) = (i.saturating_sub(half), (i + half + 1).min(n));
-            f(i, r[a..b].iter().sum::<f64>() / (b - a) as f64);
+            *o = r[a..b].iter().sum::<f64>() / (b - a) as f64;
         }
         return;
     }
     let mut sum: f64 = r[..half].iter().sum();
     for i in 0..=half {
         sum += r[i + half];
-        f(i, sum / (i + half + 1) as f64);
+        out[i] = sum / (i + half + 1) as f64;
     }
-    let inv = 1.0 / full as f64;
-    for i in half + 1..n - half {
-        sum += r[i + half] - r[i - half - 1];
-        f(i, sum * inv);
-    }
-    for i in (n - half).max(half + 1)..n {
+    let mut sum: f64 = r[n - full..].iter().sum();
+    for i in n - half..n {
         sum -= r[i - half - 1];
-        f(i, sum / (n - (i - half)) as f64);
+        out[i] = sum / (n - (i - half)) as f64;
     }
+    // Sample half + 1 + b of the interior enters r[b + full] and drops r[b].
+    let len = n - full;
+    let (old, new) = (&r[..len], &r[full..]);
+    let o = &mut out[half + 1..n - half];
+    let inv = 1.0 / full as f64;
+    let m = len / CHAINS;
+    let mut sums: [f64; CHAINS] = std::array::from_fn(|j| r[j * m..j * m + full].iter().sum());
+    for i in 0..m {
+        for (j, sum) in sums.iter_mut().enumerate() {
+            let b = j * m + i;
+            *sum += new[b] - old[b];
+            o[b] = *sum * inv;
+        }
+    }
+    let last = &mut sums[CHAINS - 1];
+    for b in CHAINS * m..len {
+        *last += new[b] - old[b];
+        o[b] = *last * inv;
+    }
+}
+
+/// Σ v, in eight interleaved partial sums (which the compiler keeps in vector registers).
+pub fn sum(v: &[f64]) -> f64 {
+    lanes(v, |x| x)
+}
+
+/// Σ v², as [`sum`].
+pub fn sum_sq(v: &[f64]) -> f64 {
+    lanes(v, |x| x * x)
+}
+
+fn lanes(v: &[f64], f: impl Fn(f64) -> f64) -> f64 {
+    let mut acc = [0.0; 8];
+    let chunks = v.chunks_exact(8);
+    let rest: f64 = chunks.remainder().iter().map(|x| f(*x)).sum();
+    for c in chunks {
+        for (a, x) in acc.iter_mut().zip(c) {
+            *a += f(*x);
+        }
+    }
+    acc.iter().sum::<f64>() + rest
 }
 
 /// Sample indices at which an axis reverses: where sin θ (p axis, `axis` 0) or cos θ (q axis)
@@ -209,23 +238,36 @@ pub fn reversals(points: &[Point], axis: usize) -> Vec<usize> {
         .collect()
 }
 
-/// [`reversals`] of both axes from sin θ and cos θ, in one pass.
+/// [`reversals`] of both axes from sin θ and cos θ: blocks of samples without a sign change
+/// (nearly all) are passed over by one branch-free test each.
 pub fn reversals_cs(cos: &[f64], sin: &[f64]) -> [Vec<usize>; 2] {
+    const BLOCK: usize = 64;
+    let flips = |v: &[f64], i: usize| (v[i] > 0.0) != (v[i - 1] > 0.0);
+    let any_flip = |v: &[f64]| {
+        v.windows(2)
+            .fold(false, |acc, w| acc | ((w[1] > 0.0) != (w[0] > 0.0)))
+    };
     let mut out = [Vec::new(), Vec::new()];
-    for (i, (c, s)) in cos.windows(2).zip(sin.windows(2)).enumerate() {
-        if (s[1] > 0.0) != (s[0] > 0.0) {
-            out[0].push(i + 1);
+    for start in (1..cos.len()).step_by(BLOCK) {
+        let end = (start + BLOCK).min(cos.len());
+        if !(any_flip(&sin[start - 1..end]) | any_flip(&cos[start - 1..end])) {
+            continue;
         }
-        if (c[1] > 0.0) != (c[0] > 0.0) {
-            out[1].push(i + 1);
+        for i in start..end {
+            if flips(sin, i) {
+                out[0].push(i);
+            }
+            if flips(cos, i) {
+                out[1].push(i);
+            }
         }
     }
     out
 }
 
 impl<'a> Residual<'a> {
-    /// The residual `r` of a trace with angles `angle_deg`, cos θ, sin θ, sense and sample
-    /// period `dt_ms`.
+    /// The residual `r` of a trace with angles `angle_deg`, cos θ, sin θ, sense, sample
+    /// period `dt_ms` and its [`reversals_cs`].
     pub fn new(
         angle_deg: &'a [f64],
         cos: &'a [f64],
@@ -233,6 +275,7 @@ impl<'a> Residual<'a> {
         sense: Sense,
         r: Vec<f64>,
         dt_ms: f64,
+        reversals: &'a [Vec<usize>; 2],
     ) -> Self {
         let w = ((SMOOTH_MS / dt_ms).round() as usize).max(1);
         let mut res = Self {
@@ -245,18 +288,15 @@ impl<'a> Residual<'a> {
             high_pass_sq: 0.0,
             r,
             dt_ms,
-            reversals: reversals_cs(cos, sin),
+            reversals,
         };
         let w = (2.0 * res.per_deg()).round().max(3.0) as usize;
-        let mut sq = 0.0;
-        let mut hp = crate::samples::buffer(res.r.len());
-        moving_mean_each(&res.r, w, |i, m| {
-            let h = res.r[i] - m;
-            sq += h * h;
-            hp.push(h);
-        });
+        let mut hp = moving_mean(&res.r, w);
+        for (h, x) in hp.iter_mut().zip(&res.r) {
+            *h = x - *h;
+        }
+        res.high_pass_sq = sum_sq(&hp);
         res.high_pass = hp;
-        res.high_pass_sq = sq;
         res
     }
 
@@ -311,12 +351,12 @@ pub fn spike(res: &Residual, i: usize) -> Option<Spike> {
         return None;
     }
     let smooth = &res.smooth;
-    let mut around: Vec<f64> = res
+    let around: Vec<f64> = res
         .window(i, -12.0, -2.0)
         .chain(res.window(i, SPIKE_ZONE_DEG + 2.0, 12.0))
         .map(|j| smooth[j])
         .collect();
-    let level = median_mut(&mut around);
+    let level = median(&around);
     let zone = res.window(i, 0.0, SPIKE_ZONE_DEG);
     let peak = zone.clone().max_by(|&a, &b| {
         (smooth[a] - level)
@@ -407,13 +447,13 @@ pub fn stick_slip(residuals: &[Residual], axis: usize) -> Option<(f64, f64, f64)
 }
 
 /// FFT plans and buffers kept between diagnoses on a thread: the planner, the real input, the
-/// spectrum, the scratch and the amplitudes.
+/// spectrum, the scratch and the power per bin.
 struct FftCache {
     planner: RealFftPlanner<f64>,
     input: Vec<f64>,
     spectrum: Vec<Complex<f64>>,
     scratch: Vec<Complex<f64>>,
-    amp: Vec<f64>,
+    power: Vec<f64>,
 }
 
 thread_local! {
@@ -422,7 +462,7 @@ thread_local! {
         input: Vec::new(),
         spectrum: Vec::new(),
         scratch: Vec::new(),
-        amp: Vec::new(),
+        power: Vec::new(),
     });
 }
 
@@ -442,42 +482,46 @@ pub fn vibration(res: &Residual, min_hz: f64) -> Option<(f64, f64, f64)> {
             input,
             spectrum,
             scratch,
-            amp,
+            power,
         } = cache;
         let fft = planner.plan_fft_forward(n);
         let r = &res.r[..n];
-        let mean = r.iter().sum::<f64>() / n as f64;
+        let mean = sum(r) / n as f64;
         input.clear();
         input.extend(r.iter().map(|x| x - mean));
         spectrum.resize(n / 2 + 1, Complex::default());
         scratch.resize(fft.get_scratch_len(), Complex::default());
         fft.process_with_scratch(input, spectrum, scratch).ok()?;
         let df = 1000.0 / (res.dt_ms * n as f64);
-        amp.clear();
-        amp.extend(
-            spectrum
-                .iter()
-                .map(|c| 2.0 * (c.re * c.re + c.im * c.im).sqrt() / n as f64),
-        );
+        // The line and the median are found on the power |c|²: the amplitude is a
+        // non-decreasing function of it, so only the bins reported need their square root.
+        let amplitude = |p: f64| 2.0 * p.sqrt() / n as f64;
+        power.clear();
+        power.extend(spectrum.iter().map(|c| c.re * c.re + c.im * c.im));
         let first = ((min_hz / df).ceil() as usize).max(1);
-        if first + 8 >= amp.len() {
+        if first + 8 >= power.len() {
             return None;
         }
-        let last = amp.len() - 1;
-        let (k, a) = amp[first..last]
+        let last = power.len() - 1;
+        let (k, p) = power[first..last]
             .iter()
             .enumerate()
             .max_by(|x, y| x.1.total_cmp(y.1))
-            .map(|(k, a)| (k + first, *a))?;
+            .map(|(k, p)| (k + first, *p))?;
+        let a = amplitude(p);
         // Energy of a line between bins: sum the neighbours in quadrature (window-free leakage).
         let lo = k.saturating_sub(1).max(first);
-        let a_line = amp[lo..=(k + 1).min(amp.len() - 1)]
+        let a_line = power[lo..=(k + 1).min(power.len() - 1)]
             .iter()
-            .map(|x| x * x)
+            .map(|p| amplitude(*p).powi(2))
             .sum::<f64>()
             .sqrt()
             .max(a);
-        Some((k as f64 * df, a_line, median_mut(&mut amp[first..last])))
+        Some((
+            k as f64 * df,
+            a_line,
+            amplitude(median(&power[first..last])),
+        ))
     })
 }
 
@@ -626,26 +670,33 @@ pub fn nufft(
     let mut ga = vec![0.0; m_r];
     let mut gb = vec![0.0; m_r];
     let m_i = m_r as i64;
+    let mut weights = [0.0; 2 * SPREAD as usize + 1];
     for ((t, a), b) in t.iter().zip(a).zip(b) {
         let m0 = (t / h).floor();
         let xi = t - m0 * h;
         let e1 = (-xi * xi / (4.0 * tau)).exp();
         let e2 = (xi * h / (2.0 * tau)).exp();
-        let m0 = m0 as i64;
-        let (mut up, mut down) = (e1, e1);
-        for k in 0..=SPREAD {
-            let wu = up * e3[k as usize];
-            let iu = (m0 + k).rem_euclid(m_i) as usize;
-            ga[iu] += a * wu;
-            gb[iu] += b * wu;
-            if k > 0 {
-                let wd = down * e3[k as usize];
-                let id = (m0 - k).rem_euclid(m_i) as usize;
-                ga[id] += a * wd;
-                gb[id] += b * wd;
-            }
+        // The weights at m0 + k and m0 − k from e2^±k, by products (1/e2 once: a division
+        // per step would be the loop's bottleneck).
+        let (mut up, mut down, e2_inv) = (e1, e1, 1.0 / e2);
+        let mid = SPREAD as usize;
+        weights[mid] = e1 * e3[0];
+        for k in 1..=mid {
             up *= e2;
-            down /= e2;
+            down *= e2_inv;
+            weights[mid + k] = up * e3[k];
+            weights[mid - k] = down * e3[k];
+        }
+        // The grid index of weights[0], and the stretch of the grid before it wraps round.
+        let first = (m0 as i64 - SPREAD).rem_euclid(m_i) as usize;
+        let (head, tail) = weights.split_at(weights.len().min(m_r - first));
+        for (g, c) in [(&mut ga, a), (&mut gb, b)] {
+            for (x, w) in g[first..].iter_mut().zip(head) {
+                *x += c * w;
+            }
+            for (x, w) in g.iter_mut().zip(tail) {
+                *x += c * w;
+            }
         }
     }
     FFT.with(|cell| {

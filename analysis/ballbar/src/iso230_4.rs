@@ -177,37 +177,30 @@ pub fn figures_with_trig(
 
 fn figures_of(arcs: &[Arc], minimum_zone: bool) -> Figures {
     let sums: Vec<[f64; 9]> = arcs.iter().map(circle_sums).collect();
+    let both = arcs.len() == 2 && arcs[0].t.sense != arcs[1].t.sense;
+    let common = both.then(|| circle_of_sums(&sums));
+    let mut lo_hi = (f64::INFINITY, f64::NEG_INFINITY);
     let directions = arcs
         .iter()
         .zip(&sums)
-        .map(|(a, s)| directional(a, circle_of_sums(std::slice::from_ref(s)), minimum_zone))
+        .map(|(a, s)| {
+            let own = circle_of_sums(std::slice::from_ref(s));
+            let [bounds, about_common] = radial_bounds(a, [own, common.unwrap_or(own)]);
+            lo_hi = (lo_hi.0.min(about_common.0), lo_hi.1.max(about_common.1));
+            directional(a, own, bounds, minimum_zone)
+        })
         .collect();
-    let both = arcs.len() == 2 && arcs[0].t.sense != arcs[1].t.sense;
-    let (bidirectional, hysteresis) = if both {
-        let c = circle_of_sums(&sums);
-        let (lo, hi) = arcs
-            .iter()
-            .fold((f64::INFINITY, f64::NEG_INFINITY), |acc, a| {
-                let (l, h) = radial_bounds(a, &c);
-                (acc.0.min(l), acc.1.max(h))
-            });
-        (
-            Some(hi - lo),
-            hysteresis(&arcs[0], &arcs[1], &c).filter(|h| h.is_finite()),
-        )
-    } else {
-        (None, None)
-    };
     Figures {
         directions,
-        bidirectional_deviation_um: bidirectional,
-        hysteresis_um: hysteresis,
+        bidirectional_deviation_um: common.map(|_| lo_hi.1 - lo_hi.0),
+        hysteresis_um: common
+            .and_then(|c| hysteresis(&arcs[0], &arcs[1], &c))
+            .filter(|h| h.is_finite()),
     }
 }
 
-fn directional(a: &Arc, circle: Circle, minimum_zone: bool) -> Directional {
+fn directional(a: &Arc, circle: Circle, (lo, hi): (f64, f64), minimum_zone: bool) -> Directional {
     let t = a.t;
-    let (lo, hi) = radial_bounds(a, &circle);
     Directional {
         label: t.label.clone(),
         sense: t.sense.name().into(),
@@ -226,13 +219,16 @@ fn radial(a: &Arc, c: &Circle) -> Vec<f64> {
         .collect()
 }
 
-/// (min, max) of the radial deviation of `a` about `c`.
-fn radial_bounds(a: &Arc, c: &Circle) -> (f64, f64) {
-    a.samples()
-        .map(|(co, s, d)| c.radial_cs(co, s, d))
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), x| {
-            (lo.min(x), hi.max(x))
-        })
+/// (min, max) of the radial deviation of `a` about each of two centres, in one pass.
+fn radial_bounds(a: &Arc, c: [Circle; 2]) -> [(f64, f64); 2] {
+    let mut out = [(f64::INFINITY, f64::NEG_INFINITY); 2];
+    for (co, s, d) in a.samples() {
+        for (b, c) in out.iter_mut().zip(&c) {
+            let x = c.radial_cs(co, s, d);
+            *b = (b.0.min(x), b.1.max(x));
+        }
+    }
+    out
 }
 
 fn bounds(v: &[f64]) -> (f64, f64) {
@@ -247,63 +243,66 @@ fn span(v: &[f64]) -> f64 {
     hi - lo
 }
 
-/// `x.rem_euclid(360.0)`, bit for bit, without the division's library call: `x − 360 k` is
-/// exact for the integer k = ⌊x/360⌋ (or one less where the quotient rounded up).
+/// `x.rem_euclid(360.0)`, bit for bit, without the division or a conversion to an integer:
+/// `x − 360 k` is exact for the integer k = ⌊x/360⌋, which the quotient by the reciprocal gives
+/// to within one either way (corrected after).
 #[inline]
 fn rem360(x: f64) -> f64 {
-    let q = x / 360.0;
+    let q = x * (1.0 / 360.0);
     if q.abs() >= 1e15 {
         return x.rem_euclid(360.0);
     }
-    let mut k = q as i64 as f64;
+    const MAGIC: f64 = 6_755_399_441_055_744.0; // 1.5·2⁵²: adding it rounds to an integer
+    let mut k = (q + MAGIC) - MAGIC;
     if k > q {
         k -= 1.0;
     }
     let r = x - 360.0 * k;
-    if r < 0.0 { x - 360.0 * (k - 1.0) } else { r }
+    if r < 0.0 {
+        x - 360.0 * (k - 1.0)
+    } else if r >= 360.0 {
+        x - 360.0 * (k + 1.0)
+    } else {
+        r
+    }
 }
 
-/// The path of `t` about centre `c` as (angle in [0, 360), e) sorted by angle (stably: a trace
-/// is a few monotonic runs, which the sort merges in linear time), into `p`.
-fn sorted_path(a: &Arc, c: &Circle, p: &mut Path) {
-    p.clear();
-    p.extend(
-        a.t.angle_deg
-            .iter()
-            .zip(a.samples())
-            .map(|(x, (co, s, d))| (rem360(*x), c.radial_cs(co, s, d))),
-    );
-    p.sort_by(|x, y| x.0.total_cmp(&y.0));
+/// (angle in [0, 360), e about `c`) of each sample of `a`.
+fn path<'a>(a: &'a Arc, c: &'a Circle) -> impl Iterator<Item = (f64, f64)> + 'a {
+    a.t.angle_deg
+        .iter()
+        .zip(a.samples())
+        .map(|(x, (co, s, d))| (rem360(*x), c.radial_cs(co, s, d)))
 }
 
 /// A path as (angle, radial deviation) pairs.
 type Path = Vec<(f64, f64)>;
 
 thread_local! {
-    /// The two sorted paths of [`hysteresis`], reused between calls on a thread.
-    static PATHS: std::cell::RefCell<(Path, Path)> =
-        const { std::cell::RefCell::new((Vec::new(), Vec::new())) };
+    /// The sorted path of [`hysteresis`], reused between calls on a thread.
+    static PATH: std::cell::RefCell<Path> = const { std::cell::RefCell::new(Vec::new()) };
 }
 
 /// Largest |e_a(θ) − e_b(θ)| at the angles of `a` that `b` covers (linear interpolation of b).
-/// Both paths sorted by angle are walked together, so each sample of `a` finds its neighbours in
-/// `b` where the previous one left off.
+/// The path of `b` is sorted by angle (stably: a trace is a few monotonic runs, which the sort
+/// merges in linear time); `a` is taken in its own order, each sample finding its neighbours in
+/// `b` by stepping from where the previous one's were (`a` moves monotonically round the
+/// circle), and the maximum does not depend on the order.
 fn hysteresis(a: &Arc, b: &Arc, c: &Circle) -> Option<f64> {
-    PATHS.with(|cell| {
-        let (pa, pb) = &mut *cell.borrow_mut();
-        sorted_path(b, c, pb);
-        sorted_path(a, c, pa);
+    PATH.with(|cell| {
+        let pb = &mut *cell.borrow_mut();
+        pb.clear();
+        pb.extend(path(b, c));
+        pb.sort_by(|x, y| x.0.total_cmp(&y.0));
         let max_step = 2.0 * crate::trace::MAX_GAP_DEG;
-        let mut worst: Option<f64> = None;
+        let (mut worst, mut found) = (0.0f64, false);
         let mut k = 0;
-        for &(x, e) in pa.iter() {
-            while k < pb.len() && pb[k].0 < x {
-                k += 1;
+        for (x, e) in path(a, c) {
+            k = first_at_or_after(pb, x, k);
+            if k == 0 || k == pb.len() {
+                continue;
             }
-            let (lo, hi) = match (k.checked_sub(1).map(|i| pb[i]), pb.get(k)) {
-                (Some(l), Some(h)) => (l, *h),
-                _ => continue,
-            };
+            let (lo, hi) = (pb[k - 1], pb[k]);
             if hi.0 - lo.0 > max_step {
                 continue;
             }
@@ -313,11 +312,28 @@ fn hysteresis(a: &Arc, b: &Arc, c: &Circle) -> Option<f64> {
                 0.0
             };
             let eb = lo.1 + w * (hi.1 - lo.1);
-            let d = (e - eb).abs();
-            worst = Some(worst.map_or(d, |m: f64| m.max(d)));
+            worst = worst.max((e - eb).abs());
+            found = true;
         }
-        worst
+        found.then_some(worst)
     })
+}
+
+/// The index of the first element of the sorted path `p` at or after angle `x`, stepping from
+/// `k` (the previous sample's) when it is a few steps away, else by bisection (where `a` wraps
+/// round).
+#[inline]
+fn first_at_or_after(p: &[(f64, f64)], x: f64, mut k: usize) -> usize {
+    for _ in 0..8 {
+        if k < p.len() && p[k].0 < x {
+            k += 1;
+        } else if k > 0 && p[k - 1].0 >= x {
+            k -= 1;
+        } else {
+            return k;
+        }
+    }
+    p.partition_point(|q| q.0 < x)
 }
 
 /// Minimum-zone circular deviation of an arc, µm, starting from the least-squares centre `c`.

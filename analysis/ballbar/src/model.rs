@@ -126,7 +126,9 @@ impl Term {
         }
     }
 
-    /// Δr per unit of this term at `pt` in `plane`, µm.
+    /// Δr per unit of this term at `pt` in `plane`, µm (inlined: called per sample in the
+    /// windows around reversals, where the term is known).
+    #[inline]
     pub fn basis(self, pt: &Point, plane: Plane) -> f64 {
         match self {
             Term::Radius => 1.0,

@@ -11,15 +11,42 @@ use crate::trace::{Sense, Trace};
 /// The most groups a trace is averaged into for the fit.
 pub const MAX_GROUPS: usize = 1024;
 
-/// The samples of one trace in the form the signatures take.
+/// Where the samples of a trace lie, whatever its deviation: cos θ, sin θ and the progress
+/// over the test of every sample (the passes of a diagnosis share them).
 #[derive(Clone, Debug)]
-pub struct Samples<'a> {
+pub struct Placement {
     /// cos θ per sample.
     pub cos: Vec<f64>,
     /// sin θ per sample.
     pub sin: Vec<f64>,
     /// Progress 0…1 per sample.
     pub progress: Vec<f64>,
+}
+
+impl Placement {
+    /// The placement of a validated trace with the progress of each sample over the test.
+    pub fn new(t: &Trace, progress: Vec<f64>) -> Self {
+        let (cos, sin) = trig(&t.angle_deg);
+        Self { cos, sin, progress }
+    }
+
+    /// Returns the buffers to the pool.
+    pub fn recycle(self) {
+        for v in [self.cos, self.sin, self.progress] {
+            recycle(v);
+        }
+    }
+}
+
+/// The samples of one trace in the form the signatures take.
+#[derive(Clone, Debug)]
+pub struct Samples<'a> {
+    /// cos θ per sample.
+    pub cos: &'a [f64],
+    /// sin θ per sample.
+    pub sin: &'a [f64],
+    /// Progress 0…1 per sample.
+    pub progress: &'a [f64],
     /// Deviation per sample, µm.
     pub deviation_um: &'a [f64],
     /// Sense of travel.
@@ -36,10 +63,9 @@ pub struct Samples<'a> {
 }
 
 impl<'a> Samples<'a> {
-    /// The samples of a validated trace with the progress of each sample over the test: one
-    /// pass computes cos θ, sin θ and the group sums.
-    pub fn new(t: &'a Trace, progress: Vec<f64>) -> Self {
-        let (cos, sin) = trig(&t.angle_deg);
+    /// The samples of a validated trace placed by `place`, with the deviations `deviation_um`
+    /// (the trace's own or corrected ones): one pass computes the group sums.
+    pub fn new(t: &'a Trace, place: &'a Placement, deviation_um: &'a [f64]) -> Self {
         let angle_deg = &t.angle_deg;
         let n = angle_deg.len();
         let size = n.div_ceil(MAX_GROUPS).max(1);
@@ -47,8 +73,8 @@ impl<'a> Samples<'a> {
         let table = table();
         let groups: Vec<(Point, f64, usize)> = angle_deg
             .chunks(size)
-            .zip(progress.chunks(size))
-            .zip(t.deviation_um.chunks(size))
+            .zip(place.progress.chunks(size))
+            .zip(deviation_um.chunks(size))
             .map(|((a, p), d)| {
                 let k = a.len() as f64;
                 let (s, c) = sin_cos_deg(a.iter().sum::<f64>() / k, table);
@@ -64,10 +90,10 @@ impl<'a> Samples<'a> {
             })
             .collect();
         let mut s = Self {
-            cos,
-            sin,
-            progress,
-            deviation_um: &t.deviation_um,
+            cos: &place.cos,
+            sin: &place.sin,
+            progress: &place.progress,
+            deviation_um,
             sense: t.sense,
             radius_um,
             feed_um_per_ms,
@@ -163,9 +189,12 @@ pub fn sin_cos_deg(a: f64, table: &[(f64, f64)]) -> (f64, f64) {
     if x.abs() >= 1e15 {
         return a.to_radians().sin_cos();
     }
-    let k = (x + MAGIC) - MAGIC;
+    let shifted = x + MAGIC;
+    let k = shifted - MAGIC;
     let e = (x - k) * (std::f64::consts::TAU / TABLE_N as f64);
-    let (c0, s0) = table[(k as i64 & (TABLE_N as i64 - 1)) as usize];
+    // The low bits of `shifted` are those of the integer k (two's complement): k mod TABLE_N
+    // without a conversion.
+    let (c0, s0) = table[shifted.to_bits() as usize & (TABLE_N - 1)];
     let e2 = e * e;
     let ce = 1.0 - e2 * (0.5 - e2 * (1.0 / 24.0));
     let se = e * (1.0 - e2 * (1.0 / 6.0 - e2 * (1.0 / 120.0)));
@@ -187,7 +216,15 @@ pub fn buffer(capacity: usize) -> Vec<f64> {
     v
 }
 
-/// Returns a buffer to the pool for [`buffer`].
+/// A buffer of `len` values to be overwritten (left over from its last use, zero where it
+/// grows), from the pool when there is one.
+pub fn filled(len: usize) -> Vec<f64> {
+    let mut v = POOL.with(|p| p.borrow_mut().pop()).unwrap_or_default();
+    v.resize(len, 0.0);
+    v
+}
+
+/// Returns a buffer to the pool for [`buffer`] and [`filled`].
 pub fn recycle(v: Vec<f64>) {
     POOL.with(|p| {
         let mut p = p.borrow_mut();
@@ -200,11 +237,9 @@ pub fn recycle(v: Vec<f64>) {
 /// cos and sin of every angle (deg), see [`sin_cos_deg`].
 pub fn trig(angle_deg: &[f64]) -> (Vec<f64>, Vec<f64>) {
     let t = table();
-    let (mut cos, mut sin) = (buffer(angle_deg.len()), buffer(angle_deg.len()));
-    for a in angle_deg {
-        let (s, c) = sin_cos_deg(*a, t);
-        cos.push(c);
-        sin.push(s);
+    let (mut cos, mut sin) = (filled(angle_deg.len()), filled(angle_deg.len()));
+    for ((a, c), s) in angle_deg.iter().zip(&mut cos).zip(&mut sin) {
+        (*s, *c) = sin_cos_deg(*a, t);
     }
     (cos, sin)
 }
