@@ -4,6 +4,7 @@
 
 use crate::chatter;
 use crate::error::CliError;
+use crate::formats::rerun::{AxisBands, write_band_rrd};
 use crate::plot::{DrawResult, FONT, Figure, Format, register_font, render};
 use plotters::coord::Shift;
 use plotters::prelude::*;
@@ -260,7 +261,43 @@ impl Figure for Levels<'_> {
     }
 }
 
-/// Writes gap.txt, gap.json and band_levels.png into `dir`.
+/// The band levels of the first held-out piece, per axis, as a Rerun recording.
+fn write_rrd(model: &str, report: &str, g: &VibrationGap, path: &Path) -> Result<(), CliError> {
+    let piece = g.calibration.len().min(g.measured.len().saturating_sub(1));
+    let db = |levels: &[f64]| -> Vec<f64> {
+        levels.iter().map(|l| 20.0 * l.max(1e-9).log10()).collect()
+    };
+    let centres: Vec<f64> = g.bands.iter().map(|b| b.centre_hz).collect();
+    let levels: Vec<[Vec<f64>; 3]> = (0..g.channels.len())
+        .map(|c| {
+            [
+                db(&g.measured[piece][c]),
+                db(&g.model_before[piece][c]),
+                db(&g.model_after[piece][c]),
+            ]
+        })
+        .collect();
+    let axes: Vec<AxisBands> = g
+        .channels
+        .iter()
+        .zip(&levels)
+        .map(|(axis, [m, b, a])| AxisBands {
+            axis,
+            centres_hz: &centres,
+            measured_db: m,
+            before_db: b,
+            after_db: a,
+        })
+        .collect();
+    write_band_rrd(
+        path,
+        &format!("vmt-gap-{}", crate::formats::slug(model)),
+        report,
+        &axes,
+    )
+}
+
+/// Writes gap.txt, gap.json, gap.rrd and band_levels.png into `dir`.
 pub fn write(
     model: &str,
     files: &[PathBuf],
@@ -281,6 +318,9 @@ pub fn write(
         std::fs::write(&path, body).map_err(|e| CliError::output(&path, e))?;
         written.push(path);
     }
+    let rrd = dir.join("gap.rrd");
+    write_rrd(model, &text(model, files, g), g, &rrd)?;
+    written.push(rrd);
     register_font();
     let png = dir.join("band_levels.png");
     let height = 300 * g.channels.len().max(1) as u32;

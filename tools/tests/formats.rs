@@ -4,10 +4,12 @@
 //! The Python tests need `python3 -m pip install -r tools/tests/requirements.txt`; without the
 //! packages they fail and say so.
 
+#[path = "common/python.rs"]
+mod python;
+
+use python::python;
 use serde_json::{Value, json};
 use std::f64::consts::PI;
-use std::path::Path;
-use std::process::Command;
 use vmt_sim::run::{BallbarTrace, Channel, MachineSummary, Run, Stream};
 use vmt_tools::formats::{write_mcap, write_rrd};
 use vmt_tools::plot::{Format, POLAR_SIZE, draw_polar};
@@ -164,39 +166,6 @@ fn test_run() -> Run {
             "eccentricity_um": [2.0, -1.0],
         }),
     }
-}
-
-/// Runs a reader script of tools/tests and parses its JSON output; fails with the script's
-/// message (e.g. a missing Python package) otherwise.
-fn python(script: &str, file: &Path) -> Value {
-    let script = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("tests")
-        .join(script);
-    let out = Command::new("python3")
-        .arg(&script)
-        .arg(file)
-        .output()
-        .unwrap_or_else(|e| {
-            panic!(
-                "cannot run python3 ({e}): the format tests need Python 3 with \
-                 `python3 -m pip install -r tools/tests/requirements.txt`"
-            )
-        });
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(
-        out.status.success(),
-        "{} failed ({}):\n{stderr}\nThe format tests need the Python packages of \
-         tools/tests/requirements.txt: python3 -m pip install -r tools/tests/requirements.txt",
-        script.display(),
-        out.status
-    );
-    serde_json::from_slice(&out.stdout).unwrap_or_else(|e| {
-        panic!(
-            "{} printed no JSON ({e}): {}",
-            script.display(),
-            String::from_utf8_lossy(&out.stdout)
-        )
-    })
 }
 
 fn ns(t_s: f64) -> u64 {

@@ -2,6 +2,8 @@
 //! from displacement laws), and the refusal of measurements of another test.
 
 mod common;
+#[path = "common/python.rs"]
+mod python;
 
 use common::{stderr, vmt};
 use std::path::{Path, PathBuf};
@@ -167,6 +169,14 @@ fn a_tool_mode_is_found_from_an_accelerometer_csv() {
     let f = step["values"][1]["value"].as_f64().unwrap();
     assert!((f - 885.0).abs() < 4.0, "fitted {f} Hz");
     assert!(out.join("band_levels.png").exists());
+    // The residual spectra open with the Rerun SDK's own reader.
+    let rrd = python::python("read_rrd.py", &out.join("gap.rrd"));
+    for axis in ["ax", "ay", "az"] {
+        for when in ["before", "after"] {
+            let e = format!("/vibration/residual_db/{axis}/{when}");
+            assert!(rrd["entities"][e.as_str()].is_object(), "{e}: {rrd:#}");
+        }
+    }
     // Ball-bar traces and accelerometer logs are not one analysis.
     let trace = write_csv(dir.path(), "trace.csv", &traces(50.0, &Errors::default()));
     let o = vmt(&[

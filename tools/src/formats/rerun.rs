@@ -788,6 +788,86 @@ fn to_f32(a: [f64; 3]) -> [f32; 3] {
     a.map(|v| v as f32)
 }
 
+/// Band levels of one accelerometer axis for [`write_band_rrd`]: the band centres (Hz) and the
+/// levels (dB re 1 m/s²) measured and of the model before and after a gap analysis.
+pub struct AxisBands<'a> {
+    /// Axis name (`ax`, `ay`, `az`).
+    pub axis: &'a str,
+    /// Band centres, Hz.
+    pub centres_hz: &'a [f64],
+    /// Measured levels, dB.
+    pub measured_db: &'a [f64],
+    /// The model's levels as given, dB.
+    pub before_db: &'a [f64],
+    /// The model's levels with the chosen effects, dB.
+    pub after_db: &'a [f64],
+}
+
+/// Writes the band levels of a vibration gap to the Rerun recording `path`: per axis, the
+/// residual (measured − model, dB) per band before and after as bar charts
+/// (`/vibration/residual_db/<axis>/before`, `…/after`, abscissa the band centre in Hz), the
+/// three level curves as 2D strips over log10 of frequency (`/vibration/levels_db/<axis>`), and
+/// the report text (`/report`). Static data: a spectrum has no time axis.
+pub fn write_band_rrd(
+    path: &Path,
+    recording_id: &str,
+    report: &str,
+    axes: &[AxisBands<'_>],
+) -> Result<(), CliError> {
+    let err = |e: &dyn std::fmt::Display| CliError::output(path, e);
+    let rec = rerun::RecordingStreamBuilder::new(APPLICATION_ID)
+        .recording_id(recording_id)
+        .enabled(true)
+        .save(path)
+        .map_err(|e| err(&e))?;
+    rec.set_log_time_enabled(false);
+    rec.set_log_tick_enabled(false);
+    let log = |entity: String, what: &dyn rerun::AsComponents| {
+        rec.log_static(entity, what).map_err(|e| err(&e))
+    };
+    log("/report".into(), &TextDocument::new(report))?;
+    for a in axes {
+        let residual = |model: &[f64]| -> Vec<f64> {
+            a.measured_db
+                .iter()
+                .zip(model)
+                .map(|(m, s)| m - s)
+                .collect()
+        };
+        for (when, model, colour) in [
+            ("before", a.before_db, Color::from_rgb(200, 40, 40)),
+            ("after", a.after_db, Color::from_rgb(40, 80, 200)),
+        ] {
+            log(
+                format!("/vibration/residual_db/{}/{when}", a.axis),
+                &rerun::BarChart::new(residual(model).as_slice())
+                    .with_abscissa(a.centres_hz)
+                    .with_color(colour),
+            )?;
+        }
+        let strip = |levels: &[f64]| -> Vec<[f32; 2]> {
+            a.centres_hz
+                .iter()
+                .zip(levels)
+                .map(|(f, l)| [f.log10() as f32, *l as f32])
+                .collect()
+        };
+        log(
+            format!("/vibration/levels_db/{}", a.axis),
+            &LineStrips2D::new([strip(a.measured_db), strip(a.before_db), strip(a.after_db)])
+                .with_colors([
+                    Color::from_rgb(0, 0, 0),
+                    Color::from_rgb(200, 40, 40),
+                    Color::from_rgb(40, 80, 200),
+                ])
+                .with_labels(["measured", "model as given", "model with the effects"]),
+        )?;
+    }
+    rec.flush_blocking().map_err(|e| err(&e))?;
+    rec.finalize_deferred_sinks();
+    Ok(())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
