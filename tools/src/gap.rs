@@ -459,6 +459,9 @@ pub struct BenchArgs {
     /// Plane of that test: XY, ZX or YZ.
     #[arg(long, default_value = "XY")]
     pub plane: String,
+    /// Axial depth of cut written into a milling model's job, mm (default: the model's).
+    #[arg(long)]
+    pub axial_depth_mm: Option<f64>,
     /// Nuisance: the other parameters' mismatch, as a fraction of their typical size.
     #[arg(long, default_value_t = 0.05)]
     pub nuisance: f64,
@@ -496,6 +499,18 @@ pub fn bench_command(a: &BenchArgs) -> Result<(), CliError> {
     let plane = Plane::parse(&a.plane).ok_or_else(|| {
         CliError::Argument(format!("--plane {}: XY, ZX or YZ is accepted", a.plane))
     })?;
+    if vmt_scenario::edit::Template::parse(&text, &file)?
+        .text("job.kind")?
+        .as_deref()
+        == Some("milling")
+    {
+        let text = match a.axial_depth_mm {
+            Some(d) => vmt_scenario::edit::Template::parse(&text, &file)?
+                .with(&[("job.axial_depth_mm", d)])?,
+            None => text,
+        };
+        return vibration_bench(a, &text, &file);
+    }
     let text = vmt_scenario::edit::Template::parse(&text, &file)?.with(&[
         ("job.radius_mm", a.radius_mm),
         ("job.feed_mm_min", a.feed_mm_min),
@@ -528,44 +543,106 @@ pub fn bench_command(a: &BenchArgs) -> Result<(), CliError> {
         .map_err(|e| model_error(&file, e))?;
     bar.finish_and_clear();
     let figures = bench::figures(&outcomes, o.min_effect_um);
-    let report = bench_markdown(&file, a, &figures, &outcomes);
+    let job = format!(
+        "{} circle {} mm at {} mm/min, CW and CCW (CW fits, CCW judges); the bar's set-up drawn anew",
+        a.plane, a.radius_mm, a.feed_mm_min
+    );
+    let command = format!(
+        "vmt gap-bench --plane {} --radius-mm {} --feed-mm-min {} --nuisance {} --nulls {} --seed {} --repeats {}",
+        a.plane, a.radius_mm, a.feed_mm_min, a.nuisance, a.nulls, a.seed, a.repeats
+    );
+    let report = bench_report(&command, &file, &job, a, &figures, &outcomes);
+    finish_bench(a, &report, &figures, &outcomes)
+}
+
+/// Prints the bench's report and writes gap_bench.md and gap_bench.json into `--out`.
+fn finish_bench(
+    a: &BenchArgs,
+    report: &str,
+    figures: &vmt_gap::bench::Figures,
+    outcomes: &[vmt_gap::bench::Outcome],
+) -> Result<(), CliError> {
     print!("{report}");
-    if let Some(dir) = &a.out {
-        std::fs::create_dir_all(dir).map_err(|e| CliError::output(dir, e))?;
-        let md = dir.join("gap_bench.md");
-        std::fs::write(&md, &report).map_err(|e| CliError::output(&md, e))?;
-        let js = dir.join("gap_bench.json");
-        let body = json!({"settings": {"model": file, "radius_mm": a.radius_mm, "feed_mm_min": a.feed_mm_min, "nuisance": a.nuisance, "nulls": a.nulls, "seed": a.seed, "repeats": a.repeats}, "figures": figures, "cases": outcomes});
-        std::fs::write(
-            &js,
-            serde_json::to_string_pretty(&body).map_err(|e| CliError::output(&js, e))?,
-        )
-        .map_err(|e| CliError::output(&js, e))?;
-    }
-    Ok(())
+    let Some(dir) = &a.out else {
+        return Ok(());
+    };
+    std::fs::create_dir_all(dir).map_err(|e| CliError::output(dir, e))?;
+    let md = dir.join("gap_bench.md");
+    std::fs::write(&md, report).map_err(|e| CliError::output(&md, e))?;
+    let js = dir.join("gap_bench.json");
+    let model = a.model.as_ref().map(|p| p.display().to_string());
+    let body = json!({"settings": {"model": model, "plane": a.plane, "radius_mm": a.radius_mm, "feed_mm_min": a.feed_mm_min, "nuisance": a.nuisance, "nulls": a.nulls, "seed": a.seed, "repeats": a.repeats}, "figures": figures, "cases": outcomes});
+    std::fs::write(
+        &js,
+        serde_json::to_string_pretty(&body).map_err(|e| CliError::output(&js, e))?,
+    )
+    .map_err(|e| CliError::output(&js, e))
+}
+
+/// `vmt gap-bench` on a milling model: the vibration gap's withheld-effect check.
+fn vibration_bench(a: &BenchArgs, text: &str, file: &str) -> Result<(), CliError> {
+    use vmt_gap::{vibration, vibration_bench as vb};
+    let dir = a
+        .model
+        .as_deref()
+        .and_then(Path::parent)
+        .map(Path::to_path_buf);
+    let model =
+        vibration::MillingModel::new(text, file, dir.clone()).map_err(|e| model_error(file, e))?;
+    let settings = vmt_gap::bench::Settings {
+        nuisance: a.nuisance,
+        nulls: a.nulls,
+        seed: a.seed,
+        repeats: a.repeats,
+    };
+    let cases = vb::cases(&model, &settings);
+    let bar = if a.quiet {
+        indicatif::ProgressBar::hidden()
+    } else {
+        indicatif::ProgressBar::new(cases.len() as u64)
+    };
+    bar.set_message("gap-bench cases (vibration)");
+    let o = vibration::Options::default();
+    let outcomes = vb::run(text, file, dir, &model, &cases, &o, &|| bar.inc(1))
+        .map_err(|e| model_error(file, e))?;
+    bar.finish_and_clear();
+    let figures = vmt_gap::bench::figures(&outcomes, o.min_effect_db);
+    let job = format!(
+        "the milling job of the model (accelerometer logs, tooth passing {:.0} Hz; one log per case, its first half fits, its second half judges)",
+        model.tooth_passing_hz()
+    );
+    let depth = a
+        .axial_depth_mm
+        .map_or(String::new(), |d| format!(" --axial-depth-mm {d}"));
+    let command = format!(
+        "vmt gap-bench --model {file}{depth} --nuisance {} --nulls {} --seed {} --repeats {}",
+        a.nuisance, a.nulls, a.seed, a.repeats
+    );
+    let report = bench_report(&command, file, &job, a, &figures, &outcomes);
+    finish_bench(a, &report, &figures, &outcomes)
 }
 
 fn pct(x: f64) -> String {
     format!("{:.1} %", 100.0 * x)
 }
 
-fn bench_markdown(
+/// The bench's report in Markdown: `command` made it, on `job` of the model `file`.
+fn bench_report(
+    command: &str,
     file: &str,
+    job: &str,
     a: &BenchArgs,
     f: &vmt_gap::bench::Figures,
     outcomes: &[vmt_gap::bench::Outcome],
 ) -> String {
+    let unit = outcomes.first().map_or("um", |o| o.unit);
     let mut out = String::new();
     let _ = writeln!(out, "# Sim-to-real gap: withheld-effect check\n");
+    let _ = writeln!(out, "Made by `{command}`.\n");
     let _ = writeln!(
         out,
-        "Made by `vmt gap-bench --plane {} --radius-mm {} --feed-mm-min {} --nuisance {} --nulls {} --seed {} --repeats {}`.\n",
-        a.plane, a.radius_mm, a.feed_mm_min, a.nuisance, a.nulls, a.seed, a.repeats
-    );
-    let _ = writeln!(
-        out,
-        "Model {file}, job: {} circle {} mm at {} mm/min, CW and CCW (CW fits, CCW judges); nuisance {} x typical on every other parameter, the bar's set-up drawn anew, instrument noise and resolution kept, a seed per case (first seed {}, {} draws of the list).\n",
-        a.plane, a.radius_mm, a.feed_mm_min, a.nuisance, a.seed, a.repeats
+        "Model {file}, job: {job}; nuisance {} x typical on every other parameter, instrument noise kept, a seed per case (first seed {}, {} draws of the list).\n",
+        a.nuisance, a.seed, a.repeats
     );
     let _ = writeln!(
         out,
@@ -604,8 +681,8 @@ fn bench_markdown(
     if !f.below_floor.is_empty() {
         let _ = writeln!(
             out,
-            "Below the visibility floor ({} um of held-out change predicted for the withheld offsets after the set-up fit), so invisible on this job and left out of the figures: {}.\n",
-            f.floor_um,
+            "Below the visibility floor ({} {unit} of held-out change predicted for the withheld offsets), so invisible on this job and left out of the figures: {}.\n",
+            f.floor,
             f.below_floor.join("; ")
         );
     }
@@ -619,18 +696,18 @@ fn bench_markdown(
     }
     let _ = writeln!(
         out,
-        "\n## Cases\n\n| Case | Visible (um) | Found | Partial | Held-out RMS before (um) | after (um) | Shrink |\n|---|---|---|---|---|---|---|"
+        "\n## Cases\n\n| Case | Visible ({unit}) | Found | Partial | Held-out RMS before ({unit}) | after ({unit}) | Shrink |\n|---|---|---|---|---|---|---|"
     );
     for o in outcomes {
         let _ = writeln!(
             out,
             "| {} | {:.3} | {} | {} | {:.3} | {:.3} | {} |",
             o.case,
-            o.visible_um,
+            o.visible,
             o.found.join(", "),
             o.partial.join(", "),
-            o.held_out_before_um,
-            o.held_out_after_um,
+            o.held_out_before,
+            o.held_out_after,
             pct(o.shrink)
         );
     }

@@ -223,15 +223,17 @@ pub struct Outcome {
     pub found: Vec<String>,
     /// Effects chosen that did not explain the gap (partial candidates).
     pub partial: Vec<String>,
-    /// Held-out RMS before, µm.
-    pub held_out_before_um: f64,
-    /// Held-out RMS after, µm.
-    pub held_out_after_um: f64,
+    /// Held-out RMS before, in [`Outcome::unit`].
+    pub held_out_before: f64,
+    /// Held-out RMS after.
+    pub held_out_after: f64,
     /// Shrink of the held-out mean square.
     pub shrink: f64,
-    /// How far the withheld offsets stand out on the job's held-out runs, µm
-    /// ([`Linearisation::visibility`]).
-    pub visible_um: f64,
+    /// How far the withheld offsets stand out on the job's held-out runs
+    /// ([`Linearisation::visibility`] for the ball bar).
+    pub visible: f64,
+    /// Unit of the RMS figures: `um` for ball-bar deviations, `dB` for band levels.
+    pub unit: &'static str,
 }
 
 impl Outcome {
@@ -248,10 +250,11 @@ impl Outcome {
             withheld: case.withheld.clone(),
             found,
             partial,
-            held_out_before_um: s.held_out_before_um,
-            held_out_after_um: after,
+            held_out_before: s.held_out_before_um,
+            held_out_after: after,
             shrink: s.held_out_shrink(),
-            visible_um,
+            visible: visible_um,
+            unit: "um",
         }
     }
 }
@@ -290,7 +293,7 @@ pub fn run(
         .collect()
 }
 
-/// The bench's figures, with cases below the visibility floor `floor_um` set apart.
+/// The bench's figures, with cases below the visibility floor `floor` set apart.
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct Figures {
     /// Single-effect cases whose first effect found is the withheld one, fraction.
@@ -313,16 +316,16 @@ pub struct Figures {
     pub median_shrink: f64,
     /// Confusion counts: withheld (or `null`, `outside`) → first found (or `none`).
     pub confusion: BTreeMap<String, BTreeMap<String, usize>>,
-    /// The visibility floor, µm: [`Options::min_effect_um`].
-    pub floor_um: f64,
+    /// The visibility floor, in the outcomes' unit (the selection's least effect).
+    pub floor: f64,
     /// Single-effect and out-of-library cases whose withheld offsets stand out by less than
-    /// the floor on the job ([`Outcome::visible_um`]): no analysis of these runs can see them,
+    /// the floor on the job ([`Outcome::visible`]): no analysis of these runs can see them,
     /// so they are listed here and left out of the rates, the confusion and the shrink.
     pub below_floor: Vec<String>,
 }
 
 /// The figures of a bench's outcomes.
-pub fn figures(outcomes: &[Outcome], floor_um: f64) -> Figures {
+pub fn figures(outcomes: &[Outcome], floor: f64) -> Figures {
     let frac = |hits: usize, n: usize| {
         if n == 0 {
             f64::NAN
@@ -345,7 +348,7 @@ pub fn figures(outcomes: &[Outcome], floor_um: f64) -> Figures {
     let mut shrinks = Vec::new();
     let mut below_floor = Vec::new();
     for o in outcomes {
-        let seen = o.visible_um >= floor_um;
+        let seen = o.visible >= floor;
         if !seen && matches!(o.withheld, Withheld::One(_) | Withheld::Outside(_)) {
             below_floor.push(o.case.clone());
             continue;
@@ -393,7 +396,7 @@ pub fn figures(outcomes: &[Outcome], floor_um: f64) -> Figures {
         pair_cases: pairs,
         median_shrink: shrinks.get(shrinks.len() / 2).copied().unwrap_or(f64::NAN),
         confusion,
-        floor_um,
+        floor,
         below_floor,
     }
 }

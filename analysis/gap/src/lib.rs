@@ -11,7 +11,8 @@
 //! - [`select`]: which effects explain the gap, by forward selection judged on held-out runs;
 //! - [`bench`]: the withheld-effect check: effects switched off in the model, found again;
 //! - [`spectrum`]: third-octave band levels of accelerometer signals;
-//! - [`vibration`]: the gap of a milling model against accelerometer logs, by band.
+//! - [`vibration`]: the gap of a milling model against accelerometer logs, by band;
+//! - [`vibration_bench`]: the withheld-effect check of the vibration gap.
 
 pub mod align;
 pub mod bench;
@@ -21,6 +22,7 @@ pub mod model;
 pub mod select;
 pub mod spectrum;
 pub mod vibration;
+pub mod vibration_bench;
 pub mod whiteness;
 
 pub use align::{GapError, TracePair};

@@ -177,6 +177,11 @@ impl MillingModel {
         })
     }
 
+    /// The name of the job's tool in the scenario's tool table.
+    pub fn tool(&self) -> &str {
+        &self.tool
+    }
+
     /// Tooth-passing frequency of the model's cut, Hz.
     pub fn tooth_passing_hz(&self) -> f64 {
         self.base.spindle_rpm.unwrap_or(0.0) / 60.0 * f64::from(self.base.teeth.unwrap_or(0))
@@ -457,7 +462,9 @@ const ABOVE_NOISE: f64 = 2.0;
 const TINY: f64 = 1e-9;
 
 impl<'a> Problem<'a> {
-    fn new(model: &'a MillingModel, logs: &'a [Log]) -> Result<Self, GapError> {
+    /// `quiet`: the logs were simulated without sensor noise, which is then added per band to
+    /// them as to the model.
+    fn new(model: &'a MillingModel, logs: &'a [Log], quiet: bool) -> Result<Self, GapError> {
         let first = logs.first().ok_or(GapError::Empty)?;
         for log in logs {
             check(model, log)?;
@@ -506,7 +513,7 @@ impl<'a> Problem<'a> {
             cells: Vec::new(),
             simulations: 0.into(),
         };
-        p.measured = p.levels(logs, false)?;
+        p.measured = p.levels(logs, quiet)?;
         p.cells = p
             .measured
             .iter()
@@ -776,7 +783,31 @@ impl Selector<'_> {
 /// The vibration gap of `model` against the measured `logs`: where, which effects of the
 /// model's library (forward selection), and how much.
 pub fn analyse(model: &MillingModel, logs: &[Log], o: &Options) -> Result<VibrationGap, GapError> {
-    let problem = Problem::new(model, logs)?;
+    analyse_without(model, logs, &[], o)
+}
+
+/// How far `offsets` (`(key, offset)` from the model's values) stand out on the model's job:
+/// the held-out RMS of the band residual, dB, between the model with them and without, both
+/// without sensor noise and with its share added per band.
+pub fn visibility(model: &MillingModel, offsets: &[(String, f64)]) -> Result<f64, GapError> {
+    let values: Vec<(String, f64)> = offsets
+        .iter()
+        .filter_map(|(k, d)| model.value(k).map(|v| (k.clone(), v + d)))
+        .collect();
+    let logs = [model.log(&values)?];
+    let p = Problem::new(model, &logs, true)?;
+    let (_, r) = p.evaluate(&[])?;
+    Ok(rms(&p.stack(&r, &p.held_out)))
+}
+
+/// [`analyse`] with the effects named in `hidden` left out of the candidates.
+pub fn analyse_without(
+    model: &MillingModel,
+    logs: &[Log],
+    hidden: &[&str],
+    o: &Options,
+) -> Result<VibrationGap, GapError> {
+    let problem = Problem::new(model, logs, false)?;
     let library = model.library();
     let free: Vec<Free> = library
         .iter()
@@ -813,7 +844,7 @@ pub fn analyse(model: &MillingModel, logs: &[Log], o: &Options) -> Result<Vibrat
         (Vec::<usize>::new(), None::<Fit>, Vec::new(), Vec::new());
     while chosen.len() < o.max_effects && held_out_before_db > o.explained_floor_db {
         let fits: Vec<(usize, Fit)> = (0..sel.library.len())
-            .filter(|e| !chosen.contains(e))
+            .filter(|e| !chosen.contains(e) && !hidden.contains(&sel.library[*e].key.as_str()))
             .collect::<Vec<_>>()
             .into_par_iter()
             .filter_map(|e| {
