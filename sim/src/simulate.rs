@@ -614,7 +614,7 @@ impl Recorder {
                     encoder,
                     d.following_error_m(),
                     d.motor_force_n,
-                    d.params.current_a(d.motor_force_n),
+                    d.params().current_a(d.motor_force_n),
                     carriages[i].friction_force_n,
                     d.screw_friction_force_n,
                 ];
