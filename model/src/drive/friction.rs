@@ -65,25 +65,7 @@ impl LuGreParams {
     /// The Stribeck force `Fc + (Fs - Fc) exp(-(|v|/vs)^δ)`, N (without the viscous part).
     #[inline]
     pub fn stribeck_force(&self, v: f64) -> f64 {
-        self.stribeck_at(v.abs() / self.stribeck_m_s)
-    }
-
-    /// The Stribeck force at the relative speed `x = |v|/vs`, N.
-    #[inline]
-    fn stribeck_at(&self, x: f64) -> f64 {
-        // δ = 2 is the usual Gaussian shape: avoid the general power there.
-        let r = if self.stribeck_exponent == 2.0 {
-            x * x
-        } else {
-            x.powf(self.stribeck_exponent)
-        };
-        let rise = self.static_n - self.coulomb_n;
-        // Far above vs the Stribeck term is below half an ulp of Fc, so the sum is Fc exactly:
-        // exp(-50) < 2e-22, and rise < 1e5 Fc makes the term < 2e-17 Fc < 2^-54 Fc.
-        if r > 50.0 && rise < 1e5 * self.coulomb_n {
-            return self.coulomb_n;
-        }
-        self.coulomb_n + rise * exp(-r)
+        Stribeck::new(self).force(v.abs())
     }
 
     /// Steady sliding friction at constant velocity `v`, N (signed, opposing `v`'s direction).
@@ -126,6 +108,50 @@ impl LuGreParams {
     }
 }
 
+/// The Stribeck curve of a contact with its constants: `1/vs`, `Fs - Fc`, and whether the curve
+/// is Gaussian and reaches `Fc` exactly on its plateau.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Stribeck {
+    coulomb_n: f64,
+    rise_n: f64,
+    inv_velocity: f64,
+    exponent: f64,
+    gaussian: bool,
+    exact_plateau: bool,
+}
+
+impl Stribeck {
+    fn new(p: &LuGreParams) -> Self {
+        let rise_n = p.static_n - p.coulomb_n;
+        Self {
+            coulomb_n: p.coulomb_n,
+            rise_n,
+            inv_velocity: 1.0 / p.stribeck_m_s,
+            exponent: p.stribeck_exponent,
+            // δ = 2 is the usual Gaussian shape: avoid the general power there.
+            gaussian: p.stribeck_exponent == 2.0,
+            // Far above vs the Stribeck term is below half an ulp of Fc, so the sum is Fc
+            // exactly: exp(-50) < 2e-22, and rise < 1e5 Fc makes the term < 2e-17 Fc < 2^-54 Fc.
+            exact_plateau: rise_n < 1e5 * p.coulomb_n,
+        }
+    }
+
+    /// The force at sliding speed `speed` (>= 0, m/s), N.
+    #[inline]
+    fn force(&self, speed: f64) -> f64 {
+        let x = speed * self.inv_velocity;
+        let r = if self.gaussian {
+            x * x
+        } else {
+            x.powf(self.exponent)
+        };
+        if r > 50.0 && self.exact_plateau {
+            return self.coulomb_n;
+        }
+        self.coulomb_n + self.rise_n * exp(-r)
+    }
+}
+
 /// The state of one LuGre contact: the mean bristle deflection.
 #[derive(Clone, Copy, Debug, PartialEq, Default)]
 pub struct LuGre {
@@ -150,7 +176,7 @@ pub struct LuGreStep {
     active: bool,
     h: f64,
     inv_h: f64,
-    inv_stribeck: f64,
+    stribeck: Stribeck,
     inv_sigma0: f64,
     h_sigma0: f64,
     /// On the plateau `F = Fc`: `g = Fc/σ0` and `a h = |v| hσ0/Fc` (0 without Coulomb force).
@@ -167,7 +193,7 @@ impl LuGreStep {
             active: !(p.static_n == 0.0 && p.sigma2_n_s_per_m == 0.0),
             h,
             inv_h: 1.0 / h,
-            inv_stribeck: 1.0 / p.stribeck_m_s,
+            stribeck: Stribeck::new(p),
             inv_sigma0: 1.0 / p.sigma0_n_per_m,
             h_sigma0,
             coulomb_deflection: p.coulomb_n / p.sigma0_n_per_m,
@@ -193,7 +219,7 @@ impl LuGreStep {
     #[inline]
     pub(crate) fn slip(&self, v: f64) -> (f64, f64) {
         let speed = v.abs();
-        let force = self.params.stribeck_at(speed * self.inv_stribeck);
+        let force = self.stribeck.force(speed);
         if force == self.params.coulomb_n {
             (self.coulomb_deflection, speed * self.coulomb_a_h_per_speed)
         } else {
