@@ -242,7 +242,7 @@ pub fn simulate_with_replay(
         }
         let carriages = plant.carriages();
         let q = Vector3::from_fn(|i, _| carriages[i].position_m);
-        let direction = std::array::from_fn(|i| trackers[i].update(q[i]));
+        let direction = directions(&mut trackers, &q);
         if heat.accumulate(&sp, &carriages.map(|c| c.velocity_m_s), period, machine)? {
             evaluator = machine.volumetric.evaluator(&heat.deformation);
             if let Some(r) = replay.as_mut() {
@@ -279,6 +279,16 @@ pub fn simulate_with_replay(
         at_tests: &at_tests,
     };
     Ok((recorder.finish(&truth, settings, scenario_toml), replay))
+}
+
+/// The axes' direction states after they moved to `q` (a loop: `array::from_fn` leaves its
+/// closure out of line in this hot loop).
+fn directions(trackers: &mut [DirectionTracker; 3], q: &Vector3<f64>) -> [Direction; 3] {
+    let mut direction = [Direction::Forward; 3];
+    for ((d, t), x) in direction.iter_mut().zip(trackers).zip(q.iter()) {
+        *d = t.update(*x);
+    }
+    direction
 }
 
 /// The time at the middle of each circular test's data arcs, s (tests in job order, which is
@@ -614,7 +624,7 @@ impl Recorder {
                     encoder,
                     d.following_error_m(),
                     d.motor_force_n,
-                    d.params.current_a(d.motor_force_n),
+                    d.params().current_a(d.motor_force_n),
                     carriages[i].friction_force_n,
                     d.screw_friction_force_n,
                 ];

@@ -21,10 +21,11 @@
 //! this is stable for `h < (2/ω)(√(1+ζ²) - ζ)`; [`DriveParams::largest_stable_step_s`] applies it
 //! to the screw mode (k on the reduced mass of motor and carriage) and to the stuck bristles of
 //! both contacts (σ0 on the mass they hold), and a step beyond it is refused. The constants of
-//! a step (the current-lag factor `1 - exp(-h/Tc)`, `h/M_m` and `h/m`) are computed once per
-//! step size and parameter set, not every step.
+//! a step (the current-lag factor `1 - exp(-h/Tc)`, `h/M_m`, `h/m` and the friction contacts'
+//! [`LuGreStep`]) are computed once per step size, not every step; the parameters are fixed
+//! when the drive is built.
 
-use super::friction::{LuGre, LuGreParams};
+use super::friction::{LuGre, LuGreParams, LuGreStep, exp};
 use super::servo::{AxisCommand, ServoController, ServoParams};
 use super::transmission::ScrewParams;
 
@@ -139,13 +140,13 @@ pub struct CarriageState {
     pub friction_force_n: f64,
 }
 
-/// The motor side of a drive and its controller.
+/// The motor side of a drive and its controller. The parameters are fixed at construction
+/// (read them with [`Drive::params`] and [`Drive::servo`]): the constants derived from them are
+/// computed once.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Drive {
-    /// Physical parameters.
-    pub params: DriveParams,
-    /// Controller settings.
-    pub servo: ServoParams,
+    params: DriveParams,
+    servo: ServoParams,
     controller: ServoController,
     /// Motor angle as carriage travel, m.
     pub motor_position_m: f64,
@@ -159,50 +160,38 @@ pub struct Drive {
     pub screw_friction_force_n: f64,
     /// Force the screw exerted on the carriage in the last step, N.
     pub screw_force_n: f64,
+    /// [`DriveParams::total_mass_kg`], kg.
+    total_mass_kg: f64,
+    /// [`DriveParams::encoder_resolution_m`], m.
+    encoder_resolution_m: f64,
     /// Constants of the last step size.
-    step: MotorStep,
+    step: StepConstants,
 }
 
-/// The constants of a step of `h` seconds: the current-lag factor `1 - exp(-h/Tc)`, and
-/// `h/M_m` and `h/m` for the velocity updates of the motor side (reflected motor mass `M_m`)
-/// and of a lumped carriage (mass `m`), s/kg. Kept with the values they were computed from
-/// (`h`, `Tc`, `J`, lead, `m`), so that a change of any of them recomputes them.
+/// The constants of a step of `h` seconds: the current-lag factor `1 - exp(-h/Tc)`, `h/M_m`
+/// and `h/m` for the velocity updates of the motor side (reflected motor mass `M_m`) and of a
+/// lumped carriage (mass `m`), s/kg, and those of the two friction contacts.
 #[derive(Clone, Copy, Debug, PartialEq)]
-struct MotorStep {
-    key: Option<[f64; 5]>,
+struct StepConstants {
+    /// The step they are for, s (NaN: none yet).
+    h: f64,
     lag: f64,
     h_over_motor_mass: f64,
     h_over_carriage_mass: f64,
+    screw_friction: LuGreStep,
+    guide_friction: LuGreStep,
 }
 
-impl MotorStep {
-    /// Not computed yet.
-    const NONE: MotorStep = MotorStep {
-        key: None,
-        lag: 0.0,
-        h_over_motor_mass: 0.0,
-        h_over_carriage_mass: 0.0,
-    };
-
-    /// The constants for a step of `h` (s), recomputed only if `h` or a parameter changed.
-    #[inline]
-    fn get(&mut self, h: f64, params: &DriveParams, servo: &ServoParams) -> &MotorStep {
-        let key = Some([
+impl StepConstants {
+    fn new(h: f64, params: &DriveParams, servo: &ServoParams) -> Self {
+        Self {
             h,
-            servo.current_time_constant_s,
-            params.motor_inertia_kg_m2,
-            params.screw.lead_m,
-            params.carriage_mass_kg,
-        ]);
-        if key != self.key {
-            *self = MotorStep {
-                key,
-                lag: 1.0 - (-h / servo.current_time_constant_s).exp(),
-                h_over_motor_mass: h / params.reflected_motor_mass_kg(),
-                h_over_carriage_mass: h / params.carriage_mass_kg,
-            };
+            lag: 1.0 - (-h / servo.current_time_constant_s).exp(),
+            h_over_motor_mass: h / params.reflected_motor_mass_kg(),
+            h_over_carriage_mass: h / params.carriage_mass_kg,
+            screw_friction: LuGreStep::new(&params.screw_friction, h),
+            guide_friction: LuGreStep::new(&params.guide_friction, h),
         }
-        self
     }
 }
 
@@ -219,19 +208,32 @@ impl Drive {
             screw_friction: LuGre::default(),
             screw_friction_force_n: 0.0,
             screw_force_n: 0.0,
-            step: MotorStep::NONE,
+            total_mass_kg: params.total_mass_kg(),
+            encoder_resolution_m: params.encoder_resolution_m(),
+            step: StepConstants::new(f64::NAN, &params, &servo),
         }
+    }
+
+    /// Physical parameters.
+    pub fn params(&self) -> &DriveParams {
+        &self.params
+    }
+
+    /// Controller settings.
+    pub fn servo(&self) -> &ServoParams {
+        &self.servo
     }
 
     /// The quantised position feedback and motor encoder reading for a carriage at
     /// `carriage_m`, m.
+    #[inline]
     pub fn feedback(&self, carriage_m: f64) -> (f64, f64) {
-        let q = self.params.encoder_resolution_m();
-        let encoder = (self.motor_position_m / q).floor() * q;
+        let q = self.encoder_resolution_m;
+        let encoder = floor(self.motor_position_m / q) * q;
         let position = match self.params.feedback {
             Feedback::MotorEncoder => encoder,
             Feedback::LinearScale { resolution_m } => {
-                (carriage_m / resolution_m).floor() * resolution_m
+                floor(carriage_m / resolution_m) * resolution_m
             }
         };
         (position, encoder)
@@ -240,9 +242,14 @@ impl Drive {
     /// One servo period of the controller; returns the force reference, N.
     pub fn control(&mut self, cmd: &AxisCommand, carriage_m: f64, period_s: f64) -> f64 {
         let (position, encoder) = self.feedback(carriage_m);
-        let mass = self.params.total_mass_kg();
-        self.controller
-            .update(&self.servo, cmd, position, encoder, mass, period_s)
+        self.controller.update(
+            &self.servo,
+            cmd,
+            position,
+            encoder,
+            self.total_mass_kg,
+            period_s,
+        )
     }
 
     /// The controller's last following error (command minus feedback), m.
@@ -266,38 +273,89 @@ impl Drive {
         )
     }
 
-    /// Advances the motor side by `h` (s) against the screw force `screw_force_n` (N, the force
-    /// on the carriage; the motor feels its reaction).
+    /// Advances the motor side by `h` (s) against the screw and the guideway friction of
+    /// `carriage` by the same step (its bristles advance; its motion is the caller's), and
+    /// returns the net force on the carriage: screw force, guideway friction and `external_n`
+    /// (N). All forces are from the state at the start of the step.
     #[inline]
-    pub fn step_motor(&mut self, h: f64, screw_force_n: f64) {
-        let c = self.step.get(h, &self.params, &self.servo);
-        let (lag, h_over_mm) = (c.lag, c.h_over_motor_mass);
-        self.motor_force_n += (self.controller.force_reference_n - self.motor_force_n) * lag;
-        let friction =
-            self.screw_friction
-                .step(&self.params.screw_friction, self.motor_velocity_m_s, h);
-        self.motor_velocity_m_s += (self.motor_force_n - screw_force_n - friction) * h_over_mm;
+    pub fn step(&mut self, h: f64, carriage: &mut CarriageState, external_n: f64) -> f64 {
+        Self::step_all([(self, carriage)], [external_n], h)[0]
+    }
+
+    /// [`Drive::step`] for several drives and their carriages, stage by stage across them so
+    /// that their independent friction chains overlap in the pipeline.
+    #[inline]
+    pub fn step_all<const N: usize>(
+        mut axes: [(&mut Drive, &mut CarriageState); N],
+        external_n: [f64; N],
+        h: f64,
+    ) -> [f64; N] {
+        for (d, _) in axes.iter_mut().filter(|(d, _)| h != d.step.h) {
+            d.step = StepConstants::new(h, &d.params, &d.servo);
+        }
+        // Plain loops: array::map and from_fn leave their closures out of line here.
+        let (mut screw, mut guide_slip, mut screw_slip) =
+            ([0.0; N], [(0.0, 0.0); N], [(0.0, 0.0); N]);
+        for (i, (d, c)) in axes.iter().enumerate() {
+            screw[i] = d.screw_force(c);
+            guide_slip[i] = d.step.guide_friction.slip(c.velocity_m_s);
+            screw_slip[i] = d.step.screw_friction.slip(d.motor_velocity_m_s);
+        }
+        let (mut guide_decay, mut screw_decay) = ([0.0; N], [0.0; N]);
+        for i in 0..N {
+            guide_decay[i] = exp(-guide_slip[i].1);
+            screw_decay[i] = exp(-screw_slip[i].1);
+        }
+        let mut net = [0.0; N];
+        for (i, (d, c)) in axes.into_iter().enumerate() {
+            let (guide_step, screw_step) = (&d.step.guide_friction, &d.step.screw_friction);
+            let guide = guide_step.settle(
+                &mut c.friction,
+                c.velocity_m_s,
+                guide_slip[i],
+                guide_decay[i],
+            );
+            c.friction_force_n = guide;
+            let friction = screw_step.settle(
+                &mut d.screw_friction,
+                d.motor_velocity_m_s,
+                screw_slip[i],
+                screw_decay[i],
+            );
+            d.finish_step(h, screw[i], friction);
+            net[i] = screw[i] - guide + external_n[i];
+        }
+        net
+    }
+
+    /// The motor side's step with the screw force and the screw friction of the step, N.
+    #[inline]
+    fn finish_step(&mut self, h: f64, screw: f64, friction: f64) {
+        let c = &self.step;
+        self.motor_force_n += (self.controller.force_reference_n - self.motor_force_n) * c.lag;
+        self.motor_velocity_m_s += (self.motor_force_n - screw - friction) * c.h_over_motor_mass;
         self.motor_position_m += h * self.motor_velocity_m_s;
         self.screw_friction_force_n = friction;
-        self.screw_force_n = screw_force_n;
+        self.screw_force_n = screw;
     }
 }
 
-/// The net force on a carriage over a step of `h` (s): screw force, guideway friction (its
-/// bristles advance) and the external force, N.
+/// `x.floor()` without a library call: the x86-64 baseline has no rounding instruction
+/// (SSE4.1), so `f64::floor` is a function call. Exact for every `f64` (the truncation is exact
+/// below 2^52 in magnitude, where the rest are integers already; -0.0 and NaN pass through).
 #[inline]
-pub fn carriage_force(
-    params: &DriveParams,
-    carriage: &mut CarriageState,
-    screw_force_n: f64,
-    external_n: f64,
-    h: f64,
-) -> f64 {
-    let friction = carriage
-        .friction
-        .step(&params.guide_friction, carriage.velocity_m_s, h);
-    carriage.friction_force_n = friction;
-    screw_force_n - friction + external_n
+fn floor(x: f64) -> f64 {
+    if x.is_nan() || x.abs() >= 4_503_599_627_370_496.0 {
+        return x;
+    }
+    let t = x as i64 as f64;
+    if t == x {
+        x
+    } else if t > x {
+        t - 1.0
+    } else {
+        t
+    }
 }
 
 /// A drive and its carriage integrated together: the reduced plant of one axis.
@@ -329,12 +387,18 @@ impl ReducedAxis {
     /// Advances motor and carriage by `h` (s) with `external_n` (N) on the carriage.
     #[inline]
     pub fn step(&mut self, h: f64, external_n: f64) {
-        let screw = self.drive.screw_force(&self.carriage);
-        let p = &self.drive.params;
-        let force = carriage_force(p, &mut self.carriage, screw, external_n, h);
-        self.drive.step_motor(h, screw);
-        // step_motor has just refreshed the constants for this h.
-        self.carriage.velocity_m_s += force * self.drive.step.h_over_carriage_mass;
-        self.carriage.position_m += h * self.carriage.velocity_m_s;
+        Self::step_all(std::array::from_mut(self), h, [external_n]);
+    }
+
+    /// [`ReducedAxis::step`] for several axes, stage by stage ([`Drive::step_all`]).
+    #[inline]
+    pub fn step_all<const N: usize>(axes: &mut [ReducedAxis; N], h: f64, external_n: [f64; N]) {
+        let pairs = axes.each_mut().map(|a| (&mut a.drive, &mut a.carriage));
+        let force = Drive::step_all(pairs, external_n, h);
+        for (a, f) in axes.iter_mut().zip(force) {
+            // The drive's step has just refreshed the constants for this h.
+            a.carriage.velocity_m_s += f * a.drive.step.h_over_carriage_mass;
+            a.carriage.position_m += h * a.carriage.velocity_m_s;
+        }
     }
 }

@@ -31,7 +31,7 @@
 
 use super::{AxisLayout, Plant, PlantError};
 use rapier3d_f64::prelude::*;
-use vmt_model::drive::{AxisCommand, CarriageState, Drive, carriage_force};
+use vmt_model::drive::{AxisCommand, CarriageState, Drive};
 
 /// The target macro step of the multibody, s: rapier advances the links every
 /// `round(MULTIBODY_STEP_S / h)` fine plant steps (at least one).
@@ -263,12 +263,14 @@ impl Plant for MultibodyPlant {
     }
 
     fn step(&mut self, h: f64) {
-        let mut net = [0.0; 3];
-        for ((d, l), f) in self.drives.iter_mut().zip(&mut self.links).zip(&mut net) {
-            let screw = d.screw_force(&l.carriage);
-            *f = carriage_force(&d.params, &mut l.carriage, screw, 0.0, h);
-            d.step_motor(h, screw);
-        }
+        let [d0, d1, d2] = self.drives.each_mut();
+        let [l0, l1, l2] = self.links.each_mut();
+        let axes = [
+            (d0, &mut l0.carriage),
+            (d1, &mut l1.carriage),
+            (d2, &mut l2.carriage),
+        ];
+        let net = Drive::step_all(axes, [0.0; 3], h);
         for (i, l) in self.links.iter_mut().enumerate() {
             let m = &self.inv_mass[i];
             let a = m[0] * net[0] + m[1] * net[1] + m[2] * net[2] + self.bias_m_s2[i];

@@ -36,9 +36,7 @@ impl Plant for ReducedPlant {
     }
 
     fn step(&mut self, h: f64) {
-        for (a, g) in self.axes.iter_mut().zip(self.gravity_n) {
-            a.step(h, g);
-        }
+        ReducedAxis::step_all(&mut self.axes, h, self.gravity_n);
     }
 
     fn drive(&self, i: usize) -> &Drive {
