@@ -12,7 +12,8 @@
 //!   judges (and a drift between them shows).
 //! - Candidates: each tool-point mode (stiffness, natural frequency, damping ratio: the
 //!   spindle's and holder's compliance is part of the tool-point mode, as an impact test
-//!   measures it) and the cutting coefficients (Kt, Kr). Each is fitted on the calibration
+//!   measures it) and the radial cutting coefficient Kr (the tangential one scales the forced
+//!   response as the stiffness does, so it is left to the stiffness). Each is fitted on the calibration
 //!   pieces by Levenberg–Marquardt through the milling simulator (forward-difference Jacobian in
 //!   units of each parameter's step, damping `λ·diag(JᵀJ)`), and judged on the held-out pieces;
 //!   effects are added by forward selection while the calibration BIC drops and the held-out
@@ -188,7 +189,7 @@ impl MillingModel {
     }
 
     /// The candidates the model can express: each tool-point mode of its job's tool, and the
-    /// cutting coefficients. Steps and typical sizes are fractions of the model's values.
+    /// radial cutting coefficient. Steps and typical sizes are fractions of the model's values.
     pub fn library(&self) -> Vec<Effect> {
         let mut out = Vec::new();
         for axis in ['x', 'y'] {
@@ -224,25 +225,24 @@ impl MillingModel {
                 });
             }
         }
-        let coefficient = |name: &str, field: &str| {
-            let key = format!("job.material.{field}");
-            let v = self.value(&key).unwrap_or(0.0).abs();
-            Param {
-                name: name.into(),
+        // Only the radial coefficient: the tangential one sets the force level, which scales
+        // the forced response exactly as the tool-point stiffness does (the response is
+        // F·H(ω) with H ∝ 1/k), so accelerometer logs cannot tell the two apart and the
+        // stiffness carries the level. Kr turns the force and changes the harmonics apart.
+        let key = "job.material.kr_n_per_mm2".to_string();
+        let kr = self.value(&key).unwrap_or(0.0).abs();
+        out.push(Effect {
+            key: "radial_force".into(),
+            description: "radial cutting coefficient of the material (the force's direction)"
+                .into(),
+            params: vec![Param {
+                name: "Kr".into(),
                 unit: "N/mm2",
                 keys: vec![key],
-                step: 0.02 * v,
-                typical: 0.15 * v,
+                step: 0.02 * kr,
+                typical: 0.25 * kr,
                 increase_only: false,
-            }
-        };
-        out.push(Effect {
-            key: "cutting_coefficients".into(),
-            description: "specific cutting force of the material (tangential and radial)".into(),
-            params: vec![
-                coefficient("Kt", "kt_n_per_mm2"),
-                coefficient("Kr", "kr_n_per_mm2"),
-            ],
+            }],
             baseline: false,
         });
         out
