@@ -25,6 +25,11 @@ pub trait Forward: Sync {
     fn value(&self, key: &str) -> Option<f64>;
     /// The traces of the job with `(key, value)` written into the model.
     fn traces(&self, values: &[(String, f64)]) -> Result<Vec<Trace>, GapError>;
+    /// Whether an offset at `key` is answered without a new simulation once the model as given
+    /// has run (it changes what the instrument reads, not the motion).
+    fn replayable(&self, _key: &str) -> bool {
+        false
+    }
 }
 
 /// A scenario file as a forward model.
@@ -120,6 +125,10 @@ impl Forward for ScenarioModel {
         self.template.value(key).ok().flatten()
     }
 
+    fn replayable(&self, key: &str) -> bool {
+        KINEMATIC.iter().any(|p| key.starts_with(p))
+    }
+
     fn traces(&self, values: &[(String, f64)]) -> Result<Vec<Trace>, GapError> {
         let pairs: Vec<(&str, f64)> = values.iter().map(|(k, v)| (k.as_str(), *v)).collect();
         let text = self
@@ -132,9 +141,7 @@ impl Forward for ScenarioModel {
         };
         let sim_error =
             |e: vmt_sim::simulate::SimError| GapError::Model(format!("{}: {e}", self.file));
-        let kinematic = values
-            .iter()
-            .all(|(k, _)| KINEMATIC.iter().any(|p| k.starts_with(p)));
+        let kinematic = values.iter().all(|(k, _)| self.replayable(k));
         let ballbar: Vec<BallbarTrace> = match self.base.get() {
             Some(base) if kinematic => {
                 self.replays.fetch_add(1, Ordering::Relaxed);

@@ -593,17 +593,31 @@ impl Linearisation {
     /// Simulates `model` as given and once per available parameter of `library`.
     pub fn new(model: &dyn Forward, library: &[Effect]) -> Result<Self, GapError> {
         let (available, unavailable) = availability(model, library);
-        let base = model.traces(&[])?;
+        let stepped_traces = |p: &Available| {
+            let values: Vec<(String, f64)> = p
+                .keys
+                .iter()
+                .map(|(k, v)| (k.clone(), v + p.step))
+                .collect();
+            model.traces(&values)
+        };
+        // Parameters that change the motion are simulated beside the model as given; those a
+        // replay of its recorded motion answers wait for it.
+        let replayable = |p: &Available| p.keys.iter().all(|(k, _)| model.replayable(k));
+        let (base, moving) = rayon::join(
+            || model.traces(&[]),
+            || {
+                available
+                    .par_iter()
+                    .map(|p| (!replayable(p)).then(|| stepped_traces(p)).transpose())
+                    .collect::<Result<Vec<Option<Vec<Trace>>>, GapError>>()
+            },
+        );
+        let (base, moving) = (base?, moving?);
         let stepped = available
             .par_iter()
-            .map(|p| {
-                let values: Vec<(String, f64)> = p
-                    .keys
-                    .iter()
-                    .map(|(k, v)| (k.clone(), v + p.step))
-                    .collect();
-                model.traces(&values)
-            })
+            .zip(moving)
+            .map(|(p, done)| done.map_or_else(|| stepped_traces(p), Ok))
             .collect::<Result<_, GapError>>()?;
         Ok(Self {
             available,
@@ -750,7 +764,10 @@ pub fn select_without(
         (initial_pairs.clone(), stack(&initial_bins, &split.held_out));
     // A gap already at the explained floor needs no effect: the model as given explains the
     // measurement to the level of its small mismatches.
-    while chosen.len() < o.max_effects && held_out_before_um > o.explained_floor_um {
+    while chosen.len() < o.max_effects
+        && held_out_before_um > o.explained_floor_um
+        && can_change(cur_held, sel.held0.len(), o)
+    {
         let candidates: Vec<Candidate> = sel
             .candidates(&chosen, cur_bic)
             .into_iter()
@@ -813,6 +830,15 @@ pub fn select_without(
         simulations: sel.simulations,
         split,
     })
+}
+
+/// Whether an effect could still pass: its change `c` of the held-out residual `r` (RMS) must
+/// reach [`Options::min_effect_um`] while leaving at most `1 − s` of the mean square, and
+/// `c ≤ rms(r) + rms(r_new) ≤ rms(r)·(1 + sqrt(1 − s))`; a residual below that bound needs no
+/// candidate simulated.
+fn can_change(held_rss: f64, n: usize, o: &Options) -> bool {
+    let now = (held_rss / n.max(1) as f64).sqrt();
+    now * (1.0 + (1.0 - o.min_held_out_shrink).max(0.0).sqrt()) >= o.min_effect_um
 }
 
 fn simulate_at(
