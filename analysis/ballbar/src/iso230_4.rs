@@ -285,38 +285,116 @@ thread_local! {
 
 /// Largest |e_a(θ) − e_b(θ)| at the angles of `a` that `b` covers (linear interpolation of b).
 /// The path of `b` is sorted by angle (stably: a trace is a few monotonic runs, which the sort
-/// merges in linear time); `a` is taken in its own order, each sample finding its neighbours in
-/// `b` by stepping from where the previous one's were (`a` moves monotonically round the
-/// circle), and the maximum does not depend on the order.
+/// merges in linear time). The samples of `a` are taken in blocks, each with a bound on the
+/// differences in it from the extremes of e_a and of the samples of `b` it can fall between:
+/// blocks are evaluated largest bound first, until the bound falls below the largest difference
+/// found (the rest cannot hold the maximum, which is the same value, computed the same way).
 fn hysteresis(a: &Arc, b: &Arc, c: &Circle) -> Option<f64> {
     PATH.with(|cell| {
         let pb = &mut *cell.borrow_mut();
         pb.clear();
         pb.extend(path(b, c));
         pb.sort_by(|x, y| x.0.total_cmp(&y.0));
-        let max_step = 2.0 * crate::trace::MAX_GAP_DEG;
+        let n = a.t.angle_deg.len();
+        let mut blocks: Vec<(f64, usize)> = (0..n)
+            .step_by(BLOCK)
+            .map(|i| (block_bound(a, c, pb, i..(i + BLOCK).min(n)), i))
+            .collect();
+        blocks.sort_unstable_by(|x, y| y.0.total_cmp(&x.0));
         let (mut worst, mut found) = (0.0f64, false);
-        let mut k = 0;
-        for (x, e) in path(a, c) {
-            k = first_at_or_after(pb, x, k);
-            if k == 0 || k == pb.len() {
-                continue;
+        for (bound, i) in blocks {
+            if bound < worst {
+                break;
             }
-            let (lo, hi) = (pb[k - 1], pb[k]);
-            if hi.0 - lo.0 > max_step {
-                continue;
+            if let Some(w) = block_worst(a, c, pb, i..(i + BLOCK).min(n)) {
+                worst = worst.max(w);
+                found = true;
             }
-            let w = if hi.0 > lo.0 {
-                (x - lo.0) / (hi.0 - lo.0)
-            } else {
-                0.0
-            };
-            let eb = lo.1 + w * (hi.1 - lo.1);
-            worst = worst.max((e - eb).abs());
-            found = true;
         }
         found.then_some(worst)
     })
+}
+
+/// Samples of `a` per block in [`hysteresis`].
+const BLOCK: usize = 64;
+
+/// An upper bound of the differences [`block_worst`] finds for the samples `range` of `a`
+/// (−∞ when none of them falls between two samples of `b`; +∞ when their angles wrap round).
+/// Interpolation stays between the two samples of `b` to a few ulps, which the margin covers.
+fn block_bound(a: &Arc, c: &Circle, pb: &[(f64, f64)], range: std::ops::Range<usize>) -> f64 {
+    let (mut e_lo, mut e_hi) = (f64::INFINITY, f64::NEG_INFINITY);
+    let (mut t_lo, mut t_hi) = (f64::INFINITY, f64::NEG_INFINITY);
+    let angles = &a.t.angle_deg[range.clone()];
+    let (cos, sin, d) = (
+        &a.cos[range.clone()],
+        &a.sin[range.clone()],
+        &a.t.deviation_um[range],
+    );
+    for (((t, co), s), d) in angles.iter().zip(cos).zip(sin).zip(d) {
+        let e = c.radial_cs(*co, *s, *d);
+        e_lo = if e < e_lo { e } else { e_lo };
+        e_hi = if e > e_hi { e } else { e_hi };
+        t_lo = if *t < t_lo { *t } else { t_lo };
+        t_hi = if *t > t_hi { *t } else { t_hi };
+    }
+    // rem360 is exact, so monotonic within a turn; the ends in one turn hold the block in it.
+    let (x_lo, x_hi) = (rem360(t_lo), rem360(t_hi));
+    if x_lo > x_hi || t_hi - t_lo >= 360.0 {
+        return f64::INFINITY;
+    }
+    // Every sample's neighbours are pb[k − 1] and pb[k] with k between those of the ends.
+    let first = pb.partition_point(|q| q.0 < x_lo).max(1);
+    let last = pb
+        .partition_point(|q| q.0 < x_hi)
+        .min(pb.len().saturating_sub(1));
+    if first > last {
+        return f64::NEG_INFINITY;
+    }
+    let (b_lo, b_hi) = pb[first - 1..=last]
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), q| {
+            (lo.min(q.1), hi.max(q.1))
+        });
+    let margin = 1e-12 * (e_lo.abs() + e_hi.abs() + b_lo.abs() + b_hi.abs());
+    (e_hi - b_lo).max(b_hi - e_lo) + margin
+}
+
+/// The largest |e_a − e_b| over the samples `range` of `a` that fall between two samples of
+/// the sorted path `pb` at most two gaps apart, None when none does.
+fn block_worst(
+    a: &Arc,
+    c: &Circle,
+    pb: &[(f64, f64)],
+    range: std::ops::Range<usize>,
+) -> Option<f64> {
+    let max_step = 2.0 * crate::trace::MAX_GAP_DEG;
+    let (mut worst, mut found) = (0.0f64, false);
+    let mut k = 0;
+    let (t, d) = (
+        &a.t.angle_deg[range.clone()],
+        &a.t.deviation_um[range.clone()],
+    );
+    let (cos, sin) = (&a.cos[range.clone()], &a.sin[range]);
+    for (((t, co), s), d) in t.iter().zip(cos).zip(sin).zip(d) {
+        let (x, e) = (rem360(*t), c.radial_cs(*co, *s, *d));
+        k = first_at_or_after(pb, x, k);
+        if k == 0 || k == pb.len() {
+            continue;
+        }
+        let (lo, hi) = (pb[k - 1], pb[k]);
+        if hi.0 - lo.0 > max_step {
+            continue;
+        }
+        let w = if hi.0 > lo.0 {
+            (x - lo.0) / (hi.0 - lo.0)
+        } else {
+            0.0
+        };
+        let eb = lo.1 + w * (hi.1 - lo.1);
+        worst = worst.max((e - eb).abs());
+        found = true;
+    }
+    found.then_some(worst)
 }
 
 /// The index of the first element of the sorted path `p` at or after angle `x`, stepping from
@@ -434,6 +512,38 @@ mod tests {
         assert!(d.minimum_zone_um.unwrap() <= d.circular_deviation_um + 1e-9);
         assert!((f.hysteresis_um.unwrap() - 1.5).abs() < 1e-6);
         assert!((f.bidirectional_deviation_um.unwrap() - 9.5).abs() < 1e-6);
+    }
+
+    /// The hysteresis found block by block is the largest difference over all samples: noisy
+    /// paths, angles stepping back, and a CW run that starts elsewhere and wraps round.
+    #[test]
+    fn hysteresis_by_blocks_equals_the_walk_over_every_sample() {
+        let noise = |i: usize| ((i * 7919 % 1013) as f64 / 1013.0 - 0.5) * 0.8;
+        for (start, sweep) in [(0.0, 360.0), (37.0, 250.0), (300.0, 370.0)] {
+            let mut cw = trace(Sense::Cw, |th| 3.0 * (2.0 * th).cos() + 0.7);
+            let mut ccw = trace(Sense::Ccw, |th| 3.0 * (2.0 * th).cos());
+            for t in [&mut cw, &mut ccw] {
+                let n = (sweep * 10.0) as usize;
+                let g = t.sense.sign();
+                t.angle_deg = (0..n)
+                    .map(|i| start + g * (i as f64 * 0.1 - if i % 5 == 2 { 0.04 } else { 0.0 }))
+                    .collect();
+                t.deviation_um = (0..n)
+                    .map(|i| t.deviation_um[i % 3600] + noise(i))
+                    .collect();
+            }
+            let (a, b) = (Arc::new(&cw), Arc::new(&ccw));
+            let c = least_squares_circle(&[&cw, &ccw]);
+            let blocks = hysteresis(&a, &b, &c).unwrap();
+            let mut pb: Path = path(&b, &c).collect();
+            pb.sort_by(|x, y| x.0.total_cmp(&y.0));
+            let walk = block_worst(&a, &c, &pb, 0..cw.angle_deg.len()).unwrap();
+            assert_eq!(
+                blocks.to_bits(),
+                walk.to_bits(),
+                "start {start}, sweep {sweep}"
+            );
+        }
     }
 
     /// The minimum zone found by Nelder–Mead matches a brute-force search over centres and is
