@@ -180,12 +180,14 @@ fn figures_of(arcs: &[Arc], minimum_zone: bool) -> Figures {
     let both = arcs.len() == 2 && arcs[0].t.sense != arcs[1].t.sense;
     let common = both.then(|| circle_of_sums(&sums));
     let mut lo_hi = (f64::INFINITY, f64::NEG_INFINITY);
+    let mut blocks = Vec::new();
     let directions = arcs
         .iter()
         .zip(&sums)
         .map(|(a, s)| {
             let own = circle_of_sums(std::slice::from_ref(s));
-            let [bounds, about_common] = radial_bounds(a, [own, common.unwrap_or(own)]);
+            let (bounds, about_common, b) = radial_bounds(a, own, common.unwrap_or(own));
+            blocks.push(b);
             lo_hi = (lo_hi.0.min(about_common.0), lo_hi.1.max(about_common.1));
             directional(a, own, bounds, minimum_zone)
         })
@@ -194,7 +196,7 @@ fn figures_of(arcs: &[Arc], minimum_zone: bool) -> Figures {
         directions,
         bidirectional_deviation_um: common.map(|_| lo_hi.1 - lo_hi.0),
         hysteresis_um: common
-            .and_then(|c| hysteresis(&arcs[0], &arcs[1], &c))
+            .and_then(|c| hysteresis(&arcs[0], &blocks[0], &arcs[1], &c))
             .filter(|h| h.is_finite()),
     }
 }
@@ -219,16 +221,49 @@ fn radial(a: &Arc, c: &Circle) -> Vec<f64> {
         .collect()
 }
 
-/// (min, max) of the radial deviation of `a` about each of two centres, in one pass.
-fn radial_bounds(a: &Arc, c: [Circle; 2]) -> [(f64, f64); 2] {
-    let mut out = [(f64::INFINITY, f64::NEG_INFINITY); 2];
-    for (co, s, d) in a.samples() {
-        for (b, c) in out.iter_mut().zip(&c) {
-            let x = c.radial_cs(co, s, d);
-            *b = (b.0.min(x), b.1.max(x));
-        }
-    }
-    out
+/// (min, max) of the radial deviation of `a` about `own` and about `common`, and the
+/// [`Extremes`] of each block of [`BLOCK`] samples about `common`, in one pass.
+fn radial_bounds(a: &Arc, own: Circle, common: Circle) -> (Bounds, Bounds, Vec<Extremes>) {
+    let (mut about_own, mut about_common) = (EMPTY, EMPTY);
+    let n = a.t.angle_deg.len();
+    let blocks = (0..n)
+        .step_by(BLOCK)
+        .map(|i| {
+            let r = i..(i + BLOCK).min(n);
+            let (t, d) = (&a.t.angle_deg[r.clone()], &a.t.deviation_um[r.clone()]);
+            let (cos, sin) = (&a.cos[r.clone()], &a.sin[r]);
+            let (mut x, mut b) = (EMPTY, Extremes { e: EMPTY, t: EMPTY });
+            for j in 0..t.len() {
+                widen(&mut x, own.radial_cs(cos[j], sin[j], d[j]));
+                widen(&mut b.e, common.radial_cs(cos[j], sin[j], d[j]));
+                widen(&mut b.t, t[j]);
+            }
+            about_own = (about_own.0.min(x.0), about_own.1.max(x.1));
+            about_common = (about_common.0.min(b.e.0), about_common.1.max(b.e.1));
+            b
+        })
+        .collect();
+    (about_own, about_common, blocks)
+}
+
+/// (min, max) of some values.
+type Bounds = (f64, f64);
+
+/// The bounds of no values.
+const EMPTY: Bounds = (f64::INFINITY, f64::NEG_INFINITY);
+
+/// Widens `b` to hold `x` (by comparisons, which the compiler keeps in vector registers).
+#[inline]
+fn widen(b: &mut Bounds, x: f64) {
+    b.0 = if x < b.0 { x } else { b.0 };
+    b.1 = if x > b.1 { x } else { b.1 };
+}
+
+/// The extremes of a block of samples: radial deviation about the common centre and angle.
+#[derive(Clone, Copy, Debug)]
+struct Extremes {
+    e: Bounds,
+    t: Bounds,
 }
 
 fn bounds(v: &[f64]) -> (f64, f64) {
@@ -289,20 +324,21 @@ thread_local! {
 /// differences in it from the extremes of e_a and of the samples of `b` it can fall between:
 /// blocks are evaluated largest bound first, until the bound falls below the largest difference
 /// found (the rest cannot hold the maximum, which is the same value, computed the same way).
-fn hysteresis(a: &Arc, b: &Arc, c: &Circle) -> Option<f64> {
+fn hysteresis(a: &Arc, blocks: &[Extremes], b: &Arc, c: &Circle) -> Option<f64> {
     PATH.with(|cell| {
         let pb = &mut *cell.borrow_mut();
         pb.clear();
         pb.extend(path(b, c));
         pb.sort_by(|x, y| x.0.total_cmp(&y.0));
         let n = a.t.angle_deg.len();
-        let mut blocks: Vec<(f64, usize)> = (0..n)
-            .step_by(BLOCK)
-            .map(|i| (block_bound(a, c, pb, i..(i + BLOCK).min(n)), i))
+        let mut order: Vec<(f64, usize)> = blocks
+            .iter()
+            .enumerate()
+            .map(|(j, x)| (block_bound(x, pb), j * BLOCK))
             .collect();
-        blocks.sort_unstable_by(|x, y| y.0.total_cmp(&x.0));
+        order.sort_unstable_by(|x, y| y.0.total_cmp(&x.0));
         let (mut worst, mut found) = (0.0f64, false);
-        for (bound, i) in blocks {
+        for (bound, i) in order {
             if bound < worst {
                 break;
             }
@@ -315,31 +351,17 @@ fn hysteresis(a: &Arc, b: &Arc, c: &Circle) -> Option<f64> {
     })
 }
 
-/// Samples of `a` per block in [`hysteresis`].
+/// Samples per block of [`radial_bounds`] and [`hysteresis`].
 const BLOCK: usize = 64;
 
-/// An upper bound of the differences [`block_worst`] finds for the samples `range` of `a`
-/// (−∞ when none of them falls between two samples of `b`; +∞ when their angles wrap round).
-/// Interpolation stays between the two samples of `b` to a few ulps, which the margin covers.
-fn block_bound(a: &Arc, c: &Circle, pb: &[(f64, f64)], range: std::ops::Range<usize>) -> f64 {
-    let (mut e_lo, mut e_hi) = (f64::INFINITY, f64::NEG_INFINITY);
-    let (mut t_lo, mut t_hi) = (f64::INFINITY, f64::NEG_INFINITY);
-    let angles = &a.t.angle_deg[range.clone()];
-    let (cos, sin, d) = (
-        &a.cos[range.clone()],
-        &a.sin[range.clone()],
-        &a.t.deviation_um[range],
-    );
-    for (((t, co), s), d) in angles.iter().zip(cos).zip(sin).zip(d) {
-        let e = c.radial_cs(*co, *s, *d);
-        e_lo = if e < e_lo { e } else { e_lo };
-        e_hi = if e > e_hi { e } else { e_hi };
-        t_lo = if *t < t_lo { *t } else { t_lo };
-        t_hi = if *t > t_hi { *t } else { t_hi };
-    }
+/// An upper bound of the differences [`block_worst`] finds for a block of samples with the
+/// extremes `x` (−∞ when none of them falls between two samples of `b`; +∞ when their angles
+/// wrap round). Interpolation stays between the two samples of `b` to a few ulps, which the
+/// margin covers.
+fn block_bound(x: &Extremes, pb: &[(f64, f64)]) -> f64 {
     // rem360 is exact, so monotonic within a turn; the ends in one turn hold the block in it.
-    let (x_lo, x_hi) = (rem360(t_lo), rem360(t_hi));
-    if x_lo > x_hi || t_hi - t_lo >= 360.0 {
+    let (x_lo, x_hi) = (rem360(x.t.0), rem360(x.t.1));
+    if x_lo > x_hi || x.t.1 - x.t.0 >= 360.0 {
         return f64::INFINITY;
     }
     // Every sample's neighbours are pb[k − 1] and pb[k] with k between those of the ends.
@@ -350,13 +372,13 @@ fn block_bound(a: &Arc, c: &Circle, pb: &[(f64, f64)], range: std::ops::Range<us
     if first > last {
         return f64::NEG_INFINITY;
     }
-    let (b_lo, b_hi) = pb[first - 1..=last]
-        .iter()
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), q| {
-            (lo.min(q.1), hi.max(q.1))
-        });
-    let margin = 1e-12 * (e_lo.abs() + e_hi.abs() + b_lo.abs() + b_hi.abs());
-    (e_hi - b_lo).max(b_hi - e_lo) + margin
+    let mut b = EMPTY;
+    for q in &pb[first - 1..=last] {
+        widen(&mut b, q.1);
+    }
+    let (e, b) = (x.e, b);
+    let margin = 1e-12 * (e.0.abs() + e.1.abs() + b.0.abs() + b.1.abs());
+    (e.1 - b.0).max(b.1 - e.0) + margin
 }
 
 /// The largest |e_a − e_b| over the samples `range` of `a` that fall between two samples of
@@ -534,7 +556,8 @@ mod tests {
             }
             let (a, b) = (Arc::new(&cw), Arc::new(&ccw));
             let c = least_squares_circle(&[&cw, &ccw]);
-            let blocks = hysteresis(&a, &b, &c).unwrap();
+            let (_, _, extremes) = radial_bounds(&a, c, c);
+            let blocks = hysteresis(&a, &extremes, &b, &c).unwrap();
             let mut pb: Path = path(&b, &c).collect();
             pb.sort_by(|x, y| x.0.total_cmp(&y.0));
             let walk = block_worst(&a, &c, &pb, 0..cw.angle_deg.len()).unwrap();
