@@ -706,15 +706,18 @@ pub fn nufft(
         } = cache;
         let fft = planner.plan_fft_forward(m_r);
         scratch.resize(fft.get_scratch_len(), Complex::default());
+        // The Gaussian's transform divided out, once for both sums.
+        let root = (std::f64::consts::PI / tau).sqrt();
+        let factor: Vec<f64> = (0..=n_max)
+            .map(|n| root * (n as f64 * n as f64 * tau).exp() / m_r as f64)
+            .collect();
         let mut out = |g: &mut Vec<f64>| {
             let mut spec = fft.make_output_vec();
             fft.process_with_scratch(g, &mut spec, scratch)
                 .expect("buffers of the planned lengths");
             spec.truncate(n_max + 1);
-            for (n, z) in spec.iter_mut().enumerate() {
-                let f = (std::f64::consts::PI / tau).sqrt() * (n as f64 * n as f64 * tau).exp()
-                    / m_r as f64;
-                *z = z.conj() * f;
+            for (z, f) in spec.iter_mut().zip(&factor) {
+                *z = z.conj() * *f;
             }
             spec
         };
