@@ -305,15 +305,16 @@ impl TrigBlock {
             }
             return;
         }
-        let n = a.len();
-        for i in 0..n {
-            (self.e[i], self.k[i]) = reduce(a[i]);
+        for ((e, k), a) in self.e.iter_mut().zip(&mut self.k).zip(a) {
+            (*e, *k) = reduce(*a);
         }
-        for i in 0..n {
-            (self.c0[i], self.s0[i]) = table[self.k[i] & (TABLE_N - 1)];
+        let at = self.c0.iter_mut().zip(&mut self.s0);
+        for ((c0, s0), k) in at.zip(&self.k[..a.len()]) {
+            (*c0, *s0) = table[*k & (TABLE_N - 1)];
         }
-        for i in 0..n {
-            (sin[i], cos[i]) = rotate(self.e[i], (self.c0[i], self.s0[i]));
+        let out = sin.iter_mut().zip(cos.iter_mut());
+        for (((s, c), e), (c0, s0)) in out.zip(&self.e).zip(self.c0.iter().zip(&self.s0)) {
+            (*s, *c) = rotate(*e, (*c0, *s0));
         }
     }
 }
