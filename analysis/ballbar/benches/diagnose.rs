@@ -20,6 +20,20 @@
 //! (tabulated trig 9 %, residual 9 %, hysteresis 8 %, the 56 250-point FFTs 9 %, moving means
 //! 4 %, ISO sums and bounds 7 %, medians 9 %, cyclic search 4 %); the rest would need the
 //! passes fused into one blockwise sweep per trace.
+//!
+//! After the second perf-diagnose pass (same machine, load average 2–6; same method): about
+//! 4.2 ms CPU per diagnosis against 5.4 ms for the build before it in the same runs (medians of
+//! five alternating runs; the pairs differ by 0.3–1.9 ms), 47.7 M instructions against 55.3 M;
+//! criterion 4.6 ms wall clock (215/s) on the less loaded machine. Gained by: the hysteresis
+//! evaluated only in the blocks of samples whose bound can beat the largest difference found
+//! (9.4 M to 4.4 M instructions), the ISO bounds and those blocks' extremes in one pass, the
+//! tabulated trig in blocks whose loops run on vectors (6.0 M to 4.2 M), one median of the
+//! spectrum (the strongest line's) instead of one per trace; every figure bit-identical. The
+//! build targets plain x86-64 (SSE2): loops with selects or table look-ups stay scalar. Where
+//! the instructions now go: ISO figures 20 % (sums 4 %, bounds 6 %, hysteresis path, sort and
+//! blocks 9 %), FFTs 9 %, the rest of the vibration search 5 %, trig 9 %, residual evaluation
+//! 10 %, moving means 6 %, medians of the noise and the start transient 11 %, cyclic search
+//! 7 %, fit 5 %, validation and reversals 5 %. The goal of 1000/s is still not met.
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use vmt_ballbar::synthetic::{Errors, test};

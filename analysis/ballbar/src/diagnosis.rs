@@ -701,11 +701,8 @@ fn spike_finding(residuals: &[Residual], axis: usize, letter: char, noise: f64) 
 }
 
 fn vibration_finding(residuals: &[Residual], noise: f64) -> Option<Finding> {
-    let best = residuals
-        .iter()
-        .filter_map(|r| features::vibration(r, 5.0).map(|v| (v, r.r.len())))
-        .max_by(|a, b| a.0.1.total_cmp(&b.0.1))?;
-    let ((hz, amp, median), n) = best;
+    let (hz, amp, median, i) = features::vibration(residuals, 5.0)?;
+    let n = residuals[i].r.len();
     let se = noise * (2.0 / n as f64).sqrt();
     let present = 2.0 * amp >= MIN_CONTRIBUTION_UM && amp >= 10.0 * median.max(se);
     Some(Finding {

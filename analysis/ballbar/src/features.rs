@@ -447,13 +447,14 @@ pub fn stick_slip(residuals: &[Residual], axis: usize) -> Option<(f64, f64, f64)
 }
 
 /// FFT plans and buffers kept between diagnoses on a thread: the planner, the real input, the
-/// spectrum, the scratch and the power per bin.
+/// spectrum, the scratch, the power per bin, and the power of the strongest line's spectrum.
 struct FftCache {
     planner: RealFftPlanner<f64>,
     input: Vec<f64>,
     spectrum: Vec<Complex<f64>>,
     scratch: Vec<Complex<f64>>,
     power: Vec<f64>,
+    best: Vec<f64>,
 }
 
 thread_local! {
@@ -463,66 +464,107 @@ thread_local! {
         spectrum: Vec::new(),
         scratch: Vec::new(),
         power: Vec::new(),
+        best: Vec::new(),
     });
 }
 
-/// The strongest line of the residual's spectrum above `min_hz`: (frequency Hz, amplitude µm,
-/// median amplitude of the spectrum µm).
-pub fn vibration(res: &Residual, min_hz: f64) -> Option<(f64, f64, f64)> {
+/// The strongest line above `min_hz` in the spectra of the residuals: (frequency Hz, amplitude
+/// µm, median amplitude of that residual's spectrum µm, index of the residual). The last of
+/// equally strong lines; the median only of the spectrum that holds it.
+pub fn vibration(residuals: &[Residual], min_hz: f64) -> Option<(f64, f64, f64, usize)> {
+    FFT.with(|cell| {
+        let cache = &mut *cell.borrow_mut();
+        let mut best: Option<(Line, usize)> = None;
+        for (i, res) in residuals.iter().enumerate() {
+            let Some(line) = strongest_line(res, min_hz, cache) else {
+                continue;
+            };
+            if best
+                .as_ref()
+                .is_none_or(|(b, _)| line.amplitude >= b.amplitude)
+            {
+                std::mem::swap(&mut cache.power, &mut cache.best);
+                best = Some((line, i));
+            }
+        }
+        let (line, i) = best?;
+        let median = line.amplitude_of(median(&cache.best[line.bins.clone()]));
+        Some((line.hz, line.amplitude, median, i))
+    })
+}
+
+/// A line of a spectrum of `n` points: frequency, amplitude and the bins searched.
+#[derive(Clone, Debug)]
+struct Line {
+    hz: f64,
+    amplitude: f64,
+    n: usize,
+    bins: std::ops::Range<usize>,
+}
+
+impl Line {
+    /// The amplitude (µm) of a bin of power `p`.
+    fn amplitude_of(&self, p: f64) -> f64 {
+        2.0 * p.sqrt() / self.n as f64
+    }
+}
+
+/// The strongest line of the residual's spectrum above `min_hz`, its power per bin left in
+/// `cache.power`.
+fn strongest_line(res: &Residual, min_hz: f64, cache: &mut FftCache) -> Option<Line> {
     // The longest prefix whose length has only the factors 2, 3 and 5: a fast FFT size (the
     // full length can be a product of large primes, which costs an order of magnitude more).
     let n = smooth_length(res.r.len());
     if n < 64 {
         return None;
     }
-    FFT.with(|cell| {
-        let cache = &mut *cell.borrow_mut();
-        let FftCache {
-            planner,
-            input,
-            spectrum,
-            scratch,
-            power,
-        } = cache;
-        let fft = planner.plan_fft_forward(n);
-        let r = &res.r[..n];
-        let mean = sum(r) / n as f64;
-        input.clear();
-        input.extend(r.iter().map(|x| x - mean));
-        spectrum.resize(n / 2 + 1, Complex::default());
-        scratch.resize(fft.get_scratch_len(), Complex::default());
-        fft.process_with_scratch(input, spectrum, scratch).ok()?;
-        let df = 1000.0 / (res.dt_ms * n as f64);
-        // The line and the median are found on the power |c|²: the amplitude is a
-        // non-decreasing function of it, so only the bins reported need their square root.
-        let amplitude = |p: f64| 2.0 * p.sqrt() / n as f64;
-        power.clear();
-        power.extend(spectrum.iter().map(|c| c.re * c.re + c.im * c.im));
-        let first = ((min_hz / df).ceil() as usize).max(1);
-        if first + 8 >= power.len() {
-            return None;
-        }
-        let last = power.len() - 1;
-        let (k, p) = power[first..last]
-            .iter()
-            .enumerate()
-            .max_by(|x, y| x.1.total_cmp(y.1))
-            .map(|(k, p)| (k + first, *p))?;
-        let a = amplitude(p);
-        // Energy of a line between bins: sum the neighbours in quadrature (window-free leakage).
-        let lo = k.saturating_sub(1).max(first);
-        let a_line = power[lo..=(k + 1).min(power.len() - 1)]
-            .iter()
-            .map(|p| amplitude(*p).powi(2))
-            .sum::<f64>()
-            .sqrt()
-            .max(a);
-        Some((
-            k as f64 * df,
-            a_line,
-            amplitude(median(&power[first..last])),
-        ))
-    })
+    let FftCache {
+        planner,
+        input,
+        spectrum,
+        scratch,
+        power,
+        ..
+    } = cache;
+    let fft = planner.plan_fft_forward(n);
+    let r = &res.r[..n];
+    let mean = sum(r) / n as f64;
+    input.clear();
+    input.extend(r.iter().map(|x| x - mean));
+    spectrum.resize(n / 2 + 1, Complex::default());
+    scratch.resize(fft.get_scratch_len(), Complex::default());
+    fft.process_with_scratch(input, spectrum, scratch).ok()?;
+    let df = 1000.0 / (res.dt_ms * n as f64);
+    // The line and the median are found on the power |c|²: the amplitude is a non-decreasing
+    // function of it, so only the bins reported need their square root.
+    power.clear();
+    power.extend(spectrum.iter().map(|c| c.re * c.re + c.im * c.im));
+    let first = ((min_hz / df).ceil() as usize).max(1);
+    if first + 8 >= power.len() {
+        return None;
+    }
+    let last = power.len() - 1;
+    let (k, p) = power[first..last]
+        .iter()
+        .enumerate()
+        .max_by(|x, y| x.1.total_cmp(y.1))
+        .map(|(k, p)| (k + first, *p))?;
+    let mut line = Line {
+        hz: k as f64 * df,
+        amplitude: 0.0,
+        n,
+        bins: first..last,
+    };
+    let a = line.amplitude_of(p);
+    // Energy of a line between bins: sum the neighbours in quadrature (window-free leakage).
+    let lo = k.saturating_sub(1).max(first);
+    line.amplitude = power[lo..=(k + 1).min(power.len() - 1)]
+        .iter()
+        .map(|p| line.amplitude_of(*p).powi(2))
+        .sum::<f64>()
+        .sqrt()
+        .max(a);
+    Some(line)
 }
 
 /// The largest m ≤ n of the form 2^a 3^b 5^c.
@@ -706,15 +748,18 @@ pub fn nufft(
         } = cache;
         let fft = planner.plan_fft_forward(m_r);
         scratch.resize(fft.get_scratch_len(), Complex::default());
+        // The Gaussian's transform divided out, once for both sums.
+        let root = (std::f64::consts::PI / tau).sqrt();
+        let factor: Vec<f64> = (0..=n_max)
+            .map(|n| root * (n as f64 * n as f64 * tau).exp() / m_r as f64)
+            .collect();
         let mut out = |g: &mut Vec<f64>| {
             let mut spec = fft.make_output_vec();
             fft.process_with_scratch(g, &mut spec, scratch)
                 .expect("buffers of the planned lengths");
             spec.truncate(n_max + 1);
-            for (n, z) in spec.iter_mut().enumerate() {
-                let f = (std::f64::consts::PI / tau).sqrt() * (n as f64 * n as f64 * tau).exp()
-                    / m_r as f64;
-                *z = z.conj() * f;
+            for (z, f) in spec.iter_mut().zip(&factor) {
+                *z = z.conj() * *f;
             }
             spec
         };

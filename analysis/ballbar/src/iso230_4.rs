@@ -180,12 +180,14 @@ fn figures_of(arcs: &[Arc], minimum_zone: bool) -> Figures {
     let both = arcs.len() == 2 && arcs[0].t.sense != arcs[1].t.sense;
     let common = both.then(|| circle_of_sums(&sums));
     let mut lo_hi = (f64::INFINITY, f64::NEG_INFINITY);
+    let mut blocks = Vec::new();
     let directions = arcs
         .iter()
         .zip(&sums)
         .map(|(a, s)| {
             let own = circle_of_sums(std::slice::from_ref(s));
-            let [bounds, about_common] = radial_bounds(a, [own, common.unwrap_or(own)]);
+            let (bounds, about_common, b) = radial_bounds(a, own, common.unwrap_or(own));
+            blocks.push(b);
             lo_hi = (lo_hi.0.min(about_common.0), lo_hi.1.max(about_common.1));
             directional(a, own, bounds, minimum_zone)
         })
@@ -194,7 +196,7 @@ fn figures_of(arcs: &[Arc], minimum_zone: bool) -> Figures {
         directions,
         bidirectional_deviation_um: common.map(|_| lo_hi.1 - lo_hi.0),
         hysteresis_um: common
-            .and_then(|c| hysteresis(&arcs[0], &arcs[1], &c))
+            .and_then(|c| hysteresis(&arcs[0], &blocks[0], &arcs[1], &c))
             .filter(|h| h.is_finite()),
     }
 }
@@ -219,16 +221,49 @@ fn radial(a: &Arc, c: &Circle) -> Vec<f64> {
         .collect()
 }
 
-/// (min, max) of the radial deviation of `a` about each of two centres, in one pass.
-fn radial_bounds(a: &Arc, c: [Circle; 2]) -> [(f64, f64); 2] {
-    let mut out = [(f64::INFINITY, f64::NEG_INFINITY); 2];
-    for (co, s, d) in a.samples() {
-        for (b, c) in out.iter_mut().zip(&c) {
-            let x = c.radial_cs(co, s, d);
-            *b = (b.0.min(x), b.1.max(x));
-        }
-    }
-    out
+/// (min, max) of the radial deviation of `a` about `own` and about `common`, and the
+/// [`Extremes`] of each block of [`BLOCK`] samples about `common`, in one pass.
+fn radial_bounds(a: &Arc, own: Circle, common: Circle) -> (Bounds, Bounds, Vec<Extremes>) {
+    let (mut about_own, mut about_common) = (EMPTY, EMPTY);
+    let n = a.t.angle_deg.len();
+    let blocks = (0..n)
+        .step_by(BLOCK)
+        .map(|i| {
+            let r = i..(i + BLOCK).min(n);
+            let (t, d) = (&a.t.angle_deg[r.clone()], &a.t.deviation_um[r.clone()]);
+            let (cos, sin) = (&a.cos[r.clone()], &a.sin[r]);
+            let (mut x, mut b) = (EMPTY, Extremes { e: EMPTY, t: EMPTY });
+            for j in 0..t.len() {
+                widen(&mut x, own.radial_cs(cos[j], sin[j], d[j]));
+                widen(&mut b.e, common.radial_cs(cos[j], sin[j], d[j]));
+                widen(&mut b.t, t[j]);
+            }
+            about_own = (about_own.0.min(x.0), about_own.1.max(x.1));
+            about_common = (about_common.0.min(b.e.0), about_common.1.max(b.e.1));
+            b
+        })
+        .collect();
+    (about_own, about_common, blocks)
+}
+
+/// (min, max) of some values.
+type Bounds = (f64, f64);
+
+/// The bounds of no values.
+const EMPTY: Bounds = (f64::INFINITY, f64::NEG_INFINITY);
+
+/// Widens `b` to hold `x` (by comparisons, which the compiler keeps in vector registers).
+#[inline]
+fn widen(b: &mut Bounds, x: f64) {
+    b.0 = if x < b.0 { x } else { b.0 };
+    b.1 = if x > b.1 { x } else { b.1 };
+}
+
+/// The extremes of a block of samples: radial deviation about the common centre and angle.
+#[derive(Clone, Copy, Debug)]
+struct Extremes {
+    e: Bounds,
+    t: Bounds,
 }
 
 fn bounds(v: &[f64]) -> (f64, f64) {
@@ -285,38 +320,103 @@ thread_local! {
 
 /// Largest |e_a(θ) − e_b(θ)| at the angles of `a` that `b` covers (linear interpolation of b).
 /// The path of `b` is sorted by angle (stably: a trace is a few monotonic runs, which the sort
-/// merges in linear time); `a` is taken in its own order, each sample finding its neighbours in
-/// `b` by stepping from where the previous one's were (`a` moves monotonically round the
-/// circle), and the maximum does not depend on the order.
-fn hysteresis(a: &Arc, b: &Arc, c: &Circle) -> Option<f64> {
+/// merges in linear time). The samples of `a` are taken in blocks, each with a bound on the
+/// differences in it from the extremes of e_a and of the samples of `b` it can fall between:
+/// blocks are evaluated largest bound first, until the bound falls below the largest difference
+/// found (the rest cannot hold the maximum, which is the same value, computed the same way).
+fn hysteresis(a: &Arc, blocks: &[Extremes], b: &Arc, c: &Circle) -> Option<f64> {
     PATH.with(|cell| {
         let pb = &mut *cell.borrow_mut();
         pb.clear();
         pb.extend(path(b, c));
         pb.sort_by(|x, y| x.0.total_cmp(&y.0));
-        let max_step = 2.0 * crate::trace::MAX_GAP_DEG;
+        let n = a.t.angle_deg.len();
+        let mut order: Vec<(f64, usize)> = blocks
+            .iter()
+            .enumerate()
+            .map(|(j, x)| (block_bound(x, pb), j * BLOCK))
+            .collect();
+        order.sort_unstable_by(|x, y| y.0.total_cmp(&x.0));
         let (mut worst, mut found) = (0.0f64, false);
-        let mut k = 0;
-        for (x, e) in path(a, c) {
-            k = first_at_or_after(pb, x, k);
-            if k == 0 || k == pb.len() {
-                continue;
+        for (bound, i) in order {
+            if bound < worst {
+                break;
             }
-            let (lo, hi) = (pb[k - 1], pb[k]);
-            if hi.0 - lo.0 > max_step {
-                continue;
+            if let Some(w) = block_worst(a, c, pb, i..(i + BLOCK).min(n)) {
+                worst = worst.max(w);
+                found = true;
             }
-            let w = if hi.0 > lo.0 {
-                (x - lo.0) / (hi.0 - lo.0)
-            } else {
-                0.0
-            };
-            let eb = lo.1 + w * (hi.1 - lo.1);
-            worst = worst.max((e - eb).abs());
-            found = true;
         }
         found.then_some(worst)
     })
+}
+
+/// Samples per block of [`radial_bounds`] and [`hysteresis`].
+const BLOCK: usize = 64;
+
+/// An upper bound of the differences [`block_worst`] finds for a block of samples with the
+/// extremes `x` (−∞ when none of them falls between two samples of `b`; +∞ when their angles
+/// wrap round). Interpolation stays between the two samples of `b` to a few ulps, which the
+/// margin covers.
+fn block_bound(x: &Extremes, pb: &[(f64, f64)]) -> f64 {
+    // rem360 is exact, so monotonic within a turn; the ends in one turn hold the block in it.
+    let (x_lo, x_hi) = (rem360(x.t.0), rem360(x.t.1));
+    if x_lo > x_hi || x.t.1 - x.t.0 >= 360.0 {
+        return f64::INFINITY;
+    }
+    // Every sample's neighbours are pb[k − 1] and pb[k] with k between those of the ends.
+    let first = pb.partition_point(|q| q.0 < x_lo).max(1);
+    let last = pb
+        .partition_point(|q| q.0 < x_hi)
+        .min(pb.len().saturating_sub(1));
+    if first > last {
+        return f64::NEG_INFINITY;
+    }
+    let mut b = EMPTY;
+    for q in &pb[first - 1..=last] {
+        widen(&mut b, q.1);
+    }
+    let (e, b) = (x.e, b);
+    let margin = 1e-12 * (e.0.abs() + e.1.abs() + b.0.abs() + b.1.abs());
+    (e.1 - b.0).max(b.1 - e.0) + margin
+}
+
+/// The largest |e_a − e_b| over the samples `range` of `a` that fall between two samples of
+/// the sorted path `pb` at most two gaps apart, None when none does.
+fn block_worst(
+    a: &Arc,
+    c: &Circle,
+    pb: &[(f64, f64)],
+    range: std::ops::Range<usize>,
+) -> Option<f64> {
+    let max_step = 2.0 * crate::trace::MAX_GAP_DEG;
+    let (mut worst, mut found) = (0.0f64, false);
+    let mut k = 0;
+    let (t, d) = (
+        &a.t.angle_deg[range.clone()],
+        &a.t.deviation_um[range.clone()],
+    );
+    let (cos, sin) = (&a.cos[range.clone()], &a.sin[range]);
+    for (((t, co), s), d) in t.iter().zip(cos).zip(sin).zip(d) {
+        let (x, e) = (rem360(*t), c.radial_cs(*co, *s, *d));
+        k = first_at_or_after(pb, x, k);
+        if k == 0 || k == pb.len() {
+            continue;
+        }
+        let (lo, hi) = (pb[k - 1], pb[k]);
+        if hi.0 - lo.0 > max_step {
+            continue;
+        }
+        let w = if hi.0 > lo.0 {
+            (x - lo.0) / (hi.0 - lo.0)
+        } else {
+            0.0
+        };
+        let eb = lo.1 + w * (hi.1 - lo.1);
+        worst = worst.max((e - eb).abs());
+        found = true;
+    }
+    found.then_some(worst)
 }
 
 /// The index of the first element of the sorted path `p` at or after angle `x`, stepping from
@@ -434,6 +534,39 @@ mod tests {
         assert!(d.minimum_zone_um.unwrap() <= d.circular_deviation_um + 1e-9);
         assert!((f.hysteresis_um.unwrap() - 1.5).abs() < 1e-6);
         assert!((f.bidirectional_deviation_um.unwrap() - 9.5).abs() < 1e-6);
+    }
+
+    /// The hysteresis found block by block is the largest difference over all samples: noisy
+    /// paths, angles stepping back, and a CW run that starts elsewhere and wraps round.
+    #[test]
+    fn hysteresis_by_blocks_equals_the_walk_over_every_sample() {
+        let noise = |i: usize| ((i * 7919 % 1013) as f64 / 1013.0 - 0.5) * 0.8;
+        for (start, sweep) in [(0.0, 360.0), (37.0, 250.0), (300.0, 370.0)] {
+            let mut cw = trace(Sense::Cw, |th| 3.0 * (2.0 * th).cos() + 0.7);
+            let mut ccw = trace(Sense::Ccw, |th| 3.0 * (2.0 * th).cos());
+            for t in [&mut cw, &mut ccw] {
+                let n = (sweep * 10.0) as usize;
+                let g = t.sense.sign();
+                t.angle_deg = (0..n)
+                    .map(|i| start + g * (i as f64 * 0.1 - if i % 5 == 2 { 0.04 } else { 0.0 }))
+                    .collect();
+                t.deviation_um = (0..n)
+                    .map(|i| t.deviation_um[i % 3600] + noise(i))
+                    .collect();
+            }
+            let (a, b) = (Arc::new(&cw), Arc::new(&ccw));
+            let c = least_squares_circle(&[&cw, &ccw]);
+            let (_, _, extremes) = radial_bounds(&a, c, c);
+            let blocks = hysteresis(&a, &extremes, &b, &c).unwrap();
+            let mut pb: Path = path(&b, &c).collect();
+            pb.sort_by(|x, y| x.0.total_cmp(&y.0));
+            let walk = block_worst(&a, &c, &pb, 0..cw.angle_deg.len()).unwrap();
+            assert_eq!(
+                blocks.to_bits(),
+                walk.to_bits(),
+                "start {start}, sweep {sweep}"
+            );
+        }
     }
 
     /// The minimum zone found by Nelder–Mead matches a brute-force search over centres and is

@@ -71,7 +71,7 @@ impl Compiled {
     /// The model's deviation at cos θ `c`, sin θ `s`, sense sign `g` and progress `u`, µm.
     #[inline]
     pub fn eval_at(&self, c: f64, s: f64, g: f64, u: f64) -> f64 {
-        let sgn = |x: f64| f64::from(u8::from(x > 0.0)) - f64::from(u8::from(x < 0.0));
+        let sgn = signatures::sign;
         let w = &self.w;
         w[0] + w[1] * c
             + w[2] * s
@@ -89,7 +89,7 @@ impl Compiled {
 #[inline]
 pub fn shapes(pt: &Point) -> [f64; SHAPES] {
     let (c, s, g, u) = (pt.cos, pt.sin, pt.sense.sign(), pt.progress);
-    let sgn = |x: f64| f64::from(u8::from(x > 0.0)) - f64::from(u8::from(x < 0.0));
+    let sgn = signatures::sign;
     [
         1.0,
         c,

@@ -166,15 +166,13 @@ impl Samples<'_> {
 /// Entries of the table [`sin_cos_deg`] reduces angles to: every 360/1024 deg.
 const TABLE_N: usize = 1024;
 
-fn table() -> &'static [(f64, f64)] {
-    static TABLE: std::sync::OnceLock<Vec<(f64, f64)>> = std::sync::OnceLock::new();
+fn table() -> &'static [(f64, f64); TABLE_N] {
+    static TABLE: std::sync::OnceLock<[(f64, f64); TABLE_N]> = std::sync::OnceLock::new();
     TABLE.get_or_init(|| {
-        (0..TABLE_N)
-            .map(|k| {
-                let (s, c) = (std::f64::consts::TAU * k as f64 / TABLE_N as f64).sin_cos();
-                (c, s)
-            })
-            .collect()
+        std::array::from_fn(|k| {
+            let (s, c) = (std::f64::consts::TAU * k as f64 / TABLE_N as f64).sin_cos();
+            (c, s)
+        })
     })
 }
 
@@ -183,18 +181,36 @@ fn table() -> &'static [(f64, f64)] {
 /// (truncation below 1e-18). Agrees with `to_radians().sin_cos()` to a few 1e-16, and each
 /// sample is independent of the others (no recurrence to wait for).
 #[inline]
-pub fn sin_cos_deg(a: f64, table: &[(f64, f64)]) -> (f64, f64) {
-    const MAGIC: f64 = 6_755_399_441_055_744.0; // 1.5·2⁵²: adding it rounds to an integer
-    let x = a * (TABLE_N as f64 / 360.0);
-    if x.abs() >= 1e15 {
+pub fn sin_cos_deg(a: f64, table: &[(f64, f64); TABLE_N]) -> (f64, f64) {
+    if !reducible(a) {
         return a.to_radians().sin_cos();
     }
+    let (e, k) = reduce(a);
+    rotate(e, table[k])
+}
+
+/// Whether [`reduce`] is exact for `a` (|a| below about 3.5e17 deg).
+#[inline]
+fn reducible(a: f64) -> bool {
+    (a * (TABLE_N as f64 / 360.0)).abs() < 1e15
+}
+
+/// The remainder ε (rad) of angle `a` (deg) from the nearest tabulated angle, and its index.
+#[inline]
+fn reduce(a: f64) -> (f64, usize) {
+    const MAGIC: f64 = 6_755_399_441_055_744.0; // 1.5·2⁵²: adding it rounds to an integer
+    let x = a * (TABLE_N as f64 / 360.0);
     let shifted = x + MAGIC;
     let k = shifted - MAGIC;
     let e = (x - k) * (std::f64::consts::TAU / TABLE_N as f64);
     // The low bits of `shifted` are those of the integer k (two's complement): k mod TABLE_N
     // without a conversion.
-    let (c0, s0) = table[shifted.to_bits() as usize & (TABLE_N - 1)];
+    (e, shifted.to_bits() as usize & (TABLE_N - 1))
+}
+
+/// (sin, cos) of the tabulated angle with cosine `c0` and sine `s0` rotated by ε = `e`.
+#[inline]
+fn rotate(e: f64, (c0, s0): (f64, f64)) -> (f64, f64) {
     let e2 = e * e;
     let ce = 1.0 - e2 * (0.5 - e2 * (1.0 / 24.0));
     let se = e * (1.0 - e2 * (1.0 / 6.0 - e2 * (1.0 / 120.0)));
@@ -238,10 +254,69 @@ pub fn recycle(v: Vec<f64>) {
 pub fn trig(angle_deg: &[f64]) -> (Vec<f64>, Vec<f64>) {
     let t = table();
     let (mut cos, mut sin) = (filled(angle_deg.len()), filled(angle_deg.len()));
-    for ((a, c), s) in angle_deg.iter().zip(&mut cos).zip(&mut sin) {
-        (*s, *c) = sin_cos_deg(*a, t);
+    let mut block = TrigBlock::default();
+    let blocks = angle_deg.chunks(TRIG_BLOCK);
+    for ((a, c), s) in blocks
+        .zip(cos.chunks_mut(TRIG_BLOCK))
+        .zip(sin.chunks_mut(TRIG_BLOCK))
+    {
+        block.sin_cos(a, t, c, s);
     }
     (cos, sin)
+}
+
+/// Angles per block of [`TrigBlock::sin_cos`].
+const TRIG_BLOCK: usize = 64;
+
+/// The intermediate values of a block of [`trig`]: remainders, table indices, and the
+/// tabulated cosines and sines.
+struct TrigBlock {
+    e: [f64; TRIG_BLOCK],
+    k: [usize; TRIG_BLOCK],
+    c0: [f64; TRIG_BLOCK],
+    s0: [f64; TRIG_BLOCK],
+}
+
+impl Default for TrigBlock {
+    fn default() -> Self {
+        Self {
+            e: [0.0; TRIG_BLOCK],
+            k: [0; TRIG_BLOCK],
+            c0: [0.0; TRIG_BLOCK],
+            s0: [0.0; TRIG_BLOCK],
+        }
+    }
+}
+
+impl TrigBlock {
+    /// [`trig`] of up to [`TRIG_BLOCK`] angles: the reduction and the rotation are loops of
+    /// the same operations on every angle (which the compiler runs on vectors), the table
+    /// look-ups a loop of loads between them.
+    fn sin_cos(
+        &mut self,
+        a: &[f64],
+        table: &[(f64, f64); TABLE_N],
+        cos: &mut [f64],
+        sin: &mut [f64],
+    ) {
+        if !a.iter().fold(true, |ok, x| ok & reducible(*x)) {
+            for ((a, c), s) in a.iter().zip(cos).zip(sin) {
+                (*s, *c) = sin_cos_deg(*a, table);
+            }
+            return;
+        }
+        for ((e, k), a) in self.e.iter_mut().zip(&mut self.k).zip(a) {
+            (*e, *k) = reduce(*a);
+        }
+        let at = self.c0.iter_mut().zip(&mut self.s0);
+        for ((c0, s0), k) in at.zip(&self.k[..a.len()]) {
+            (*c0, *s0) = table[*k & (TABLE_N - 1)];
+        }
+        let out = sin.iter_mut().zip(cos.iter_mut());
+        for (((s, c), e), (c0, s0)) in out.zip(&self.e).zip(self.c0.iter().zip(&self.s0)) {
+            (*s, *c) = rotate(*e, (*c0, *s0));
+        }
+    }
 }
 
 #[cfg(test)]

@@ -58,7 +58,9 @@ pub const fn squareness_sign(plane: Plane) -> f64 {
     }
 }
 
-fn sign(x: f64) -> f64 {
+/// The sign of `x`, 0 at 0 (by selects, which the compiler keeps in vector registers).
+#[inline]
+pub(crate) fn sign(x: f64) -> f64 {
     if x > 0.0 {
         1.0
     } else if x < 0.0 {
