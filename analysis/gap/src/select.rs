@@ -191,10 +191,13 @@ impl Selection {
     /// Whether the chosen effects explain the gap ([`Options::explained_floor_um`],
     /// [`Options::explained_fraction`]); a gap with no effect chosen is not explained.
     pub fn explained(&self, o: &Options) -> bool {
-        let after = self.held_out_after_um();
         !self.steps.is_empty()
-            && (after <= o.explained_floor_um
-                || after <= o.explained_fraction * self.held_out_before_um)
+            && explained(
+                self.held_out_before_um,
+                self.held_out_after_um(),
+                o.explained_floor_um,
+                o.explained_fraction,
+            )
     }
 
     /// The fraction of the held-out mean square removed by all the effects.
@@ -325,11 +328,18 @@ fn stack(bins: &[Vec<f64>], rows: &[usize]) -> Vec<f64> {
     rows.iter().flat_map(|i| bins[*i].iter().copied()).collect()
 }
 
-fn rss(v: &[f64]) -> f64 {
+/// Whether a gap of held-out RMS `before` left at `after` counts as explained: at most `floor`,
+/// or at most `fraction` of `before` (either unit).
+pub(crate) fn explained(before: f64, after: f64, floor: f64, fraction: f64) -> bool {
+    after <= floor || after <= fraction * before
+}
+
+pub(crate) fn rss(v: &[f64]) -> f64 {
     v.iter().map(|x| x * x).sum()
 }
 
-fn bic(rss: f64, n: usize, k: usize) -> f64 {
+/// The Bayesian information criterion of a least-squares fit: `n ln(RSS/n) + k ln n`.
+pub(crate) fn bic(rss: f64, n: usize, k: usize) -> f64 {
     let n_f = n as f64;
     n_f * (rss / n_f).max(1e-300).ln() + k as f64 * n_f.ln()
 }

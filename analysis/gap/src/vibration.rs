@@ -22,6 +22,7 @@
 
 use crate::align::GapError;
 use crate::effects::{Effect, Param};
+use crate::select::{bic, explained, rss};
 use crate::spectrum::{Band, band_levels, bands};
 use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
@@ -427,10 +428,13 @@ impl VibrationGap {
 
     /// Whether the chosen effects explain the gap.
     pub fn explained(&self, o: &Options) -> bool {
-        let after = self.held_out_after_db();
         !self.steps.is_empty()
-            && (after <= o.explained_floor_db
-                || after <= o.explained_fraction * self.held_out_before_db)
+            && explained(
+                self.held_out_before_db,
+                self.held_out_after_db(),
+                o.explained_floor_db,
+                o.explained_fraction,
+            )
     }
 }
 
@@ -656,17 +660,8 @@ fn check(model: &MillingModel, log: &Log) -> Result<(), GapError> {
     Ok(())
 }
 
-fn rss(v: &[f64]) -> f64 {
-    v.iter().map(|x| x * x).sum()
-}
-
 fn rms(v: &[f64]) -> f64 {
     (rss(v) / v.len().max(1) as f64).sqrt()
-}
-
-fn bic(rss: f64, n: usize, k: usize) -> f64 {
-    let n_f = n as f64;
-    n_f * (rss / n_f).max(1e-300).ln() + k as f64 * n_f.ln()
 }
 
 /// A fit: parameter values (in steps from the model's), the levels and residuals there.
