@@ -3,15 +3,17 @@
 //! library is that of the three planes. (Not Z: gravity holds the Z nut on one flank, so 3 µm
 //! more Z backlash changes the held-out traces by 0.026 µm RMS, and nothing is to be found.)
 //! Goal (issue 6): at most 30 s on 2 cores. Measured November 2026 on the 2-core machine,
-//! otherwise idle: 40.7–44.1 s (two runs; linearisation 32.6–35.8 s for 16 simulations and 11
-//! replays, two simulations side by side taking about 4.5 s each against 3.3 s alone), with the
-//! library now holding thermal drift too. Before: 49.9 s, and 71.3 s before the geometric and bar
-//! set-up parameters were replayed instead of simulated. Since then the reduced plant is about
-//! 1.36× faster (sim/benches/circle.rs), the motion-changing parameters are simulated beside the
-//! model as given, and no candidate is simulated once the residual is below what any effect
-//! could change. backlash_x 3.05 µm, held-out shrink 99.8 %. Not met: 30 s needs the drive
-//! parameters' sensitivities without whole-job simulations (one axis re-simulated against the
-//! recorded others, the reduced plant's axes being independent).
+//! otherwise idle: 31.0–36.4 s (three runs; linearisation 25.0–29.5 s for 16 simulations and 11
+//! replays), with the library now holding thermal drift too. Before: 49.9 s, and 71.3 s before
+//! the geometric and bar set-up parameters were replayed instead of simulated. Since then the
+//! reduced plant is about 1.36× faster (sim/benches/circle.rs), the model's servo log is kept at
+//! 10 Hz (only the bar's traces are read), the motion-changing parameters are simulated beside
+//! the model as given, and no candidate is simulated once the residual is below what any effect
+//! could change. backlash_x 3.05 µm, held-out shrink 99.8 %. Not met by a few seconds: the
+//! drive parameters' sensitivities still take whole-job simulations (the next step: one axis
+//! re-simulated against the recorded others, the reduced plant's axes being independent).
+//! Profile of the simulations: the drive step 44 %, the simulation loop 10 %, `sincos` of the
+//! arcs 10 %, the interpolator 11 %, the controllers 7 %, the error chain 3 %.
 //! Run: `cargo bench -p vmt-gap --bench seven_step` (prints the wall time of each stage).
 
 use std::time::Instant;
