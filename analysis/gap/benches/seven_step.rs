@@ -3,17 +3,16 @@
 //! library is that of the three planes. (Not Z: gravity holds the Z nut on one flank, so 3 µm
 //! more Z backlash changes the held-out traces by 0.026 µm RMS, and nothing is to be found.)
 //! Goal (issue 6): at most 30 s on 2 cores. Measured November 2026 on the 2-core machine,
-//! otherwise idle: 31.0–36.4 s (three runs; linearisation 25.0–29.5 s for 16 simulations and 11
-//! replays), with the library now holding thermal drift too. Before: 49.9 s, and 71.3 s before
-//! the geometric and bar set-up parameters were replayed instead of simulated. Since then the
-//! reduced plant is about 1.36× faster (sim/benches/circle.rs), the model's servo log is kept at
-//! 10 Hz (only the bar's traces are read), the motion-changing parameters are simulated beside
-//! the model as given, and no candidate is simulated once the residual is below what any effect
-//! could change. backlash_x 3.05 µm, held-out shrink 99.8 %. Not met by a few seconds: the
-//! drive parameters' sensitivities still take whole-job simulations (the next step: one axis
-//! re-simulated against the recorded others, the reduced plant's axes being independent).
-//! Profile of the simulations: the drive step 44 %, the simulation loop 10 %, `sincos` of the
-//! arcs 10 %, the interpolator 11 %, the controllers 7 %, the error chain 3 %.
+//! otherwise idle: 25.6 s (linearisation 17.5 s: 10 simulations and 17 replays), with the
+//! library now holding thermal drift too; 31.0–36.4 s before the screws' lead-error
+//! sensitivities were replayed (quasi-statically, `vmt_sim::replay::replay_lead_error`),
+//! 49.9 s at the start of the session, 71.3 s before the geometric and bar set-up parameters
+//! were replayed. Since then also: the reduced plant about 1.36× faster (sim/benches/circle.rs),
+//! the model's servo log at 10 Hz (only the bar's traces are read), the motion-changing
+//! parameters simulated beside the model as given, and no candidate simulated once the residual
+//! is below what any effect could change. backlash_x 3.05 µm, held-out shrink 99.8 % (the
+//! same to the last digit). Profile of the simulations: the drive step 44 %, the simulation
+//! loop 10 %, `sincos` of the arcs 10 %, the interpolator 11 %, the controllers 7 %.
 //! Run: `cargo bench -p vmt-gap --bench seven_step` (prints the wall time of each stage).
 
 use std::time::Instant;

@@ -7,6 +7,9 @@
 //! (`instruments.ballbar.setup_…`, `instruments.ballbar.bar_…`) do not change the motion, only
 //! what the bar reads: they are read again from the recorded motion of the model as given
 //! (`vmt_sim::replay`, the same traces as a new simulation to rounding) instead of simulated.
+//! For the finite-difference sensitivities only, a change of a screw's periodic lead error
+//! under a motor encoder is replayed too, the carriages moved by it quasi-statically (within
+//! about 1e-3 of the change; a test checks 2 %); what the selection reports is simulated.
 
 use crate::align::GapError;
 use crate::effects::{Effect, library_for, thermal_drift};
@@ -14,9 +17,10 @@ use std::path::PathBuf;
 use std::sync::OnceLock;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use vmt_ballbar::Trace;
+use vmt_model::drive::Feedback;
 use vmt_model::thermal::HeatSource;
 use vmt_scenario::edit::Template;
-use vmt_sim::replay::Replay;
+use vmt_sim::replay::{LeadErrorChange, Replay};
 use vmt_sim::run::BallbarTrace;
 
 /// Simulates a model's job with parameter offsets.
@@ -25,10 +29,16 @@ pub trait Forward: Sync {
     fn value(&self, key: &str) -> Option<f64>;
     /// The traces of the job with `(key, value)` written into the model.
     fn traces(&self, values: &[(String, f64)]) -> Result<Vec<Trace>, GapError>;
-    /// Whether an offset at `key` is answered without a new simulation once the model as given
-    /// has run (it changes what the instrument reads, not the motion).
+    /// Whether a sensitivity to `key` is answered without a new simulation once the model as
+    /// given has run ([`Forward::sensitivity_traces`]).
     fn replayable(&self, _key: &str) -> bool {
         false
+    }
+    /// [`Forward::traces`] for a finite-difference sensitivity: a model may answer it from the
+    /// recorded motion where that is accurate to a small fraction of the step, where `traces`
+    /// answers only what a simulation would give to rounding.
+    fn sensitivity_traces(&self, values: &[(String, f64)]) -> Result<Vec<Trace>, GapError> {
+        self.traces(values)
     }
 }
 
@@ -43,6 +53,9 @@ pub struct ScenarioModel {
     replays: AtomicUsize,
     /// The thermal node the spindle's losses heat, if the model has one.
     spindle_node: Option<usize>,
+    /// Per axis X, Y, Z under a motor encoder: the screw's lead and periodic lead error
+    /// `[e_c, e_s]` as given, m (for [`vmt_sim::replay::replay_lead_error`]).
+    leads: [Option<(f64, [f64; 2])>; 3],
 }
 
 /// Key prefixes whose values change what the bar reads but not the motion.
@@ -90,9 +103,16 @@ impl ScenarioModel {
             base: OnceLock::new(),
             replays: AtomicUsize::new(0),
             spindle_node: None,
+            leads: [None; 3],
         };
         // Parse once now, so a bad model is refused before any fitting.
         let s = model.scenario(text)?;
+        if let Some(exec) = &s.execution {
+            model.leads = std::array::from_fn(|i| {
+                let d = &exec.axes[i].drive;
+                (d.feedback == Feedback::MotorEncoder).then_some((d.screw.lead_m, d.screw.cyclic_m))
+            });
+        }
         model.spindle_node = s.machine.thermal.as_ref().and_then(|t| {
             t.network.sources().iter().find_map(|h| match h {
                 HeatSource::Spindle { node, .. } => Some(*node),
@@ -108,6 +128,30 @@ impl ScenarioModel {
         let mut out = library_for(planes);
         out.extend(self.spindle_node.map(thermal_drift));
         out
+    }
+
+    /// The axis (0, 1, 2) whose screw's periodic lead error `key` sets, when that axis reads a
+    /// motor encoder (the change replays quasi-statically, [`vmt_sim::replay`]).
+    fn lead_axis(&self, key: &str) -> Option<usize> {
+        let rest = key.strip_prefix("machine.axes.")?;
+        let axis = ["x", "y", "z"].iter().position(|a| {
+            rest.strip_prefix(a) == Some(".drive.screw_cyclic_um[0]")
+                || rest.strip_prefix(a) == Some(".drive.screw_cyclic_um[1]")
+        })?;
+        self.leads[axis].map(|_| axis)
+    }
+
+    /// The model with `values` written in, parsed, and its text.
+    fn with_values(
+        &self,
+        values: &[(String, f64)],
+    ) -> Result<(vmt_scenario::Scenario, String), GapError> {
+        let pairs: Vec<(&str, f64)> = values.iter().map(|(k, v)| (k.as_str(), *v)).collect();
+        let text = self
+            .template
+            .with(&pairs)
+            .map_err(|e| GapError::Model(e.to_string()))?;
+        Ok((self.scenario(&text)?, text))
     }
 
     fn scenario(&self, text: &str) -> Result<vmt_scenario::Scenario, GapError> {
@@ -129,22 +173,49 @@ impl Forward for ScenarioModel {
     }
 
     fn replayable(&self, key: &str) -> bool {
-        KINEMATIC.iter().any(|p| key.starts_with(p))
+        exact_replay(key) || self.lead_axis(key).is_some()
+    }
+
+    fn sensitivity_traces(&self, values: &[(String, f64)]) -> Result<Vec<Trace>, GapError> {
+        let (Some(base), true) = (
+            self.base.get(),
+            values.iter().all(|(k, _)| self.replayable(k)) && !values.is_empty(),
+        ) else {
+            return self.traces(values);
+        };
+        let (s, _) = self.with_values(values)?;
+        let Some(exec) = &s.execution else {
+            return Err(GapError::Model("no job".into()));
+        };
+        let changes: [LeadErrorChange; 3] = std::array::from_fn(|i| {
+            let new = exec.axes[i].drive.screw.cyclic_m;
+            self.leads[i].map_or_else(LeadErrorChange::default, |(lead_m, given)| {
+                LeadErrorChange {
+                    lead_m,
+                    delta_m: [new[0] - given[0], new[1] - given[1]],
+                }
+            })
+        });
+        self.replays.fetch_add(1, Ordering::Relaxed);
+        let ballbar = vmt_sim::replay::replay_lead_error(
+            &s.machine,
+            &exec.job,
+            &exec.settings,
+            base,
+            &changes,
+        )
+        .map_err(|e| GapError::Model(format!("{}: {e}", self.file)))?;
+        to_traces(&ballbar)
     }
 
     fn traces(&self, values: &[(String, f64)]) -> Result<Vec<Trace>, GapError> {
-        let pairs: Vec<(&str, f64)> = values.iter().map(|(k, v)| (k.as_str(), *v)).collect();
-        let text = self
-            .template
-            .with(&pairs)
-            .map_err(|e| GapError::Model(e.to_string()))?;
-        let s = self.scenario(&text)?;
+        let (s, text) = self.with_values(values)?;
         let Some(exec) = &s.execution else {
             return Err(GapError::Model("no job".into()));
         };
         let sim_error =
             |e: vmt_sim::simulate::SimError| GapError::Model(format!("{}: {e}", self.file));
-        let kinematic = values.iter().all(|(k, _)| self.replayable(k));
+        let kinematic = values.iter().all(|(k, _)| exact_replay(k));
         let ballbar: Vec<BallbarTrace> = match self.base.get() {
             Some(base) if kinematic => {
                 self.replays.fetch_add(1, Ordering::Relaxed);
@@ -170,21 +241,31 @@ impl Forward for ScenarioModel {
                 run.ballbar
             }
         };
-        ballbar
-            .iter()
-            .map(|t| {
-                Trace::new(
-                    &t.label,
-                    &t.plane,
-                    &t.direction,
-                    t.radius_mm,
-                    t.feed_mm_min,
-                    t.angle_deg.clone(),
-                    t.deviation_um.clone(),
-                    Some(t.times_s.clone()),
-                )
-                .map_err(GapError::Trace)
-            })
-            .collect()
+        to_traces(&ballbar)
     }
+}
+
+/// Whether an offset at `key` changes what the bar reads but not the motion: a replay of the
+/// recorded motion gives what a simulation would, to rounding.
+fn exact_replay(key: &str) -> bool {
+    KINEMATIC.iter().any(|p| key.starts_with(p))
+}
+
+fn to_traces(ballbar: &[BallbarTrace]) -> Result<Vec<Trace>, GapError> {
+    ballbar
+        .iter()
+        .map(|t| {
+            Trace::new(
+                &t.label,
+                &t.plane,
+                &t.direction,
+                t.radius_mm,
+                t.feed_mm_min,
+                t.angle_deg.clone(),
+                t.deviation_um.clone(),
+                Some(t.times_s.clone()),
+            )
+            .map_err(GapError::Trace)
+        })
+        .collect()
 }

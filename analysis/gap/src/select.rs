@@ -609,7 +609,7 @@ impl Linearisation {
                 .iter()
                 .map(|(k, v)| (k.clone(), v + p.step))
                 .collect();
-            model.traces(&values)
+            model.sensitivity_traces(&values)
         };
         // Parameters that change the motion are simulated beside the model as given; those a
         // replay of its recorded motion answers wait for it.

@@ -238,3 +238,40 @@ fn a_warm_spindle_head_is_found_as_thermal_drift_in_a_vertical_plane() {
         .unwrap();
     assert!(visible < o.min_effect_um, "XY visibility {visible} um");
 }
+
+/// A change of a screw's periodic lead error changes the motion, but under a motor encoder the
+/// carriage follows the nut: the sensitivity replay moves the recorded carriages by it and
+/// stays within 2 % of what a simulation gives (the dynamic and phase parts left out); the
+/// traces proper are always simulated.
+#[test]
+fn a_lead_error_sensitivity_replays_within_two_per_cent_of_a_simulation() {
+    let key = "machine.axes.x.drive.screw_cyclic_um[0]";
+    let values = vec![(key.to_string(), 1.0)];
+    let model = ScenarioModel::new(&short_test(), "model.toml", None).unwrap();
+    assert!(model.replayable(key));
+    let base = model.traces(&[]).unwrap();
+    let replayed = model.sensitivity_traces(&values).unwrap();
+    assert_eq!(model.replays(), 1);
+    let simulated = model.traces(&values).unwrap();
+    assert_eq!(model.replays(), 1, "traces() simulates a lead error change");
+    let (mut change, mut miss) = (0.0f64, 0.0f64);
+    for ((b, r), s) in base.iter().zip(&replayed).zip(&simulated) {
+        for ((b, r), s) in b
+            .deviation_um
+            .iter()
+            .zip(&r.deviation_um)
+            .zip(&s.deviation_um)
+        {
+            change = change.max((s - b).abs());
+            miss = miss.max((r - s).abs());
+        }
+    }
+    assert!(
+        change > 0.5,
+        "a 1 um lead error moves the trace: {change} um"
+    );
+    assert!(
+        miss < 0.02 * change,
+        "replay off by {miss} um of {change} um"
+    );
+}
