@@ -24,6 +24,7 @@ use crate::align::GapError;
 use crate::effects::{Effect, Param};
 use crate::select::{bic, explained, rss};
 use crate::spectrum::{Band, band_levels, bands};
+use crate::whiteness::{Whiteness, ljung_box};
 use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
 use std::path::PathBuf;
@@ -414,6 +415,9 @@ pub struct VibrationGap {
     pub before_by_piece: Vec<Share>,
     /// The same places after.
     pub after_by_band: Vec<Share>,
+    /// Ljung–Box test of what is left, per piece and axis over the bands in frequency order
+    /// ([`WHITENESS_LAGS`] lags): structure left across neighbouring bands shows as not white.
+    pub whiteness_after: Option<Whiteness>,
     /// Simulations run.
     pub simulations: usize,
 }
@@ -923,6 +927,7 @@ pub fn analyse_without(
         before_by_kind: by_kind(p, &before, f_tp),
         before_by_piece: by_piece(p, &before),
         after_by_band: by_band(p, &after),
+        whiteness_after: whiteness(p, &after),
         bands: p.bands.clone(),
         channels: p.channels.clone(),
         tooth_passing_hz: f_tp,
@@ -935,6 +940,29 @@ pub fn analyse_without(
         last_round,
         simulations: p.simulations.load(std::sync::atomic::Ordering::Relaxed),
     })
+}
+
+/// Lags of the whiteness test over the bands.
+pub const WHITENESS_LAGS: usize = 3;
+
+/// Ljung–Box over each piece's and axis' residual, bands in frequency order.
+fn whiteness(p: &Problem, r: &[Vec<f64>]) -> Option<Whiteness> {
+    let series: Vec<Vec<f64>> = p
+        .cells
+        .iter()
+        .zip(r)
+        .flat_map(|(cells, values)| {
+            (0..p.channels.len()).map(move |c| {
+                cells
+                    .iter()
+                    .zip(values)
+                    .filter(|((axis, _), _)| *axis == c)
+                    .map(|(_, v)| *v)
+                    .collect()
+            })
+        })
+        .collect();
+    ljung_box(&series, WHITENESS_LAGS)
 }
 
 /// A place for [`shares`]: its name and which (axis index, band index) cells it holds.
