@@ -3,7 +3,7 @@
 //! library is that of the three planes. (Not Z: gravity holds the Z nut on one flank, so 3 µm
 //! more Z backlash changes the held-out traces by 0.026 µm RMS, and nothing is to be found.)
 //! Goal (issue 6): at most 30 s on 2 cores. Measured November 2026 on the 2-core machine,
-//! otherwise idle: 25.6 s (linearisation 17.5 s: 10 simulations and 17 replays), with the
+//! otherwise idle: 22.0–25.6 s (three runs; linearisation 15.8–17.5 s: 10 simulations and 17 replays), with the
 //! library now holding thermal drift too; 31.0–36.4 s before the screws' lead-error
 //! sensitivities were replayed (quasi-statically, `vmt_sim::replay::replay_lead_error`),
 //! 49.9 s at the start of the session, 71.3 s before the geometric and bar set-up parameters
