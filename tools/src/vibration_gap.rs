@@ -118,7 +118,12 @@ pub fn text(model: &str, files: &[PathBuf], g: &VibrationGap) -> String {
     shares_text(&mut out, "by band (5 % or more)", &g.before_by_band, 0.05);
     shares_text(&mut out, "by axis", &g.before_by_axis, 0.0);
     shares_text(&mut out, "harmonic or not", &g.before_by_kind, 0.0);
-    shares_text(&mut out, "by piece (in time)", &g.before_by_piece, 0.0);
+    shares_text(
+        &mut out,
+        "by piece (a log, or a half of one in time)",
+        &g.before_by_piece,
+        0.0,
+    );
     let c = concentrations(g);
     let _ = writeln!(
         out,
