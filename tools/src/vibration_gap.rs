@@ -224,7 +224,11 @@ impl Figure for Levels<'_> {
         let piece = g.calibration.len().min(g.measured.len().saturating_sub(1));
         let panels = root.split_evenly((g.channels.len().max(1), 1));
         let db = |l: f64| 20.0 * l.max(1e-9).log10();
-        let (lo, hi) = (g.bands[0].lo_hz, g.bands[g.bands.len() - 1].hi_hz);
+        // The frequency axis is log10(f), labelled in Hz.
+        let (lo, hi) = (
+            g.bands[0].lo_hz.log10(),
+            g.bands[g.bands.len() - 1].hi_hz.log10(),
+        );
         for (c, area) in g.channels.iter().enumerate().zip(&panels) {
             let (c, name) = c;
             let series = [
@@ -244,12 +248,12 @@ impl Figure for Levels<'_> {
                 .margin(10)
                 .x_label_area_size(36)
                 .y_label_area_size(60)
-                .build_cartesian_2d((lo..hi).log_scale(), (ymin - 3.0)..(ymax + 3.0))?;
+                .build_cartesian_2d(lo..hi, (ymin - 3.0)..(ymax + 3.0))?;
             chart
                 .configure_mesh()
                 .x_desc("frequency (Hz)")
-                .x_labels(8)
-                .x_label_formatter(&|x| format!("{x:.0}"))
+                .x_labels(10)
+                .x_label_formatter(&|x| format!("{:.0}", 10f64.powf(*x)))
                 .y_desc("level (dB re 1 m/s²)")
                 .label_style((FONT, 13))
                 .axis_desc_style((FONT, 14))
@@ -259,7 +263,7 @@ impl Figure for Levels<'_> {
                     .bands
                     .iter()
                     .zip(levels.iter())
-                    .map(|(b, l)| (b.centre_hz, db(*l)))
+                    .map(|(b, l)| (b.centre_hz.log10(), db(*l)))
                     .collect();
                 let style = colour.stroke_width(width);
                 chart
