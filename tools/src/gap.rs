@@ -136,17 +136,21 @@ fn localisation_text(out: &mut String, l: &Localisation) {
         }
     }
     if let Some(w) = l.whiteness {
-        let verdict = if w.is_white(0.01) {
-            "white"
-        } else {
-            "not white: structure is left"
-        };
-        let _ = writeln!(
-            out,
-            "  whiteness (Ljung-Box, {} dof): Q = {:.1}, p = {:.3} -> {verdict}",
-            w.dof, w.q, w.p_value
-        );
+        let _ = writeln!(out, "{}", whiteness_line(&w, ""));
     }
+}
+
+/// The report's line on a whiteness test; `over` says what the series run over.
+pub(crate) fn whiteness_line(w: &vmt_gap::whiteness::Whiteness, over: &str) -> String {
+    let verdict = if w.is_white(0.01) {
+        "white".to_string()
+    } else {
+        format!("not white: structure is left{over}")
+    };
+    format!(
+        "  whiteness (Ljung-Box, {} dof): Q = {:.1}, p = {:.3} -> {verdict}",
+        w.dof, w.q, w.p_value
+    )
 }
 
 /// The report as text.
@@ -482,6 +486,36 @@ pub struct BenchArgs {
     pub quiet: bool,
 }
 
+impl BenchArgs {
+    /// The folder of the model's file, where its tables and program are.
+    fn model_dir(&self) -> Option<PathBuf> {
+        self.model
+            .as_deref()
+            .and_then(Path::parent)
+            .map(Path::to_path_buf)
+    }
+
+    fn settings(&self) -> vmt_gap::bench::Settings {
+        vmt_gap::bench::Settings {
+            nuisance: self.nuisance,
+            nulls: self.nulls,
+            seed: self.seed,
+            repeats: self.repeats,
+        }
+    }
+
+    /// A bar over `n` cases, hidden with `--quiet`.
+    fn progress(&self, n: usize, message: &'static str) -> indicatif::ProgressBar {
+        let bar = if self.quiet {
+            indicatif::ProgressBar::hidden()
+        } else {
+            indicatif::ProgressBar::new(n as u64)
+        };
+        bar.set_message(message);
+        bar
+    }
+}
+
 /// Runs `vmt gap-bench`.
 pub fn bench_command(a: &BenchArgs) -> Result<(), CliError> {
     use vmt_gap::bench;
@@ -517,27 +551,12 @@ pub fn bench_command(a: &BenchArgs) -> Result<(), CliError> {
     ])?;
     let text = vmt_scenario::edit::Template::parse(&text, &file)?
         .with_text(&[("job.plane", &plane.to_string())])?;
-    let dir = a
-        .model
-        .as_deref()
-        .and_then(Path::parent)
-        .map(Path::to_path_buf);
-    let model = ScenarioModel::new(&text, &file, dir).map_err(|e| model_error(&file, e))?;
+    let model =
+        ScenarioModel::new(&text, &file, a.model_dir()).map_err(|e| model_error(&file, e))?;
     let (p, q) = plane.axes();
     let lib = model.library(&[(p.to_ascii_lowercase(), q.to_ascii_lowercase())]);
-    let settings = bench::Settings {
-        nuisance: a.nuisance,
-        nulls: a.nulls,
-        seed: a.seed,
-        repeats: a.repeats,
-    };
-    let cases = bench::cases(&model, &lib, &settings);
-    let bar = if a.quiet {
-        indicatif::ProgressBar::hidden()
-    } else {
-        indicatif::ProgressBar::new(cases.len() as u64)
-    };
-    bar.set_message("gap-bench cases");
+    let cases = bench::cases(&model, &lib, &a.settings());
+    let bar = a.progress(cases.len(), "gap-bench cases");
     let o = select::Options::default();
     let outcomes = bench::run(&text, &model, &lib, &cases, &o, &|| bar.inc(1))
         .map_err(|e| model_error(&file, e))?;
@@ -582,26 +601,11 @@ fn finish_bench(
 /// `vmt gap-bench` on a milling model: the vibration gap's withheld-effect check.
 fn vibration_bench(a: &BenchArgs, text: &str, file: &str) -> Result<(), CliError> {
     use vmt_gap::{vibration, vibration_bench as vb};
-    let dir = a
-        .model
-        .as_deref()
-        .and_then(Path::parent)
-        .map(Path::to_path_buf);
+    let dir = a.model_dir();
     let model =
         vibration::MillingModel::new(text, file, dir.clone()).map_err(|e| model_error(file, e))?;
-    let settings = vmt_gap::bench::Settings {
-        nuisance: a.nuisance,
-        nulls: a.nulls,
-        seed: a.seed,
-        repeats: a.repeats,
-    };
-    let cases = vb::cases(&model, &settings);
-    let bar = if a.quiet {
-        indicatif::ProgressBar::hidden()
-    } else {
-        indicatif::ProgressBar::new(cases.len() as u64)
-    };
-    bar.set_message("gap-bench cases (vibration)");
+    let cases = vb::cases(&model, &a.settings());
+    let bar = a.progress(cases.len(), "gap-bench cases (vibration)");
     let o = vibration::Options::default();
     let outcomes = vb::run(text, file, dir, &model, &cases, &o, &|| bar.inc(1))
         .map_err(|e| model_error(file, e))?;

@@ -187,15 +187,10 @@ pub fn text(model: &str, files: &[PathBuf], g: &VibrationGap) -> String {
     let _ = writeln!(out, "\nUnexplained residual by band (after):");
     shares_text(&mut out, "by band (5 % or more)", &g.after_by_band, 0.05);
     if let Some(w) = &g.whiteness_after {
-        let verdict = if w.is_white(0.01) {
-            "white"
-        } else {
-            "not white: structure is left across the bands"
-        };
         let _ = writeln!(
             out,
-            "  whiteness (Ljung-Box over the bands, {} dof): Q = {:.1}, p = {:.3} -> {verdict}",
-            w.dof, w.q, w.p_value
+            "{}",
+            crate::gap::whiteness_line(w, " across the bands")
         );
     }
     let _ = writeln!(out, "\n{} simulations", g.simulations);

@@ -238,23 +238,45 @@ pub struct Outcome {
 
 impl Outcome {
     fn of(case: &Case, s: &Selection, o: &Options, visible_um: f64) -> Self {
-        let after = s.held_out_after_um();
-        let chosen: Vec<String> = s.steps.iter().map(|x| x.effect.clone()).collect();
-        let (found, partial) = if s.explained(o) {
+        let chosen = s.steps.iter().map(|x| x.effect.clone()).collect();
+        let held = (s.held_out_before_um, s.held_out_after_um());
+        Self::new(
+            &case.name,
+            &case.withheld,
+            chosen,
+            s.explained(o),
+            held,
+            visible_um,
+            "um",
+        )
+    }
+
+    /// The outcome of case `name`: the `chosen` effects are found when they `explained` the
+    /// gap and partial otherwise; `held` the held-out RMS before and after, in `unit`.
+    pub(crate) fn new(
+        name: &str,
+        withheld: &Withheld,
+        chosen: Vec<String>,
+        explained: bool,
+        (before, after): (f64, f64),
+        visible: f64,
+        unit: &'static str,
+    ) -> Self {
+        let (found, partial) = if explained {
             (chosen, Vec::new())
         } else {
             (Vec::new(), chosen)
         };
         Self {
-            case: case.name.clone(),
-            withheld: case.withheld.clone(),
+            case: name.to_string(),
+            withheld: withheld.clone(),
             found,
             partial,
-            held_out_before: s.held_out_before_um,
+            held_out_before: before,
             held_out_after: after,
-            shrink: s.held_out_shrink(),
-            visible: visible_um,
-            unit: "um",
+            shrink: 1.0 - (after / before).powi(2),
+            visible,
+            unit,
         }
     }
 }

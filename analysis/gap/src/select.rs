@@ -25,6 +25,7 @@ use crate::effects::Effect;
 use crate::model::Forward;
 use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
+use std::sync::OnceLock;
 use vmt_ballbar::Trace;
 
 /// Settings of the selection.
@@ -597,6 +598,17 @@ pub struct Linearisation {
     pub unavailable: Vec<(String, String)>,
     base: Vec<Trace>,
     stepped: Vec<Vec<Trace>>,
+    /// The model's own job read as a measurement, for [`Linearisation::visibility`]: made
+    /// once, as every case of a bench asks for it.
+    own: OnceLock<OwnJob>,
+}
+
+/// The model's own traces as the measured ones: their split, bins and sensitivities.
+struct OwnJob {
+    bin_deg: f64,
+    split: Split,
+    grid: Grid,
+    sensitivities: Vec<Vec<Vec<f64>>>,
 }
 
 impl Linearisation {
@@ -634,6 +646,7 @@ impl Linearisation {
             unavailable,
             base,
             stepped,
+            own: OnceLock::new(),
         })
     }
 
@@ -671,6 +684,19 @@ impl Linearisation {
 }
 
 impl Linearisation {
+    fn own_job(&self, o: &Options) -> Result<OwnJob, GapError> {
+        let split = Split::automatic(&self.base)?;
+        let (pairs, _) = residuals(&self.base, &self.base, o.bin_deg, None)?;
+        let grid: Grid = pairs.iter().map(|p| bin(p, o.bin_deg)).collect();
+        let sensitivities = self.sensitivities(&self.base, &grid, o)?;
+        Ok(OwnJob {
+            bin_deg: o.bin_deg,
+            split,
+            grid,
+            sensitivities,
+        })
+    }
+
     /// How far offsets of the model's parameters (`(key, offset)`, keys the model cannot
     /// express ignored; a parameter of several keys takes its first key's offset) stand out on
     /// the model's own job: the RMS change of the held-out runs, µm, that the linearisation
@@ -682,10 +708,18 @@ impl Linearisation {
         offsets: &[(String, f64)],
         o: &Options,
     ) -> Result<f64, GapError> {
-        let split = Split::automatic(&self.base)?;
-        let (pairs, _) = residuals(&self.base, &self.base, o.bin_deg, None)?;
-        let grid: Grid = pairs.iter().map(|p| bin(p, o.bin_deg)).collect();
-        let sens = self.sensitivities(&self.base, &grid, o)?;
+        if self.own.get().is_none() {
+            let _ = self.own.set(self.own_job(o)?);
+        }
+        let fresh;
+        let own = match self.own.get() {
+            Some(own) if own.bin_deg == o.bin_deg => own,
+            _ => {
+                fresh = self.own_job(o)?;
+                &fresh
+            }
+        };
+        let (split, grid, sens) = (&own.split, &own.grid, &own.sensitivities);
         let offset = |p: &Available| {
             offsets
                 .iter()
@@ -698,7 +732,7 @@ impl Linearisation {
                     .map(|b| {
                         self.available
                             .iter()
-                            .zip(&sens)
+                            .zip(sens)
                             .map(|(p, s)| s[t][b] * offset(p))
                             .sum()
                     })

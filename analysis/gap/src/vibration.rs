@@ -585,16 +585,24 @@ impl<'a> Problem<'a> {
                 distinct.push(*d);
             }
         }
+        // The model as given at its own depth is the log it made when it was built.
+        let given = |d: &Option<f64>| {
+            values.is_empty() && (d.is_none() || *d == self.model.base.axial_depth_mm)
+        };
         let runs: Vec<Log> = distinct
             .par_iter()
             .map(|d| {
+                if given(d) {
+                    return Ok(self.model.base.clone());
+                }
                 let mut v = values.to_vec();
                 v.extend(d.map(|d| ("job.axial_depth_mm".to_string(), d)));
                 self.model.log(&v)
             })
             .collect::<Result<_, _>>()?;
+        let simulated = distinct.iter().filter(|d| !given(d)).count();
         self.simulations
-            .fetch_add(runs.len(), std::sync::atomic::Ordering::Relaxed);
+            .fetch_add(simulated, std::sync::atomic::Ordering::Relaxed);
         Ok(depths
             .iter()
             .map(|d| runs[distinct.iter().position(|x| x == d).unwrap_or(0)].clone())

@@ -160,22 +160,15 @@ pub fn run(
 }
 
 fn outcome(c: &Case, g: &VibrationGap, o: &Options, visible: f64) -> Outcome {
-    let chosen: Vec<String> = g.steps.iter().map(|s| s.effect.clone()).collect();
-    let (found, partial) = if g.explained(o) {
-        (chosen, Vec::new())
-    } else {
-        (Vec::new(), chosen)
-    };
-    let after = g.held_out_after_db();
-    Outcome {
-        case: c.name.clone(),
-        withheld: c.withheld.clone(),
-        found,
-        partial,
-        held_out_before: g.held_out_before_db,
-        held_out_after: after,
-        shrink: 1.0 - (after / g.held_out_before_db).powi(2),
+    let chosen = g.steps.iter().map(|s| s.effect.clone()).collect();
+    let held = (g.held_out_before_db, g.held_out_after_db());
+    Outcome::new(
+        &c.name,
+        &c.withheld,
+        chosen,
+        g.explained(o),
+        held,
         visible,
-        unit: "dB",
-    }
+        "dB",
+    )
 }
