@@ -45,17 +45,7 @@ pub struct Recorded {
 
 /// A simulated trace as a diagnosis trace.
 pub fn from_run(t: &BallbarTrace, file: &str) -> Result<Trace, CliError> {
-    Trace::new(
-        &t.label,
-        &t.plane,
-        &t.direction,
-        t.radius_mm,
-        t.feed_mm_min,
-        t.angle_deg.clone(),
-        t.deviation_um.clone(),
-        Some(t.times_s.clone()),
-    )
-    .map_err(|e| CliError::input(file, None, e.to_string()))
+    vmt_gap::model::trace_of(t).map_err(|e| CliError::input(file, None, e.to_string()))
 }
 
 /// Groups consecutive traces into tests: a new test starts when the plane, radius or feed

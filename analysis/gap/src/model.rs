@@ -16,7 +16,7 @@ use crate::effects::{Effect, library_for, thermal_drift};
 use std::path::PathBuf;
 use std::sync::OnceLock;
 use std::sync::atomic::{AtomicUsize, Ordering};
-use vmt_ballbar::Trace;
+use vmt_ballbar::{Trace, TraceError};
 use vmt_model::drive::Feedback;
 use vmt_model::thermal::HeatSource;
 use vmt_scenario::edit::Template;
@@ -254,18 +254,20 @@ fn exact_replay(key: &str) -> bool {
 fn to_traces(ballbar: &[BallbarTrace]) -> Result<Vec<Trace>, GapError> {
     ballbar
         .iter()
-        .map(|t| {
-            Trace::new(
-                &t.label,
-                &t.plane,
-                &t.direction,
-                t.radius_mm,
-                t.feed_mm_min,
-                t.angle_deg.clone(),
-                t.deviation_um.clone(),
-                Some(t.times_s.clone()),
-            )
-            .map_err(GapError::Trace)
-        })
+        .map(|t| trace_of(t).map_err(GapError::Trace))
         .collect()
+}
+
+/// A simulated ball-bar trace as the diagnosis reads it, with its sample times.
+pub fn trace_of(t: &BallbarTrace) -> Result<Trace, TraceError> {
+    Trace::new(
+        &t.label,
+        &t.plane,
+        &t.direction,
+        t.radius_mm,
+        t.feed_mm_min,
+        t.angle_deg.clone(),
+        t.deviation_um.clone(),
+        Some(t.times_s.clone()),
+    )
 }

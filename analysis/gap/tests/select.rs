@@ -47,19 +47,7 @@ fn measured_in(plane: &str, edits: &[(&str, f64)]) -> Vec<Trace> {
     .unwrap();
     run.ballbar
         .iter()
-        .map(|t| {
-            Trace::new(
-                &t.label,
-                &t.plane,
-                &t.direction,
-                t.radius_mm,
-                t.feed_mm_min,
-                t.angle_deg.clone(),
-                t.deviation_um.clone(),
-                Some(t.times_s.clone()),
-            )
-            .unwrap()
-        })
+        .map(|t| vmt_gap::model::trace_of(t).unwrap())
         .collect()
 }
 
