@@ -238,19 +238,23 @@ pub fn reversals(points: &[Point], axis: usize) -> Vec<usize> {
         .collect()
 }
 
-/// [`reversals`] of both axes from sin θ and cos θ: blocks of samples without a sign change
-/// (nearly all) are passed over by one branch-free test each.
+/// [`reversals`] of both axes from sin θ and cos θ: the sign changes in blocks of samples
+/// are counted by a loop without branches (which the compiler runs on vectors), and only the
+/// blocks with one (nearly none) are searched.
 pub fn reversals_cs(cos: &[f64], sin: &[f64]) -> [Vec<usize>; 2] {
-    const BLOCK: usize = 64;
+    const BLOCK: usize = 256;
+    let n = cos.len().min(sin.len());
     let flips = |v: &[f64], i: usize| (v[i] > 0.0) != (v[i - 1] > 0.0);
-    let any_flip = |v: &[f64]| {
-        v.windows(2)
-            .fold(false, |acc, w| acc | ((w[1] > 0.0) != (w[0] > 0.0)))
-    };
     let mut out = [Vec::new(), Vec::new()];
-    for start in (1..cos.len()).step_by(BLOCK) {
-        let end = (start + BLOCK).min(cos.len());
-        if !(any_flip(&sin[start - 1..end]) | any_flip(&cos[start - 1..end])) {
+    for start in (1..n).step_by(BLOCK) {
+        let end = (start + BLOCK).min(n);
+        let (s, c) = (&sin[start - 1..end], &cos[start - 1..end]);
+        let mut count = 0u64;
+        for j in 1..s.len() {
+            count += u64::from((s[j] > 0.0) != (s[j - 1] > 0.0));
+            count += u64::from((c[j] > 0.0) != (c[j - 1] > 0.0));
+        }
+        if count == 0 {
             continue;
         }
         for i in start..end {
