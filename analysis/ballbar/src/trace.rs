@@ -371,15 +371,15 @@ impl Trace {
         for i in 1..n {
             let step = (a[i] - a[i - 1]) * s;
             // NaN fails every comparison; an infinite angle makes a NaN or infinite step.
-            let ok =
-                (step >= -MAX_BACKWARD_DEG) & (step <= MAX_GAP_DEG) & (d[i].abs() < f64::INFINITY);
+            let ok = (-MAX_BACKWARD_DEG..=MAX_GAP_DEG).contains(&step) & d[i].is_finite();
             bad += u64::from(!ok);
         }
         if let Some(t) = &self.time_s {
             let t = &t[..n];
             bad += u64::from(!(t[0].is_finite() & t[n - 1].is_finite()));
             for i in 1..n {
-                bad += u64::from(!(t[i] > t[i - 1]));
+                let later = t[i] > t[i - 1];
+                bad += u64::from(!later);
             }
         }
         bad == 0
