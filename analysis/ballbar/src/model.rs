@@ -379,9 +379,10 @@ impl Fit {
             let (mut lo, mut hi) = ([f64::INFINITY; SHAPES], [f64::NEG_INFINITY; SHAPES]);
             for (pt, _, _) in &s.groups {
                 let f = shapes(pt);
+                // By comparisons, which the compiler runs on vectors (the shapes are finite).
                 for i in 0..SHAPES {
-                    lo[i] = lo[i].min(f[i]);
-                    hi[i] = hi[i].max(f[i]);
+                    lo[i] = if f[i] < lo[i] { f[i] } else { lo[i] };
+                    hi[i] = if f[i] > hi[i] { f[i] } else { hi[i] };
                 }
             }
             for (term, range) in self.terms.iter().zip(&mut ranges) {
