@@ -34,6 +34,25 @@
 //! blocks 9 %), FFTs 9 %, the rest of the vibration search 5 %, trig 9 %, residual evaluation
 //! 10 %, moving means 6 %, medians of the noise and the start transient 11 %, cyclic search
 //! 7 %, fit 5 %, validation and reversals 5 %. The goal of 1000/s is still not met.
+//!
+//! After the third pass (perf-diagnose2; instructions counted as above with `--profile-time
+//! 20`, 58–85 diagnoses, the one-time set-up spread over them): 43.7 M instructions per
+//! diagnosis against 46.7 M for the build before it; criterion 3.89 ms (257/s) against
+//! 3.86 ms (259/s) for the build before it in the same session (load average 2–3: no
+//! difference in wall-clock time). Gained by: the model's residuals in a loop without branches or
+//! selects that runs on vectors (4.0 M to 3.3 M), the trace checks and the reversal search by
+//! branch-free counts, the hysteresis path's sort passed over when the path is sorted already,
+//! the spectrum's strongest line and the signatures' ranges by comparisons in vector
+//! registers. ISO figures bit-identical, findings within 1e-14. Tried and left out (no gain in
+//! instructions): the ISO bounds by four-lane minima and maxima, the fit's normal equations by
+//! the matrix library's product. On plain x86-64 (SSE2) a vector loop still costs 20–30
+//! instructions per sample for the residual and the trig (register copies of the two-operand
+//! forms), so what is left is in full-rate passes that each cost that much: trig 8 %,
+//! residual 8 %, moving means 6 %, ISO sums, bounds and hysteresis path 20 %, the two
+//! 56 250-point FFTs 9 % (a 55 296 = 2¹¹·3³ point one costs 30 % less), medians of the noise
+//! and the start transient 12 %, cyclic search 8 %. 1000/s (≈ 10 M instructions) needs those
+//! passes cut, not sped up: the medians and the spectrum on fewer values, the ISO sums in
+//! lanes (not bit-identical), one fused sweep per trace.
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use vmt_ballbar::synthetic::{Errors, test};

@@ -357,10 +357,7 @@ fn residual<'a>(
     let model = fit.compiled(s.radius_um, s.feed_um_per_ms);
     let g = s.sense.sign();
     let mut r = crate::samples::filled(s.len());
-    let inputs = s.cos.iter().zip(s.sin).zip(s.progress).zip(s.deviation_um);
-    for (r, (((c, sn), u), d)) in r.iter_mut().zip(inputs) {
-        *r = d - model.eval_at(*c, *sn, g, *u);
-    }
+    model.residuals(g, s.cos, s.sin, s.progress, s.deviation_um, &mut r);
     let n = t.angle_deg.len();
     let dt_ms = match &t.time_s {
         Some(ts) => (ts[n - 1] - ts[0]) / (n - 1) as f64 * 1e3,

@@ -238,19 +238,23 @@ pub fn reversals(points: &[Point], axis: usize) -> Vec<usize> {
         .collect()
 }
 
-/// [`reversals`] of both axes from sin θ and cos θ: blocks of samples without a sign change
-/// (nearly all) are passed over by one branch-free test each.
+/// [`reversals`] of both axes from sin θ and cos θ: the sign changes in blocks of samples
+/// are counted by a loop without branches (which the compiler runs on vectors), and only the
+/// blocks with one (nearly none) are searched.
 pub fn reversals_cs(cos: &[f64], sin: &[f64]) -> [Vec<usize>; 2] {
-    const BLOCK: usize = 64;
+    const BLOCK: usize = 256;
+    let n = cos.len().min(sin.len());
     let flips = |v: &[f64], i: usize| (v[i] > 0.0) != (v[i - 1] > 0.0);
-    let any_flip = |v: &[f64]| {
-        v.windows(2)
-            .fold(false, |acc, w| acc | ((w[1] > 0.0) != (w[0] > 0.0)))
-    };
     let mut out = [Vec::new(), Vec::new()];
-    for start in (1..cos.len()).step_by(BLOCK) {
-        let end = (start + BLOCK).min(cos.len());
-        if !(any_flip(&sin[start - 1..end]) | any_flip(&cos[start - 1..end])) {
+    for start in (1..n).step_by(BLOCK) {
+        let end = (start + BLOCK).min(n);
+        let (s, c) = (&sin[start - 1..end], &cos[start - 1..end]);
+        let mut count = 0u64;
+        for j in 1..s.len() {
+            count += u64::from((s[j] > 0.0) != (s[j - 1] > 0.0));
+            count += u64::from((c[j] > 0.0) != (c[j - 1] > 0.0));
+        }
+        if count == 0 {
             continue;
         }
         for i in start..end {
@@ -544,11 +548,7 @@ fn strongest_line(res: &Residual, min_hz: f64, cache: &mut FftCache) -> Option<L
         return None;
     }
     let last = power.len() - 1;
-    let (k, p) = power[first..last]
-        .iter()
-        .enumerate()
-        .max_by(|x, y| x.1.total_cmp(y.1))
-        .map(|(k, p)| (k + first, *p))?;
+    let (k, p) = strongest(&power[first..last]).map(|(k, p)| (k + first, p))?;
     let mut line = Line {
         hz: k as f64 * df,
         amplitude: 0.0,
@@ -565,6 +565,28 @@ fn strongest_line(res: &Residual, min_hz: f64, cache: &mut FftCache) -> Option<L
         .sqrt()
         .max(a);
     Some(line)
+}
+
+/// The index and value of the largest of NaN-free values, the last of equal ones (as
+/// `max_by` with `total_cmp`, the values being powers, never −0): the largest value by four
+/// interleaved maxima (which the compiler keeps in vector registers), then its last place.
+fn strongest(power: &[f64]) -> Option<(usize, f64)> {
+    let chunks = power.chunks_exact(4);
+    let mut top = chunks
+        .remainder()
+        .iter()
+        .fold(f64::NEG_INFINITY, |a, &x| if x > a { x } else { a });
+    let mut lanes = [f64::NEG_INFINITY; 4];
+    for c in chunks {
+        for (a, &x) in lanes.iter_mut().zip(c) {
+            *a = if x > *a { x } else { *a };
+        }
+    }
+    for a in lanes {
+        top = if a > top { a } else { top };
+    }
+    let k = power.iter().rposition(|&x| x == top)?;
+    Some((k, top))
 }
 
 /// The largest m ≤ n of the form 2^a 3^b 5^c.

@@ -329,7 +329,7 @@ fn hysteresis(a: &Arc, blocks: &[Extremes], b: &Arc, c: &Circle) -> Option<f64> 
         let pb = &mut *cell.borrow_mut();
         pb.clear();
         pb.extend(path(b, c));
-        pb.sort_by(|x, y| x.0.total_cmp(&y.0));
+        sort_by_angle(pb);
         let n = a.t.angle_deg.len();
         let mut order: Vec<(f64, usize)> = blocks
             .iter()
@@ -349,6 +349,20 @@ fn hysteresis(a: &Arc, blocks: &[Extremes], b: &Arc, c: &Circle) -> Option<f64> 
         }
         found.then_some(worst)
     })
+}
+
+/// Sorts a path by angle as a stable sort in `total_cmp` order does, passing over it when it
+/// is sorted already (a run in one sense starting at 0°): one loop without branches counts
+/// the pairs out of order and the angles with their sign bit set (−0, which that order puts
+/// before +0). The angles are finite (the traces are validated).
+fn sort_by_angle(p: &mut Path) {
+    let mut bad = u64::from(p.first().is_some_and(|x| x.0.is_sign_negative()));
+    for w in p.windows(2) {
+        bad += u64::from(w[0].0 > w[1].0) + u64::from(w[1].0.is_sign_negative());
+    }
+    if bad > 0 {
+        p.sort_by(|x, y| x.0.total_cmp(&y.0));
+    }
 }
 
 /// Samples per block of [`radial_bounds`] and [`hysteresis`].

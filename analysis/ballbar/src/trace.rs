@@ -357,29 +357,32 @@ impl Trace {
     }
 
     /// Whether the columns pass every check of [`Trace::validate`] after the set-up values,
-    /// found in one branch-free pass; the checks that find the first offending sample run only
-    /// when this fails.
+    /// found by counting the offending samples in loops without branches (which the compiler
+    /// runs on vectors); the checks that find the first offending sample run only when this
+    /// fails.
     fn columns_ok(&self) -> bool {
         let n = self.angle_deg.len();
         if self.deviation_um.len() != n || self.time_s.as_ref().is_some_and(|t| t.len() != n) {
             return false;
         }
         let s = self.sense.sign();
-        let a = &self.angle_deg;
-        let mut ok = a[0].is_finite();
-        for (w, d) in a.windows(2).zip(&self.deviation_um[1..]) {
-            let step = (w[1] - w[0]) * s;
-            // NaN fails both comparisons; an infinite angle makes a NaN or infinite step.
-            ok &= (-MAX_BACKWARD_DEG..=MAX_GAP_DEG).contains(&step) & d.is_finite();
+        let (a, d) = (&self.angle_deg[..n], &self.deviation_um[..n]);
+        let mut bad = u64::from(!(a[0].is_finite() & d[0].is_finite()));
+        for i in 1..n {
+            let step = (a[i] - a[i - 1]) * s;
+            // NaN fails every comparison; an infinite angle makes a NaN or infinite step.
+            let ok = (-MAX_BACKWARD_DEG..=MAX_GAP_DEG).contains(&step) & d[i].is_finite();
+            bad += u64::from(!ok);
         }
-        ok &= self.deviation_um[0].is_finite();
         if let Some(t) = &self.time_s {
-            ok &= t[0].is_finite() & t[n - 1].is_finite();
-            for w in t.windows(2) {
-                ok &= w[1] > w[0];
+            let t = &t[..n];
+            bad += u64::from(!(t[0].is_finite() & t[n - 1].is_finite()));
+            for i in 1..n {
+                let later = t[i] > t[i - 1];
+                bad += u64::from(!later);
             }
         }
-        ok
+        bad == 0
     }
 
     fn check_angles(&self) -> Result<(), TraceError> {
