@@ -2,7 +2,7 @@
 //! in the same definitions and units.
 
 use crate::laser::{LaserRun, LaserTruth};
-use crate::nc::program::{ArcDirection, Plane};
+use crate::nc::program::{ArcDirection, Motion, Plane, Program};
 use crate::simulate::{AxisDynamics, BallbarSetup, Job};
 use nalgebra::Vector3;
 use serde_json::{Value, json};
@@ -31,8 +31,13 @@ pub struct TruthInputs<'a> {
 ///
 /// Derived figures (first order, ball-bar definitions):
 /// - `backlash_seen_um`: in semi-closed loop a reversal shifts the carriage by the gap plus the
-///   screw's elastic change under the guideway friction at the test feed, `b + 2 F(v)/k`;
-///   zero with a linear scale (the loop closes on the carriage).
+///   screw's elastic change under the guideway friction at the test feed, `b + 2 F(v)/k`, or
+///   by `2 F(v)/k` alone when a constant load larger than the friction (gravity on a Z head
+///   without counterweight) keeps the nut on one flank; zero with a linear scale (the loop
+///   closes on the carriage).
+/// - `static_deflection_um`: where that load holds the carriage from where its encoder puts
+///   it, averaged over both directions: `F_load/k`, plus half the gap towards the load when the
+///   nut stays on one flank.
 /// - `servo_mismatch_ms`: `1/Kv_a - 1/Kv_b` for the test plane's axes (a, b) in ms; a ball bar
 ///   sees `±(F Δτ / 2) sin 2θ` from it.
 /// - `squareness_um_per_m`: the ISO squareness of the plane, µm/m.
@@ -52,11 +57,12 @@ pub fn ground_truth(
         machine, axes, job, ..
     } = *inputs;
     let feed = job.test_feed_m_s();
+    let loads = loads_n(machine);
     let mut drives = serde_json::Map::new();
     for a in Axis::ALL {
         let d = &axes[a.index()];
         let p = &d.drive;
-        let seen = backlash_seen_m(d, feed);
+        let seen = backlash_seen_m(d, feed, loads[a.index()]);
         drives.insert(
             a.to_string().to_lowercase(),
             json!({
@@ -69,6 +75,7 @@ pub fn ground_truth(
                 "guide_coulomb_n": p.guide_friction.coulomb_n,
                 "guide_static_n": p.guide_friction.static_n,
                 "guide_stribeck_mm_s": p.guide_friction.stribeck_m_s * 1e3,
+                "static_deflection_um": static_deflection_m(d, feed, loads[a.index()]) * 1e6,
                 "kv_per_s": d.servo.kv_per_s,
                 "velocity_ff": d.servo.velocity_ff,
                 "moving_mass_kg": machine.axis(a).moving_mass_kg,
@@ -88,7 +95,7 @@ pub fn ground_truth(
             .iter()
             .zip(inputs.at_tests)
             .map(|(t, chain)| {
-                let mut v = ballbar_test(t, axes);
+                let mut v = ballbar_test(t, axes, &loads);
                 let mut figures = test_figures(inputs, t, chain);
                 for (d, _) in &t.data {
                     let dir = match d {
@@ -132,12 +139,53 @@ pub fn ground_truth(
     })
 }
 
-/// The backlash a reversal at `feed` (m/s) shows at the tool, m (see [`ground_truth`]).
-fn backlash_seen_m(d: &AxisDynamics, feed: f64) -> f64 {
+/// The constant force on each axis' carriage along its coordinate, N: gravity on Z's moving mass
+/// (as the plant applies it, [`crate::plant::layout`]), none on the horizontal axes.
+fn loads_n(machine: &Machine) -> [f64; 3] {
+    let moving = machine.axes.map(|a| a.moving_mass_kg);
+    // The plant was built from the same layout before the run, so it cannot fail here.
+    crate::plant::layout(&machine.volumetric.kinematics.topology, moving)
+        .map_or([0.0; 3], |l| l.map(|a| a.gravity_n))
+}
+
+/// Whether the constant load `load_n` (N) keeps the nut on one flank of the screw through a
+/// reversal at `feed` (m/s): it does when it outweighs the guideway friction, `|F_load| > F(v)`
+/// (a vertical axis without counterweight: the head hangs on its screw).
+fn gap_stays_closed(d: &AxisDynamics, feed: f64, load_n: f64) -> bool {
+    load_n.abs() > d.drive.guide_friction.steady_state_force(feed.max(1e-9))
+}
+
+/// The backlash a reversal at `feed` (m/s) shows at the tool, m (see [`ground_truth`]): in semi-closed
+/// loop the screw's elastic change under the guideway friction, `2 F(v)/k`, plus the gap `b`
+/// unless the constant load `load_n` (N) keeps the nut on one flank; zero with a linear scale.
+fn backlash_seen_m(d: &AxisDynamics, feed: f64, load_n: f64) -> f64 {
     let p = &d.drive;
     let friction = p.guide_friction.steady_state_force(feed.max(1e-9));
+    let gap = if gap_stays_closed(d, feed, load_n) {
+        0.0
+    } else {
+        p.screw.backlash_m
+    };
     match p.feedback {
-        Feedback::MotorEncoder => p.screw.backlash_m + 2.0 * friction / p.screw.stiffness_n_per_m,
+        Feedback::MotorEncoder => gap + 2.0 * friction / p.screw.stiffness_n_per_m,
+        Feedback::LinearScale { .. } => 0.0,
+    }
+}
+
+/// The carriage's displacement from where its motor encoder puts it, averaged over both
+/// directions of travel, under the constant load `load_n` (N) along its coordinate, m: the
+/// screw's stretch `F_load/k`, and half the gap towards the load when the load keeps the nut on
+/// one flank (otherwise the gap is crossed symmetrically and averages out). Zero with a linear
+/// scale (the loop closes on the carriage).
+fn static_deflection_m(d: &AxisDynamics, feed: f64, load_n: f64) -> f64 {
+    let p = &d.drive;
+    let half_gap = if gap_stays_closed(d, feed, load_n) {
+        0.5 * p.screw.backlash_m * load_n.signum()
+    } else {
+        0.0
+    };
+    match p.feedback {
+        Feedback::MotorEncoder => load_n / p.screw.stiffness_n_per_m + half_gap,
         Feedback::LinearScale { .. } => 0.0,
     }
 }
@@ -153,7 +201,7 @@ fn cyclic_seen_m(p: &vmt_model::drive::DriveParams) -> f64 {
 
 /// One circular test: where and how it ran (`radius_mm` is the bar length, `center_mm` the
 /// centre ball), and the backlash each axis shows at its feed.
-fn ballbar_test(b: &BallbarSetup, axes: &[AxisDynamics; 3]) -> Value {
+fn ballbar_test(b: &BallbarSetup, axes: &[AxisDynamics; 3], loads: &[f64; 3]) -> Value {
     let plane = match b.plane {
         crate::nc::Plane::Xy => "XY",
         crate::nc::Plane::Zx => "ZX",
@@ -162,7 +210,7 @@ fn ballbar_test(b: &BallbarSetup, axes: &[AxisDynamics; 3]) -> Value {
     let seen: serde_json::Map<String, Value> = Axis::ALL
         .into_iter()
         .map(|a| {
-            let s = backlash_seen_m(&axes[a.index()], b.feed_m_s);
+            let s = backlash_seen_m(&axes[a.index()], b.feed_m_s, loads[a.index()]);
             (a.to_string().to_lowercase(), json!(s * 1e6))
         })
         .collect();
@@ -219,17 +267,20 @@ fn lag_s(d: &AxisDynamics) -> f64 {
 /// The figures a ball-bar diagnosis of circular test `b` reports, in its keys and units.
 ///
 /// From the error chain `chain` in the middle of the test (the tool-point error field `δ` on the nominal
-/// circle, averaged over the approach directions of the two plane axes): its component along
+/// circle, averaged over the approach directions of the two plane axes, the third axis in the
+/// direction of its last move before the test): its component along
 /// the bar `δ·u(θ)` (u from the pivot to the tool; in the plane unless the link is inclined)
 /// is expanded in Fourier series `A_k cos kθ + B_k sin kθ` over the full circle, and
 /// the signatures of the diagnosis read off it (see `vmt-ballbar`'s signatures):
 /// straightness `S_p = -4 B_3`, `S_q = 4 A_3` (µm over the diameter); scale mismatch
 /// `2 A_2 / R` (ppm) plus the dynamic share `-(ω²/2)(τ_p² - τ_q²)` of unequal servo lags τ at
 /// ω = F/r (each axis' amplitude falls short by (ωτ)²/2); squareness `2 B_2 / (k R)` (µm/m, k = -1 XY and YZ, +1 ZX); the pivot
-/// offset equivalent `e_p = -A_1 - S_q/4`, `e_q = -B_1 - S_p/4`, added to the bar's set-up
-/// eccentricity. Backlash and lateral play of an axis: the change of `δ` along and across the
-/// axis when it reverses (backward minus forward) at its two reversal points on the circle,
-/// averaged; the backlash adds the drive's lost motion at the test feed. Servo mismatch:
+/// offset equivalent `e_p = -A_1 - S_q/4 - d_p`, `e_q = -B_1 - S_p/4 - d_q`, added to the bar's set-up
+/// eccentricity, with `d` the drives' static deflection under their constant load (a hanging
+/// Z head sits `m g / k` plus half its gap lower than its encoder says). Backlash and lateral
+/// play of an axis: the change of `δ` along and across the axis when it reverses (backward minus
+/// forward), averaged over the data arcs as the signatures weigh it (see `reversal_change`);
+/// the backlash adds the drive's lost motion at the test feed. Servo mismatch:
 /// `(1 - k_vff,p)/K_v,p - (1 - k_vff,q)/K_v,q` (ms).
 pub fn test_figures(
     inputs: &TruthInputs,
@@ -240,7 +291,12 @@ pub fn test_figures(
     let (ep, eq) = (unit(pa), unit(qa));
     let r_um = b.radius_m * 1e6;
     let (centre, radius) = b.tool_circle();
-    let field = |th: f64| mean_error(inputs, chain, b, th, pa, qa);
+    let mut base = [Direction::Forward; 3];
+    let third = Axis::ALL.into_iter().find(|a| *a != pa && *a != qa);
+    if let Some(t) = third {
+        base[t.index()] = out_of_plane_direction(inputs.job, b, t);
+    }
+    let field = |th: f64| mean_error(inputs, chain, b, th, base);
     let n = 720;
     let (mut a, mut bb) = ([0.0; 4], [0.0; 4]);
     for i in 0..n {
@@ -260,7 +316,14 @@ pub fn test_figures(
     // An inclined bar reads in-plane displacements (the pivot's, the lags', the drives') times
     // its in-plane share; the chain's share is already projected on the bar.
     let k = radius / b.radius_m;
-    let e = b.spec.setup_eccentricity_m * 1e6 * k;
+    let axes = inputs.axes;
+    let loads = loads_n(inputs.machine);
+    let deflection_um =
+        |a: Axis| static_deflection_m(&axes[a.index()], b.feed_m_s, loads[a.index()]) * 1e6 * k;
+    // The pivot where it is in the middle of the test (it creeps from the first reading on).
+    let pivot =
+        b.spec.setup_eccentricity_m + b.spec.setup_drift_m_per_s * half_span_s(inputs.job, b);
+    let e = pivot * 1e6 * k;
     let (lp, lq) = (pa.to_string().to_lowercase(), qa.to_string().to_lowercase());
     let pl = format!("{lp}{lq}");
     let mut m = serde_json::Map::new();
@@ -269,11 +332,11 @@ pub fn test_figures(
     };
     put(
         format!("eccentricity_{lp}"),
-        e[pa.index()] - a[1] - s_q / 4.0,
+        e[pa.index()] - a[1] - s_q / 4.0 - deflection_um(pa),
     );
     put(
         format!("eccentricity_{lq}"),
-        e[qa.index()] - bb[1] - s_p / 4.0,
+        e[qa.index()] - bb[1] - s_p / 4.0 - deflection_um(qa),
     );
     put(format!("straightness_{lp}"), s_p);
     put(format!("straightness_{lq}"), s_q);
@@ -290,14 +353,14 @@ pub fn test_figures(
         format!("squareness_{pl}"),
         2.0 * bb[2] / (sign * r_um) * 1e6,
     );
-    let axes = inputs.axes;
     put(
         format!("servo_mismatch_{pl}"),
         (lag_s(&axes[pa.index()]) - lag_s(&axes[qa.index()])) * 1e3 * k,
     );
+    let arcs = data_arcs(inputs.job, b);
     for (axis, other) in [(pa, qa), (qa, pa)] {
-        let (along, across) = reversal_change(inputs, chain, b, axis, other);
-        let drive = backlash_seen_m(&axes[axis.index()], b.feed_m_s) * 1e6;
+        let (along, across) = reversal_change(inputs, chain, b, (axis, other), &arcs, base);
+        let drive = backlash_seen_m(&axes[axis.index()], b.feed_m_s, loads[axis.index()]) * 1e6;
         let l = axis.to_string().to_lowercase();
         put(format!("backlash_{l}"), (drive + along) * k);
         put(format!("lateral_play_{l}"), across * k);
@@ -313,8 +376,130 @@ fn unit(a: Axis) -> Vector3<f64> {
     Vector3::from_fn(|i, _| if i == a.index() { 1.0 } else { 0.0 })
 }
 
-fn state(inputs: &TruthInputs, tool: Vector3<f64>, dirs: [(Axis, Direction); 2]) -> AxisState {
-    let mut direction = [Direction::Forward; 3];
+/// Where each block of `program` ends, m (a dwell ends where it starts).
+fn block_ends(program: &Program) -> Vec<Vector3<f64>> {
+    let mut at = program.start;
+    program
+        .blocks
+        .iter()
+        .map(|block| {
+            if let Motion::Rapid { to } | Motion::Linear { to, .. } | Motion::Arc { to, .. } =
+                block.motion
+            {
+                at = to;
+            }
+            at
+        })
+        .collect()
+}
+
+/// The direction state of `axis` during test `b`: that of its last commanded move before the
+/// test's first data arc (the axis stands still through a test in the other two, and its
+/// direction-dependent errors, e.g. a squareness that differs by direction, stay as that move
+/// left them); forward if it has not moved, as the machine starts.
+fn out_of_plane_direction(job: &Job, b: &BallbarSetup, axis: Axis) -> Direction {
+    let first = b.data.first().map_or(0, |(_, r)| r.start);
+    let ends = block_ends(&job.program);
+    let i = axis.index();
+    let points: Vec<Vector3<f64>> = std::iter::once(job.program.start)
+        .chain(ends.into_iter().take(first))
+        .collect();
+    points
+        .windows(2)
+        .rev()
+        .map(|w| w[1][i] - w[0][i])
+        .find(|d| d.abs() > 1e-9)
+        .map_or(Direction::Forward, |d| {
+            if d > 0.0 {
+                Direction::Forward
+            } else {
+                Direction::Backward
+            }
+        })
+}
+
+/// Half the time from the start of test `b`'s first data arc to the end of its last, s: the
+/// blocks in between at their programmed feeds (the acceleration at their joins, a few tens of
+/// ms in all, is not counted; nor are rapids, which a circular test does not hold between its
+/// data arcs).
+fn half_span_s(job: &Job, b: &BallbarSetup) -> f64 {
+    let (Some((_, first)), Some((_, last))) = (b.data.first(), b.data.last()) else {
+        return 0.0;
+    };
+    let ends = block_ends(&job.program);
+    let from = |k: usize| {
+        if k == 0 {
+            job.program.start
+        } else {
+            ends[k - 1]
+        }
+    };
+    let seconds: f64 = (first.start..last.end)
+        .map(|k| match &job.program.blocks[k].motion {
+            Motion::Linear { to, feed } => (to - from(k)).norm() / feed,
+            Motion::Arc { feed, .. } => {
+                arc_sweep(job, &ends, b, k).abs() * b.tool_circle().1 / feed
+            }
+            Motion::Dwell { seconds } => *seconds,
+            Motion::Rapid { .. } => 0.0,
+        })
+        .sum();
+    0.5 * seconds
+}
+
+/// The signed sweep of arc block `k` of the job's program (its blocks ending at `ends`) about
+/// test `b`'s circle, rad (CCW positive; an arc ending where it starts is a full turn); 0 for
+/// any other block.
+fn arc_sweep(job: &Job, ends: &[Vector3<f64>], b: &BallbarSetup, k: usize) -> f64 {
+    let Motion::Arc { to, direction, .. } = job.program.blocks[k].motion else {
+        return 0.0;
+    };
+    let from = if k == 0 {
+        job.program.start
+    } else {
+        ends[k - 1]
+    };
+    let (a, z) = (circle_angle(b, from), circle_angle(b, to));
+    let full_if_none = |turn: f64| if turn < 1e-9 { TAU } else { turn };
+    match direction {
+        ArcDirection::Ccw => full_if_none((z - a).rem_euclid(TAU)),
+        ArcDirection::Cw => -full_if_none((a - z).rem_euclid(TAU)),
+    }
+}
+
+/// The angle of point `p` (m) on test `b`'s circle, rad, from the plane's first axis towards
+/// its second.
+fn circle_angle(b: &BallbarSetup, p: Vector3<f64>) -> f64 {
+    let (pa, qa) = plane_axes(b.plane);
+    let v = p - b.tool_circle().0;
+    v[qa.index()].atan2(v[pa.index()])
+}
+
+/// Each data arc of `b` as (start angle, signed sweep), rad, in the angle convention of the
+/// plane (from its first axis towards its second; CCW positive).
+fn data_arcs(job: &Job, b: &BallbarSetup) -> Vec<(f64, f64)> {
+    let ends = block_ends(&job.program);
+    b.data
+        .iter()
+        .map(|(_, range)| {
+            let start = if range.start == 0 {
+                job.program.start
+            } else {
+                ends[range.start - 1]
+            };
+            let sweep = range.clone().map(|k| arc_sweep(job, &ends, b, k)).sum();
+            (circle_angle(b, start), sweep)
+        })
+        .collect()
+}
+
+fn state(
+    inputs: &TruthInputs,
+    tool: Vector3<f64>,
+    base: [Direction; 3],
+    dirs: [(Axis, Direction); 2],
+) -> AxisState {
+    let mut direction = base;
     for (a, d) in dirs {
         direction[a.index()] = d;
     }
@@ -325,46 +510,68 @@ fn state(inputs: &TruthInputs, tool: Vector3<f64>, dirs: [(Axis, Direction); 2])
 }
 
 /// The tool-point error (m) at angle `th` of the circle, averaged over the four approach
-/// directions of the plane's axes.
+/// directions of the plane's axes, the third axis in its direction of `base`.
 fn mean_error(
     inputs: &TruthInputs,
     chain: &VolumetricEvaluator,
     b: &BallbarSetup,
     th: f64,
-    pa: Axis,
-    qa: Axis,
+    base: [Direction; 3],
 ) -> Vector3<f64> {
+    let (pa, qa) = plane_axes(b.plane);
     let (centre, radius) = b.tool_circle();
     let tool = centre + (unit(pa) * th.cos() + unit(qa) * th.sin()) * radius;
     let dirs = [Direction::Forward, Direction::Backward];
     let mut sum = Vector3::zeros();
     for dp in dirs {
         for dq in dirs {
-            sum += chain.volumetric_error(&state(inputs, tool, [(pa, dp), (qa, dq)]));
+            sum += chain.volumetric_error(&state(inputs, tool, base, [(pa, dp), (qa, dq)]));
         }
     }
     sum / 4.0
 }
 
 /// The change of the tool-point error when `axis` reverses (backward minus forward), along it
-/// and along `other`, µm, averaged over its two reversal points and the directions of `other`.
+/// and along `other`, µm, averaged over the data arcs `arcs` (start angle, signed sweep, rad)
+/// and the directions of `other`, the third axis in its direction of `base`. Each point
+/// weighs as the signature's least squares weigh it: the change along `axis` (the backlash,
+/// `± cos θ` from the axis) by the square of the axis' share of the radius, the change along
+/// `other` (the lateral play, `± |sin θ|`) by the square of `other`'s share. On a full circle
+/// a change that is linear in the position averages to its value at the two reversal points;
+/// on a half circle over the top the Z backlash weighs most at the top, Z's lateral play at
+/// the arc's ends.
 fn reversal_change(
     inputs: &TruthInputs,
     chain: &VolumetricEvaluator,
     b: &BallbarSetup,
-    axis: Axis,
-    other: Axis,
+    (axis, other): (Axis, Axis),
+    arcs: &[(f64, f64)],
+    base: [Direction; 3],
 ) -> (f64, f64) {
-    let dirs = [Direction::Forward, Direction::Backward];
-    let mut change = Vector3::zeros();
+    let (pa, qa) = plane_axes(b.plane);
     let (centre, radius) = b.tool_circle();
-    for side in [1.0, -1.0] {
-        let tool = centre + unit(axis) * (side * radius);
-        for d in dirs {
-            let at = |dir| chain.volumetric_error(&state(inputs, tool, [(axis, dir), (other, d)]));
-            change += at(Direction::Backward) - at(Direction::Forward);
+    let full = [(0.0, TAU)];
+    let arcs = if arcs.is_empty() { &full[..] } else { arcs };
+    let n = 360;
+    let (mut along, mut across, mut w_along, mut w_across) = (0.0, 0.0, 0.0, 0.0);
+    for &(start, sweep) in arcs {
+        for j in 0..=n {
+            let th = start + sweep * j as f64 / n as f64;
+            let radial = unit(pa) * th.cos() + unit(qa) * th.sin();
+            let tool = centre + radial * radius;
+            let mut change = Vector3::zeros();
+            for d in [Direction::Forward, Direction::Backward] {
+                let at = |dir| {
+                    chain.volumetric_error(&state(inputs, tool, base, [(axis, dir), (other, d)]))
+                };
+                change += 0.5 * (at(Direction::Backward) - at(Direction::Forward));
+            }
+            let (wa, wc) = (radial[axis.index()].powi(2), radial[other.index()].powi(2));
+            along += wa * change[axis.index()];
+            across += wc * change[other.index()];
+            w_along += wa;
+            w_across += wc;
         }
     }
-    change /= 4.0;
-    (change[axis.index()] * 1e6, change[other.index()] * 1e6)
+    (along / w_along * 1e6, across / w_across * 1e6)
 }

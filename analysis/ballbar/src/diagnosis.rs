@@ -237,6 +237,8 @@ fn diagnose_once(
     let terms = Terms::for_test(&refs);
     let fit = Fit::new(plane, &terms.terms, &sample_refs)?;
     let mut findings = fitted_findings(&fit, &sample_refs);
+    let unresolved = unresolved_keys(&terms, plane);
+    findings.retain(|f| !unresolved.contains(&f.key));
     let residuals: Vec<Residual> = traces
         .iter()
         .zip(&samples)
@@ -308,8 +310,10 @@ fn check_test(traces: &[Trace]) -> Result<(), DiagnosisError> {
     Ok(())
 }
 
-/// Progress of every sample over the whole test, 0…1: by time when every trace has times
-/// (one clock), else by angle travelled with the traces run back to back in the given order.
+/// Progress of every sample over the whole test, −½…½ (0 in its middle, so that the pivot
+/// offset and the radius are fitted as they are in the middle of the test, as a fit without
+/// drift terms on a partial arc gives them): by time when every trace has times (one clock),
+/// else by angle travelled with the traces run back to back in the given order.
 fn progress(traces: &[Trace]) -> Vec<Vec<f64>> {
     if let Some(times) = traces
         .iter()
@@ -326,7 +330,7 @@ fn progress(traces: &[Trace]) -> Vec<Vec<f64>> {
             .iter()
             .map(|t| {
                 let mut p = crate::samples::buffer(t.len());
-                p.extend(t.iter().map(|x| (x - t0) / span));
+                p.extend(t.iter().map(|x| (x - t0) / span - 0.5));
                 p
             })
             .collect();
@@ -340,7 +344,7 @@ fn progress(traces: &[Trace]) -> Vec<Vec<f64>> {
             let p = t
                 .angle_deg
                 .iter()
-                .map(|a| (before + (a - a0).abs()) / total)
+                .map(|a| (before + (a - a0).abs()) / total - 0.5)
                 .collect();
             before += t.sweep_deg();
             p
@@ -515,10 +519,20 @@ fn closing_errors(fit: &Fit, traces: &[Trace], samples: &[Samples]) -> Vec<Findi
         .collect()
 }
 
+/// The keys of the terms the test fits but cannot resolve ([`Terms::unresolved`]).
+fn unresolved_keys(terms: &Terms, plane: Plane) -> Vec<String> {
+    terms
+        .unresolved
+        .iter()
+        .filter_map(|(t, _)| describe(*t, plane).map(|d| d.0))
+        .collect()
+}
+
 fn not_computed(terms: &Terms, first: &Trace) -> Vec<NotComputed> {
     let mut out: Vec<NotComputed> = terms
         .left_out
         .iter()
+        .chain(&terms.unresolved)
         .filter_map(|(term, why)| {
             let key = match term {
                 Term::RadialDrift | Term::PivotDrift(_) => "closing_error".to_string(),
@@ -725,8 +739,11 @@ fn cyclic_findings(
     let mut r = Vec::new();
     let mut w = Vec::new();
     for (res, s) in residuals.iter().zip(samples) {
+        // The groups of the fit (the same chunks): the transients at the ends of a run are no
+        // cyclic error, and near a reversal of the axis at the start they would read as one.
         let size = res.r.len().div_ceil(crate::samples::MAX_GROUPS).max(1);
-        for (k, chunk) in res.r.chunks(size).enumerate() {
+        let fitted = res.r.chunks(size).enumerate().filter(|(k, _)| s.fitted[*k]);
+        for (k, chunk) in fitted {
             let i = k * size + chunk.len() / 2;
             points.push(s.point(i));
             r.push(chunk.iter().sum::<f64>() / chunk.len() as f64);

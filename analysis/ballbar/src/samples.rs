@@ -19,7 +19,7 @@ pub struct Placement {
     pub cos: Vec<f64>,
     /// sin θ per sample.
     pub sin: Vec<f64>,
-    /// Progress 0…1 per sample.
+    /// Progress over the test per sample, −½…½.
     pub progress: Vec<f64>,
 }
 
@@ -45,7 +45,7 @@ pub struct Samples<'a> {
     pub cos: &'a [f64],
     /// sin θ per sample.
     pub sin: &'a [f64],
-    /// Progress 0…1 per sample.
+    /// Progress over the test per sample, −½…½.
     pub progress: &'a [f64],
     /// Deviation per sample, µm.
     pub deviation_um: &'a [f64],

@@ -24,7 +24,7 @@
 //! | lateral play l_q | δp = −(l_q/2) sign v_q | −σ (l_q/2) \|cos θ\| |
 //! | straightness S_p (bow of p towards +q, µm over 2R) | δq = S_p (1 − (p/R)²) | −S_p cos²θ sin θ (+ first harmonic) |
 //! | straightness S_q (bow of q towards +p) | δp = S_q (1 − (q/R)²) | −S_q sin²θ cos θ (+ first harmonic) |
-//! | drift over the trace (progress s ∈ [0, 1]) | pivot moves by d·s, bar grows by g·s | g s − (d_p cos θ + d_q sin θ) s |
+//! | drift over the test (progress s ∈ [−½, ½], 0 in its middle) | pivot moves by d·s, bar grows by g·s | g s − (d_p cos θ + d_q sin θ) s |
 //!
 //! with `v_p = −σ R ω sin θ`, `v_q = σ R ω cos θ`, F the feed (µm/ms) and the lags τ in ms.
 //! The servo lag τ of an axis is `(1 − k_vff)/K_v` for a position loop of gain K_v with
@@ -42,7 +42,7 @@ pub struct Point {
     pub sin: f64,
     /// Sense of travel.
     pub sense: Sense,
-    /// Progress along the trace, 0 at its start, 1 at its end.
+    /// Progress over the test, −½ at its start, 0 in its middle, ½ at its end.
     pub progress: f64,
     /// Nominal radius, µm.
     pub radius_um: f64,

@@ -1,0 +1,214 @@
+//! Kwon's seven-step procedure end to end: the shipped scenario (`scenarios/kwon_seven_step.toml`)
+//! is simulated, every step diagnosed from its traces alone, and the figures and the machine
+//! report compared with the run's ground truth.
+
+use serde_json::Value;
+use std::path::PathBuf;
+use std::sync::OnceLock;
+use vmt_ballbar::kwon::{self, MachineReport};
+use vmt_ballbar::{Diagnosis, Options, Trace, diagnose};
+use vmt_sim::run::Run;
+use vmt_sim::simulate::simulate;
+
+/// The run of the scenario and the diagnosis of each step, made once for all the tests here.
+fn shared() -> &'static (Run, Vec<Diagnosis>) {
+    static SHARED: OnceLock<(Run, Vec<Diagnosis>)> = OnceLock::new();
+    SHARED.get_or_init(|| {
+        let run = run_scenario();
+        let d = diagnoses(&run);
+        (run, d)
+    })
+}
+
+fn run_scenario() -> Run {
+    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../scenarios/kwon_seven_step.toml");
+    let text = std::fs::read_to_string(&path).expect("the scenario file");
+    let s = vmt_scenario::parse(&text, "kwon_seven_step.toml", None).expect("the scenario loads");
+    let e = s.execution.expect("a job");
+    simulate(
+        &s.machine,
+        &e.axes,
+        &e.controller,
+        &e.job,
+        &e.settings,
+        &text,
+        &mut |_| {},
+    )
+    .expect("the job runs")
+}
+
+/// The diagnosis of each step (its CW and CCW traces, in the order run).
+fn diagnoses(run: &Run) -> Vec<Diagnosis> {
+    let traces: Vec<Trace> = run
+        .ballbar
+        .iter()
+        .map(|t| {
+            Trace::new(
+                &t.label,
+                &t.plane,
+                &t.direction,
+                t.radius_mm,
+                t.feed_mm_min,
+                t.angle_deg.clone(),
+                t.deviation_um.clone(),
+                Some(t.times_s.clone()),
+            )
+            .expect("a valid trace")
+        })
+        .collect();
+    traces
+        .chunks(2)
+        .map(|test| diagnose(test, &Options::default()).expect("diagnosis"))
+        .collect()
+}
+
+fn truth_figures(run: &Run, step: usize) -> &serde_json::Map<String, Value> {
+    run.ground_truth["ballbar"]["tests"][step - 1]["figures"]
+        .as_object()
+        .expect("the truth's figures")
+}
+
+/// The machine report by Kwon's formulas from the truth's figures of each step.
+fn truth_report(run: &Run) -> MachineReport {
+    kwon::report_from(
+        |n, key| truth_figures(run, n as usize).get(key)?.as_f64(),
+        |n| {
+            truth_figures(run, n as usize)
+                .keys()
+                .map(|k| (k.clone(), k.clone(), ""))
+                .collect()
+        },
+    )
+}
+
+/// Every failure of `key` of `step` against its truth, beyond `tol`.
+fn check(run: &Run, d: &[Diagnosis], step: usize, key: &str, tol: f64, out: &mut Vec<String>) {
+    let truth = truth_figures(run, step)[key].as_f64().expect("a number");
+    match d[step - 1].finding(key) {
+        Some(f) if (f.value - truth).abs() <= tol => {}
+        Some(f) => out.push(format!(
+            "step {step} {key}: {:+.3} against {truth:+.3} (tolerance {tol})",
+            f.value
+        )),
+        None => out.push(format!("step {step} {key}: not diagnosed")),
+    }
+}
+
+/// The seven steps on the built-in machine: the pivot offsets in the middle of each test, the
+/// figures Kwon takes from each step and the machine report all agree with the truth, with
+/// tolerances a few times the run's own scatter. It failed on the Z direction the truth assumed
+/// for the XY steps (EA0Z differs by direction: steps 3 and 5 follow a descent), on the
+/// gravity-loaded Z nut (no gap crossed at the top of the half circles), on eccentricities
+/// taken at the start of a test against a truth in its middle, on cyclic errors found in the
+/// start transient, and on the half circles' X lost motion read as servo mismatch.
+#[test]
+fn seven_steps_agree_with_the_truth() {
+    let (run, d) = shared();
+    assert_eq!(d.len(), 7);
+    let mut failures = Vec::new();
+    for step in 1..=5 {
+        for key in ["eccentricity_x", "eccentricity_y"] {
+            check(run, d, step, key, 0.1, &mut failures);
+        }
+        for key in [
+            "backlash_x",
+            "backlash_y",
+            "straightness_x",
+            "straightness_y",
+        ] {
+            check(run, d, step, key, 0.1, &mut failures);
+        }
+        check(run, d, step, "servo_mismatch_xy", 0.01, &mut failures);
+        check(run, d, step, "squareness_xy", 0.5, &mut failures);
+    }
+    for step in 1..=4 {
+        check(run, d, step, "scale_mismatch_xy", 0.5, &mut failures);
+    }
+    for (step, across) in [(6, "eccentricity_x"), (7, "eccentricity_y")] {
+        check(run, d, step, "backlash_z", 0.15, &mut failures);
+        check(run, d, step, "lateral_play_z", 0.15, &mut failures);
+        // The pivot offset across the half circle moves by 0.17 µm per µm of the axes' bows.
+        check(run, d, step, across, 0.5, &mut failures);
+    }
+    check(run, d, 6, "backlash_x", 0.15, &mut failures);
+    check(run, d, 6, "servo_mismatch_zx", 0.02, &mut failures);
+    check(run, d, 7, "backlash_y", 0.15, &mut failures);
+    check(run, d, 7, "servo_mismatch_yz", 0.02, &mut failures);
+    // No screw here has a periodic lead error: nothing may be reported as one.
+    for (i, diag) in d.iter().enumerate() {
+        for f in diag.findings.iter().filter(|f| f.key.starts_with("cyclic")) {
+            if f.present {
+                failures.push(format!("step {}: {} present: {f:?}", i + 1, f.key));
+            }
+        }
+    }
+    assert!(failures.is_empty(), "{failures:#?}");
+}
+
+/// On the half circles of steps 6 and 7 the figures an unfitted bow moves most are reported as
+/// not computed, with the reason, instead of with a value.
+#[test]
+fn half_circles_say_what_they_cannot_tell() {
+    let (_, d) = shared();
+    for (step, plane) in [(6, "zx"), (7, "yz")] {
+        let diag = &d[step - 1];
+        for key in [
+            "radius_offset".to_string(),
+            "eccentricity_z".to_string(),
+            format!("scale_mismatch_{plane}"),
+            format!("squareness_{plane}"),
+        ] {
+            assert!(diag.finding(&key).is_none(), "step {step} reports {key}");
+            let n = diag.not_computed.iter().find(|n| n.key == key);
+            assert!(
+                n.is_some_and(|n| n.reason.contains("bow")),
+                "step {step}: {key} not listed as not computed: {:?}",
+                diag.not_computed
+            );
+        }
+    }
+}
+
+/// The machine report: every figure with a truth within its tolerance (µm/m, µm, ms).
+#[test]
+fn machine_report_agrees_with_the_truth() {
+    let (run, d) = shared();
+    let report = kwon::machine_report(d);
+    let truth = truth_report(run);
+    let tolerance = |key: &str| match key {
+        "squareness_zx_kwon" | "squareness_yz_kwon" => 0.6,
+        "tilt_x_per_height_kwon" | "tilt_y_per_height_kwon" => 0.3,
+        "servo_mismatch_xy" => 0.005,
+        "scale_mismatch_xy" => 0.5,
+        "squareness_xy" => 0.5,
+        _ => 0.15,
+    };
+    let mut failures = Vec::new();
+    for f in &report.figures {
+        let Some(t) = truth.figures.iter().find(|t| t.key == f.key) else {
+            continue;
+        };
+        let tol = tolerance(&f.key);
+        eprintln!(
+            "{:28} truth {:+9.3} diagnosed {:+9.3} (tolerance {tol})",
+            f.key, t.value, f.value
+        );
+        if (f.value - t.value).abs() > tol {
+            failures.push(format!(
+                "{}: {:+.3} against {:+.3}",
+                f.key, f.value, t.value
+            ));
+        }
+    }
+    for key in [
+        "squareness_zx_kwon",
+        "squareness_yz_kwon",
+        "backlash_z",
+        "servo_mismatch_xy",
+    ] {
+        if !report.figures.iter().any(|f| f.key == key) {
+            failures.push(format!("{key}: not in the report"));
+        }
+    }
+    assert!(failures.is_empty(), "{failures:#?}");
+}
