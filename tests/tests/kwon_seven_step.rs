@@ -6,7 +6,7 @@ use serde_json::Value;
 use std::path::PathBuf;
 use std::sync::OnceLock;
 use vmt_ballbar::kwon::{self, MachineReport};
-use vmt_ballbar::{Diagnosis, Options, Trace, diagnose};
+use vmt_ballbar::{Diagnosis, Finding, Options, Trace, diagnose};
 use vmt_sim::run::Run;
 use vmt_sim::simulate::simulate;
 
@@ -134,9 +134,13 @@ fn seven_steps_agree_with_the_truth() {
     check(run, d, 6, "servo_mismatch_zx", 0.02, &mut failures);
     check(run, d, 7, "backlash_y", 0.15, &mut failures);
     check(run, d, 7, "servo_mismatch_yz", 0.02, &mut failures);
-    // No screw here has a periodic lead error: nothing may be reported as one.
+    // No screw here has a periodic lead error, and the Stribeck curves give no stick-slip at
+    // 500 mm/min: nothing may be reported as either (the start transient at the feed-in's axis
+    // reversal read as stick-slip of 5-33 µm before it was left out of the windows).
     for (i, diag) in d.iter().enumerate() {
-        for f in diag.findings.iter().filter(|f| f.key.starts_with("cyclic")) {
+        let spurious =
+            |f: &&Finding| f.key.starts_with("cyclic") || f.key.starts_with("stick_slip");
+        for f in diag.findings.iter().filter(spurious) {
             if f.present {
                 failures.push(format!("step {}: {} present: {f:?}", i + 1, f.key));
             }

@@ -371,6 +371,7 @@ fn residual<'a>(
         }
     };
     Residual::new(&t.angle_deg, s.cos, s.sin, s.sense, r, dt_ms, reversals)
+        .settled_within(s.transient_deg())
 }
 
 /// Key, name and unit of a fitted term in `plane`.

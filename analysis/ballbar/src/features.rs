@@ -60,6 +60,9 @@ pub struct Residual<'a> {
     pub dt_ms: f64,
     /// Sample indices at which p (0) and q (1) reverse (see [`reversals`]).
     pub reversals: &'a [Vec<usize>; 2],
+    /// The samples past the transients at the start and end of the run (all of them unless
+    /// [`Residual::settled_within`] says otherwise): what local shapes are measured on.
+    pub settled: std::ops::Range<usize>,
 }
 
 thread_local! {
@@ -290,6 +293,7 @@ impl<'a> Residual<'a> {
             smooth: moving_mean(&r, w),
             high_pass: Vec::new(),
             high_pass_sq: 0.0,
+            settled: 0..r.len(),
             r,
             dt_ms,
             reversals,
@@ -302,6 +306,16 @@ impl<'a> Residual<'a> {
         res.high_pass_sq = sum_sq(&hp);
         res.high_pass = hp;
         res
+    }
+
+    /// The residual with its first and last `ends_deg` of travel left out of
+    /// [`Residual::settled`]: the start and end transients of the servo loops, which a feed-in
+    /// at an axis reversal would otherwise put into that axis' stick-slip window.
+    pub fn settled_within(mut self, ends_deg: f64) -> Self {
+        let n = self.r.len();
+        let ends = ((ends_deg * self.per_deg()).round() as usize).min(n / 2);
+        self.settled = ends..n - ends;
+        self
     }
 
     /// Sample `i` as a signature point (progress and set-up left at zero: only the place on
@@ -397,8 +411,9 @@ pub fn step(res: &Residual, partial: impl Fn(usize) -> f64, i: usize) -> Option<
 /// axis' reversals, the same away from all reversals, peak-to-peak near the reversals), µm.
 ///
 /// Near: within 10° of a reversal of the axis but not in the [`SPIKE_ZONE_DEG`] + 1° after it
-/// (the spike is a separate error); away: not within 10° of any reversal. Only the samples
-/// near reversals are visited; the sum over those away is the trace's total less theirs.
+/// (the spike is a separate error); away: not within 10° of any reversal. Both only among the
+/// [`Residual::settled`] samples. Only the samples near reversals are visited; the sum over
+/// those away is the settled total less theirs.
 pub fn stick_slip(residuals: &[Residual], axis: usize) -> Option<(f64, f64, f64)> {
     let (mut near_n, mut near_sq) = (0usize, 0.0);
     let (mut far_n, mut far_sq) = (0usize, 0.0);
@@ -413,6 +428,10 @@ pub fn stick_slip(residuals: &[Residual], axis: usize) -> Option<(f64, f64, f64)
                     windows.push((res.window(i, 0.0, SPIKE_ZONE_DEG + 1.0), 4));
                 }
             }
+        }
+        let settled = res.settled.clone();
+        for (r, _) in &mut windows {
+            *r = r.start.clamp(settled.start, settled.end)..r.end.clamp(settled.start, settled.end);
         }
         let mut bounds: Vec<usize> = windows.iter().flat_map(|(r, _)| [r.start, r.end]).collect();
         bounds.sort_unstable();
@@ -440,8 +459,10 @@ pub fn stick_slip(residuals: &[Residual], axis: usize) -> Option<(f64, f64, f64)
                 }
             }
         }
-        far_n += res.high_pass.len() - covered_n;
-        far_sq += (res.high_pass_sq - covered_sq).max(0.0);
+        let ends_sq =
+            sum_sq(&res.high_pass[..settled.start]) + sum_sq(&res.high_pass[settled.end..]);
+        far_n += settled.len() - covered_n;
+        far_sq += (res.high_pass_sq - ends_sq - covered_sq).max(0.0);
     }
     if near_n < 50 || far_n < 50 {
         return None;
