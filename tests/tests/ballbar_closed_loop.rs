@@ -3,9 +3,8 @@
 //! ground truth (the `figures` of the test, in the diagnosis' own keys and units).
 
 use serde_json::Value;
-use vmt_ballbar::{Diagnosis, Options, Trace, diagnose};
+use vmt_ballbar::{Diagnosis, Options, diagnose};
 use vmt_sim::run::Run;
-use vmt_sim::simulate::simulate;
 
 /// The built-in machine with its [job] replaced by `job` (a TOML fragment).
 fn run(job: &str, instruments: &str) -> Run {
@@ -16,37 +15,7 @@ fn run(job: &str, instruments: &str) -> Run {
 fn run_on(text: &str, job: &str, instruments: &str) -> Run {
     let cut = text.find("[job]").expect("the built-in scenario has a job");
     let toml = format!("{}{job}\n{instruments}\n", &text[..cut]);
-    let s = vmt_scenario::parse(&toml, "closed_loop.toml", None).expect("the scenario loads");
-    let e = s.execution.expect("a job");
-    simulate(
-        &s.machine,
-        &e.axes,
-        &e.controller,
-        &e.job,
-        &e.settings,
-        &toml,
-        &mut |_| {},
-    )
-    .expect("the job runs")
-}
-
-fn traces(run: &Run) -> Vec<Trace> {
-    run.ballbar
-        .iter()
-        .map(|t| {
-            Trace::new(
-                &t.label,
-                &t.plane,
-                &t.direction,
-                t.radius_mm,
-                t.feed_mm_min,
-                t.angle_deg.clone(),
-                t.deviation_um.clone(),
-                Some(t.times_s.clone()),
-            )
-            .expect("a valid trace")
-        })
-        .collect()
+    vmt_e2e::simulate_text(&toml, "closed_loop.toml")
 }
 
 /// Compares every truth figure of the first test with its finding: within `tol(key, truth)`.
@@ -95,15 +64,14 @@ fn tolerance(radius_mm: f64) -> impl Fn(&str, f64) -> f64 {
     }
 }
 
-/// An XY test of 100 mm at 2000 mm/min, CW and CCW, about the table's middle.
-const XY_TEST: &str = r#"[job]
-kind = "ballbar"
-plane = "XY"
-center_mm = [250.0, 200.0, 200.0]
-radius_mm = 100.0
-feed_mm_min = 2000.0
-arc_deg = 360.0
-directions = ["cw", "ccw"]"#;
+/// An XY test of `radius_mm` at `feed_mm_min`, 360° CW and CCW, about the table's middle.
+fn xy_test(radius_mm: f64, feed_mm_min: f64) -> String {
+    format!(
+        "[job]\nkind = \"ballbar\"\nplane = \"XY\"\ncenter_mm = [250.0, 200.0, 200.0]\n\
+         radius_mm = {radius_mm:?}\nfeed_mm_min = {feed_mm_min:?}\narc_deg = 360.0\n\
+         directions = [\"cw\", \"ccw\"]"
+    )
+}
 
 /// The built-in machine (geometric errors of an uncompensated VMC, drive backlash and friction,
 /// unequal gains) with a drifting pivot: every figure of the XY test within tolerance.
@@ -113,8 +81,8 @@ fn builtin_machine_xy_test_is_diagnosed_within_tolerance() {
 noise_um = 0.3
 setup_eccentricity_um = [12.0, -7.0, 0.0]
 setup_drift_um_per_min = [4.0, -2.0, 0.0]"#;
-    let r = run(XY_TEST, bar);
-    let d = diagnose(&traces(&r), &Options::default()).expect("diagnosis");
+    let r = run(&xy_test(100.0, 2000.0), bar);
+    let d = diagnose(&vmt_e2e::traces(&r), &Options::default()).expect("diagnosis");
     compare(&r, &d, tolerance(100.0));
 }
 
@@ -135,11 +103,15 @@ fn screw_lead_errors_are_diagnosed_as_cyclic_errors_of_their_pitch() {
             "screw_cyclic_um = [0.0, -1.0]",
             1,
         );
-    let r = run_on(&text, XY_TEST, "[instruments.ballbar]\nnoise_um = 0.3");
+    let r = run_on(
+        &text,
+        &xy_test(100.0, 2000.0),
+        "[instruments.ballbar]\nnoise_um = 0.3",
+    );
     let figures = &r.ground_truth["ballbar"]["tests"][0]["figures"];
     assert!((figures["cyclic_x"].as_f64().unwrap() - 1.5).abs() < 1e-9);
     assert!((figures["cyclic_y"].as_f64().unwrap() - 1.0).abs() < 1e-9);
-    let d = diagnose(&traces(&r), &Options::default()).expect("diagnosis");
+    let d = diagnose(&vmt_e2e::traces(&r), &Options::default()).expect("diagnosis");
     for axis in ["x", "y"] {
         let f = d
             .finding(&format!("cyclic_{axis}"))
@@ -160,14 +132,7 @@ fn screw_lead_errors_are_diagnosed_as_cyclic_errors_of_their_pitch() {
 /// (±2 µm) of a bar with 0.3 µm noise.
 #[test]
 fn a_static_friction_peak_on_x_is_diagnosed_as_stick_slip_of_x() {
-    const SLOW: &str = r#"[job]
-kind = "ballbar"
-plane = "XY"
-center_mm = [250.0, 200.0, 200.0]
-radius_mm = 50.0
-feed_mm_min = 100.0
-arc_deg = 360.0
-directions = ["cw", "ccw"]"#;
+    let slow = xy_test(50.0, 100.0);
     let stock = "coulomb_n = 50.0, static_n = 65.0, stribeck_mm_s = 1.0";
     let sticky = vmt_scenario::BUILTIN_DEFAULT.replacen(
         stock,
@@ -180,8 +145,8 @@ directions = ["cw", "ccw"]"#;
         "the X guides' friction"
     );
     let present = |text: &str| {
-        let r = run_on(text, SLOW, "[instruments.ballbar]\nnoise_um = 0.1");
-        let d = diagnose(&traces(&r), &Options::default()).expect("diagnosis");
+        let r = run_on(text, &slow, "[instruments.ballbar]\nnoise_um = 0.1");
+        let d = diagnose(&vmt_e2e::traces(&r), &Options::default()).expect("diagnosis");
         ["x", "y"].map(|a| {
             d.finding(&format!("stick_slip_{a}"))
                 .expect("a stick-slip finding")

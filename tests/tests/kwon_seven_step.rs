@@ -6,9 +6,8 @@ use serde_json::Value;
 use std::path::PathBuf;
 use std::sync::OnceLock;
 use vmt_ballbar::kwon::{self, MachineReport};
-use vmt_ballbar::{Diagnosis, Finding, Options, Trace, diagnose};
+use vmt_ballbar::{Diagnosis, Finding, Options, diagnose};
 use vmt_sim::run::Run;
-use vmt_sim::simulate::simulate;
 
 /// The run of the scenario and the diagnosis of each step, made once for all the tests here.
 fn shared() -> &'static (Run, Vec<Diagnosis>) {
@@ -23,39 +22,12 @@ fn shared() -> &'static (Run, Vec<Diagnosis>) {
 fn run_scenario() -> Run {
     let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../scenarios/kwon_seven_step.toml");
     let text = std::fs::read_to_string(&path).expect("the scenario file");
-    let s = vmt_scenario::parse(&text, "kwon_seven_step.toml", None).expect("the scenario loads");
-    let e = s.execution.expect("a job");
-    simulate(
-        &s.machine,
-        &e.axes,
-        &e.controller,
-        &e.job,
-        &e.settings,
-        &text,
-        &mut |_| {},
-    )
-    .expect("the job runs")
+    vmt_e2e::simulate_text(&text, "kwon_seven_step.toml")
 }
 
 /// The diagnosis of each step (its CW and CCW traces, in the order run).
 fn diagnoses(run: &Run) -> Vec<Diagnosis> {
-    let traces: Vec<Trace> = run
-        .ballbar
-        .iter()
-        .map(|t| {
-            Trace::new(
-                &t.label,
-                &t.plane,
-                &t.direction,
-                t.radius_mm,
-                t.feed_mm_min,
-                t.angle_deg.clone(),
-                t.deviation_um.clone(),
-                Some(t.times_s.clone()),
-            )
-            .expect("a valid trace")
-        })
-        .collect();
+    let traces = vmt_e2e::traces(run);
     traces
         .chunks(2)
         .map(|test| diagnose(test, &Options::default()).expect("diagnosis"))
