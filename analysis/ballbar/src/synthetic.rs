@@ -3,9 +3,15 @@
 //! traces that did not come from the simulator, for tests, benchmarks and what-if studies.
 //!
 //! The tool moves on the nominal circle at the feed, sampled at 1 kHz; it is displaced by
-//! `δp = ε_p p − τ_p v_p − (b_p/2) sign v_p − (l_q/2) sign v_q + S_q (1 − (q/R)²) [− γ q]
-//! + A sin(2π p/P + 0.3)` and likewise for q (see [`crate::signatures`] for each law); the bar
-//! reads `|tool − pivot(t)| − R` plus a sine vibration and N(0, σ²) noise, rounded to 0.1 µm.
+//! `δp = ε_p p − τ_p v_p − (b_p/2) sign v_p − (l_q/2) sign v_q + S_q (1 − (q/R)²) [− γ q] +
+//! A sin(2π p/P + 0.3) − sign(v_p) H_p g((t − t_r)/τ_H)` and likewise for q (see
+//! [`crate::signatures`] for each law). The last term is the reversal spike: after the axis
+//! reverses at `t_r` it lags against its new motion by the pulse `g(x) = x e^(1−x)`, which
+//! peaks at `x = 1` and is `2.446 τ_H` wide at half height, as friction holds it until the
+//! velocity loop's integral breaks it free. The bar reads `|tool − pivot(t)| − R` plus a sine
+//! vibration, a start transient `T e^(−t/τ_T)` (the radial following error left by a feed-in
+//! at the corner onto the circle, decaying with the position loop) and N(0, σ²) noise,
+//! rounded to 0.1 µm.
 
 use crate::trace::{Plane, Sense, Trace};
 use rand::SeedableRng;
@@ -35,6 +41,12 @@ pub struct Errors {
     pub cyclic: Option<(usize, f64, f64)>,
     /// Vibration: frequency Hz, amplitude µm.
     pub vibration: Option<(f64, f64)>,
+    /// Reversal spike of each axis: height `H` (µm, lag against the new motion) and the pulse's
+    /// time constant `τ_H` (ms).
+    pub spike: [Option<(f64, f64)>; 2],
+    /// Start transient of every run: radial offset `T` at the first sample (µm, + outward) and
+    /// its time constant `τ_T` (ms).
+    pub start_transient: Option<(f64, f64)>,
     /// Reading noise σ, µm.
     pub noise_um: f64,
 }
@@ -92,6 +104,19 @@ pub fn trace(
             let d = amp * (std::f64::consts::TAU * x / (pitch_mm * 1e3) + 0.3).sin();
             if axis == 0 { dp += d } else { dq += d }
         }
+        for (axis, d) in [(0, &mut dp), (1, &mut dq)] {
+            if let Some((h, tau_ms)) = e.spike[axis] {
+                *d += spike_um(
+                    h,
+                    tau_ms,
+                    t_ms,
+                    start_deg,
+                    sg,
+                    duration_ms / sweep_deg,
+                    axis,
+                );
+            }
+        }
         let s_test = progress.0 + (progress.1 - progress.0) * u;
         let pivot = [
             e.pivot_um[0] + e.pivot_drift_um[0] * s_test,
@@ -101,6 +126,9 @@ pub fn trace(
         let mut d = (x * x + y * y).sqrt() - r_um;
         if let Some((hz, amp)) = e.vibration {
             d += amp * (std::f64::consts::TAU * hz * t_ms * 1e-3).sin();
+        }
+        if let Some((amp, tau_ms)) = e.start_transient {
+            d += amp * (-t_ms / tau_ms).exp();
         }
         let n: f64 = StandardNormal.sample(&mut rng);
         d += e.noise_um * n;
@@ -118,6 +146,39 @@ pub fn trace(
         deviation_um,
         time_s: Some(time_s),
     }
+}
+
+/// The displacement (µm) of axis `axis` (0 p, 1 q) at `t_ms` from the spike `H e^(1−x) x`,
+/// `x = (t − t_r)/τ`, after its last reversal `t_r`, against its new direction of motion. The
+/// trace starts at `start_deg` in the sense of sign `sg` and takes `ms_per_deg`. Axis p
+/// reverses where sin θ = 0, q where cos θ = 0; a run that starts at a reversal starts from
+/// rest there, which is not counted as one.
+fn spike_um(
+    h: f64,
+    tau_ms: f64,
+    t_ms: f64,
+    start_deg: f64,
+    sg: f64,
+    ms_per_deg: f64,
+    axis: usize,
+) -> f64 {
+    // Angles travelled since the last reversal: reversals every 180°, p's at 0°, q's at 90°.
+    let first = if axis == 0 { 0.0 } else { 90.0 };
+    let travelled = t_ms / ms_per_deg;
+    let at = start_deg + sg * travelled;
+    let since_deg = (sg * (at - first)).rem_euclid(180.0);
+    if since_deg >= travelled {
+        return 0.0; // no reversal yet in this run
+    }
+    let x = since_deg * ms_per_deg / tau_ms;
+    let th = at.to_radians();
+    // The velocity after the reversal: p's is −sg f sin θ, q's sg f cos θ.
+    let v = if axis == 0 {
+        -sg * th.sin()
+    } else {
+        sg * th.cos()
+    };
+    -v.signum() * h * x * (1.0 - x).exp()
 }
 
 /// A CW and a CCW full circle from 0°, the CW first, the test's progress split evenly.
