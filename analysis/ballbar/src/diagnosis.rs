@@ -236,9 +236,7 @@ fn diagnose_once(
     let sample_refs: Vec<&Samples> = samples.iter().collect();
     let terms = Terms::for_test(&refs);
     let fit = Fit::new(plane, &terms.terms, &sample_refs)?;
-    let mut findings = fitted_findings(&fit, &sample_refs);
-    let unresolved = unresolved_keys(&terms, plane);
-    findings.retain(|f| !unresolved.contains(&f.key));
+    let mut findings = fitted_findings(&fit, &sample_refs, &terms.unresolved);
     let residuals: Vec<Residual> = traces
         .iter()
         .zip(&samples)
@@ -445,12 +443,19 @@ pub const fn squareness_iso(plane: Plane) -> &'static str {
     }
 }
 
-fn fitted_findings(fit: &Fit, samples: &[&Samples]) -> Vec<Finding> {
+/// The findings of the fitted terms, without those the test cannot resolve (`unresolved`,
+/// listed as not computed instead).
+fn fitted_findings(
+    fit: &Fit,
+    samples: &[&Samples],
+    unresolved: &[(Term, &'static str)],
+) -> Vec<Finding> {
     let one_sense = fit.get(Term::ServoMismatch).is_none();
     let unit = fit.unit_contributions(samples);
     fit.terms
         .iter()
         .zip(unit)
+        .filter(|(term, _)| !unresolved.iter().any(|(t, _)| t == *term))
         .filter_map(|(&term, per_unit)| {
             let (key, mut name, unit) = describe(term, fit.plane)?;
             let (value, se) = fit.get(term)?;
@@ -517,15 +522,6 @@ fn closing_errors(fit: &Fit, traces: &[Trace], samples: &[Samples]) -> Vec<Findi
                 details: Vec::new(),
             }
         })
-        .collect()
-}
-
-/// The keys of the terms the test fits but cannot resolve ([`Terms::unresolved`]).
-fn unresolved_keys(terms: &Terms, plane: Plane) -> Vec<String> {
-    terms
-        .unresolved
-        .iter()
-        .filter_map(|(t, _)| describe(*t, plane).map(|d| d.0))
         .collect()
 }
 

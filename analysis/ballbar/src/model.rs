@@ -64,33 +64,11 @@ pub struct Compiled {
 }
 
 impl Compiled {
-    /// The model's deviation at `pt`, µm.
-    #[inline]
-    pub fn eval(&self, pt: &Point) -> f64 {
-        self.eval_at(pt.cos, pt.sin, pt.sense.sign(), pt.progress)
-    }
-
-    /// The model's deviation at cos θ `c`, sin θ `s`, sense sign `g` and progress `u`, µm.
-    #[inline]
-    pub fn eval_at(&self, c: f64, s: f64, g: f64, u: f64) -> f64 {
-        let sgn = signatures::sign;
-        let w = &self.w;
-        w[0] + w[1] * c
-            + w[2] * s
-            + w[3] * (c * c - s * s)
-            + w[4] * s * c
-            + g * (w[5] * sgn(s) * c + w[6] * sgn(c) * s + w[7] * s.abs() + w[8] * c.abs())
-            + w[9] * c * c * s
-            + w[10] * s * s * c
-            + u * (w[11] + w[12] * c + w[13] * s)
-            + w[14] * g * s * c
-    }
-
     /// `out[i] = deviation[i] − model(i)` for the samples of one trace of sense sign `g` (the
-    /// residual): [`Compiled::eval_at`] with the sense folded into the weights and regrouped
-    /// (`w₉c²s + w₁₀s²c = sc (w₉c + w₁₀s)`, `|s| = sign(s) s`), the signs applied by
-    /// [`signed`], so that the loop has no branch or select and runs on vectors. Agrees with
-    /// `eval_at` to rounding.
+    /// residual): the dot product of the weights with [`shapes`], the sense folded into the
+    /// weights and the terms regrouped (`w₉c²s + w₁₀s²c = sc (w₉c + w₁₀s)`,
+    /// `|s| = sign(s) s`), the signs applied by [`signed`], so that the loop has no branch or
+    /// select and runs on vectors.
     pub fn residuals(
         &self,
         g: f64,
@@ -510,8 +488,8 @@ mod tests {
     ];
 
     proptest! {
-        /// The compiled model, evaluated one point at a time or as residuals, and the sum of
-        /// the terms' signatures agree at every point.
+        /// The compiled model's residual and the sum of the terms' signatures agree at every
+        /// point.
         #[test]
         fn compiled_model_equals_the_sum_of_signatures(
             theta in -7.0..7.0f64, u in 0.0..1.0f64, ccw: bool, plane in 0usize..3,
@@ -532,8 +510,6 @@ mod tests {
             };
             let direct: f64 = ALL.iter().zip(&values).map(|(t, v)| v * t.basis(&pt, plane)).sum();
             let compiled = fit.compiled(123e3, 25.0);
-            let at = compiled.eval(&pt);
-            prop_assert!((direct - at).abs() < 1e-9 * (1.0 + direct.abs()));
             let mut r = [0.0];
             compiled.residuals(pt.sense.sign(), &[pt.cos], &[pt.sin], &[u], &[1.0], &mut r);
             prop_assert!((1.0 - r[0] - direct).abs() < 1e-9 * (1.0 + direct.abs()));
