@@ -54,7 +54,7 @@ pub struct Residual<'a> {
     /// The residual minus its moving mean over 2° (the high-pass part stick-slip is measured
     /// on).
     pub high_pass: Vec<f64>,
-    /// Σ of the squares of `high_pass`.
+    /// Σ of the squares of `high_pass` over the [`Residual::settled`] samples.
     pub high_pass_sq: f64,
     /// Sample period, ms.
     pub dt_ms: f64,
@@ -315,6 +315,7 @@ impl<'a> Residual<'a> {
         let n = self.r.len();
         let ends = ((ends_deg * self.per_deg()).round() as usize).min(n / 2);
         self.settled = ends..n - ends;
+        self.high_pass_sq -= sum_sq(&self.high_pass[..ends]) + sum_sq(&self.high_pass[n - ends..]);
         self
     }
 
@@ -459,10 +460,8 @@ pub fn stick_slip(residuals: &[Residual], axis: usize) -> Option<(f64, f64, f64)
                 }
             }
         }
-        let ends_sq =
-            sum_sq(&res.high_pass[..settled.start]) + sum_sq(&res.high_pass[settled.end..]);
         far_n += settled.len() - covered_n;
-        far_sq += (res.high_pass_sq - ends_sq - covered_sq).max(0.0);
+        far_sq += (res.high_pass_sq - covered_sq).max(0.0);
     }
     if near_n < 50 || far_n < 50 {
         return None;
