@@ -8,16 +8,8 @@ use vmt_sim::run::Run;
 pub fn simulate_text(text: &str, name: &str) -> Run {
     let s = vmt_scenario::parse(text, name, None).expect("the scenario loads");
     let e = s.execution.expect("the scenario has a job");
-    vmt_sim::simulate::simulate(
-        &s.machine,
-        &e.axes,
-        &e.controller,
-        &e.job,
-        &e.settings,
-        text,
-        &mut |_| {},
-    )
-    .expect("the job runs")
+    e.simulate(&s.machine, text, &mut |_| {})
+        .expect("the job runs")
 }
 
 /// The ball-bar traces of `run` as the diagnosis reads them, in the order run.

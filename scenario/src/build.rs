@@ -57,6 +57,27 @@ pub struct Execution {
     pub milling: Option<vmt_sim::machining::MillingJob>,
 }
 
+impl Execution {
+    /// Runs the job on `machine` with these drives, controller and settings
+    /// ([`vmt_sim::simulate::simulate`]); `text` is the scenario document, kept in the run.
+    pub fn simulate(
+        &self,
+        machine: &Machine,
+        text: &str,
+        progress: &mut dyn FnMut(f64),
+    ) -> std::result::Result<vmt_sim::run::Run, vmt_sim::simulate::SimError> {
+        vmt_sim::simulate::simulate(
+            machine,
+            &self.axes,
+            &self.controller,
+            &self.job,
+            &self.settings,
+            text,
+            progress,
+        )
+    }
+}
+
 /// A loaded scenario.
 #[derive(Clone, Debug)]
 pub struct Scenario {

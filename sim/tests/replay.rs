@@ -5,7 +5,7 @@
 use vmt_scenario::edit::Template;
 use vmt_sim::replay::replay;
 use vmt_sim::run::BallbarTrace;
-use vmt_sim::simulate::{simulate, simulate_with_replay};
+use vmt_sim::simulate::simulate_with_replay;
 
 /// The built-in machine on a short XY test (100 mm, 2000 mm/min, CW and CCW), with noise.
 fn scenario_text() -> String {
@@ -23,17 +23,9 @@ fn scenario_text() -> String {
 fn run(text: &str) -> Vec<BallbarTrace> {
     let s = vmt_scenario::parse(text, "replay.toml", None).expect("loads");
     let e = s.execution.expect("a job");
-    simulate(
-        &s.machine,
-        &e.axes,
-        &e.controller,
-        &e.job,
-        &e.settings,
-        text,
-        &mut |_| {},
-    )
-    .expect("runs")
-    .ballbar
+    e.simulate(&s.machine, text, &mut |_| {})
+        .expect("runs")
+        .ballbar
 }
 
 #[test]

@@ -35,16 +35,7 @@ fn measured_in(plane: &str, edits: &[(&str, f64)]) -> Vec<Trace> {
     let text = t.with(&edits).unwrap();
     let s = vmt_scenario::parse(&text, "measured.toml", None).unwrap();
     let e = s.execution.as_ref().unwrap();
-    let run = vmt_sim::simulate::simulate(
-        &s.machine,
-        &e.axes,
-        &e.controller,
-        &e.job,
-        &e.settings,
-        &text,
-        &mut |_| {},
-    )
-    .unwrap();
+    let run = e.simulate(&s.machine, &text, &mut |_| {}).unwrap();
     run.ballbar
         .iter()
         .map(|t| vmt_gap::model::trace_of(t).unwrap())
