@@ -24,6 +24,7 @@
 //!   encoder): the periodogram of the residual regressed on `cos θ · {sin, cos}(2π k x)` (for the
 //!   p axis; `sin θ` for q) over spatial frequencies k from 1/R to 1/[`MIN_PITCH_MM`].
 
+use crate::moving_mean::PrefixSums;
 use crate::signatures::Point;
 use crate::trace::Sense;
 use realfft::RealFftPlanner;
@@ -49,8 +50,10 @@ pub struct Residual<'a> {
     pub sense: Sense,
     /// Residual per sample, µm.
     pub r: Vec<f64>,
-    /// The residual smoothed over [`SMOOTH_MS`] (see [`Residual::new`]).
-    pub smooth: Vec<f64>,
+    /// Prefix sums of `r`, for the smoothed residual (see [`Residual::smooth`]).
+    pub sums: PrefixSums,
+    /// Half-width of the window of [`Residual::smooth`], samples.
+    pub smooth_half: usize,
     /// The residual minus its moving mean over 2° (the high-pass part stick-slip is measured
     /// on).
     pub high_pass: Vec<f64>,
@@ -158,64 +161,6 @@ fn select_in_band(n: usize, k: usize, f: impl Fn(usize) -> f64, band: &mut [f64]
     })
 }
 
-/// Moving mean over `w` samples (centred, shrinking at the ends).
-pub fn moving_mean(r: &[f64], w: usize) -> Vec<f64> {
-    let mut out = crate::samples::filled(r.len());
-    moving_mean_into(r, w, &mut out);
-    out
-}
-
-/// Running sums advanced side by side over consecutive stretches of a trace in
-/// [`moving_mean_into`]: one running sum waits on the latency of each addition, independent
-/// ones overlap.
-const CHAINS: usize = 4;
-
-/// [`moving_mean`] into `out` (of the length of `r`), by running sums: the ends (where the
-/// window shrinks) divide by the window's length, the interior multiplies by the reciprocal of
-/// the full length. The interior is cut into [`CHAINS`] stretches, each starting from its own
-/// sum of the window before it.
-fn moving_mean_into(r: &[f64], w: usize, out: &mut [f64]) {
-    let n = r.len();
-    let half = w / 2;
-    let full = 2 * half + 1;
-    if n < full {
-        for (i, o) in out.iter_mut().enumerate() {
-            let (a, b) = (i.saturating_sub(half), (i + half + 1).min(n));
-            *o = r[a..b].iter().sum::<f64>() / (b - a) as f64;
-        }
-        return;
-    }
-    let mut sum: f64 = r[..half].iter().sum();
-    for i in 0..=half {
-        sum += r[i + half];
-        out[i] = sum / (i + half + 1) as f64;
-    }
-    let mut sum: f64 = r[n - full..].iter().sum();
-    for i in n - half..n {
-        sum -= r[i - half - 1];
-        out[i] = sum / (n - (i - half)) as f64;
-    }
-    // Sample half + 1 + b of the interior enters r[b + full] and drops r[b].
-    let len = n - full;
-    let (old, new) = (&r[..len], &r[full..]);
-    let o = &mut out[half + 1..n - half];
-    let inv = 1.0 / full as f64;
-    let m = len / CHAINS;
-    let mut sums: [f64; CHAINS] = std::array::from_fn(|j| r[j * m..j * m + full].iter().sum());
-    for i in 0..m {
-        for (j, sum) in sums.iter_mut().enumerate() {
-            let b = j * m + i;
-            *sum += new[b] - old[b];
-            o[b] = *sum * inv;
-        }
-    }
-    let last = &mut sums[CHAINS - 1];
-    for b in CHAINS * m..len {
-        *last += new[b] - old[b];
-        o[b] = *last * inv;
-    }
-}
-
 /// Σ v, in eight interleaved partial sums (which the compiler keeps in vector registers).
 pub fn sum(v: &[f64]) -> f64 {
     lanes(v, |x| x)
@@ -296,7 +241,8 @@ impl<'a> Residual<'a> {
             cos,
             sin,
             sense,
-            smooth: moving_mean(&r, w),
+            sums: PrefixSums::new(&r),
+            smooth_half: w / 2,
             high_pass: Vec::new(),
             high_pass_sq: 0.0,
             settled: 0..r.len(),
@@ -305,12 +251,8 @@ impl<'a> Residual<'a> {
             reversals,
         };
         let w = (2.0 * res.per_deg()).round().max(3.0) as usize;
-        let mut hp = moving_mean(&res.r, w);
-        for (h, x) in hp.iter_mut().zip(&res.r) {
-            *h = x - *h;
-        }
-        res.high_pass_sq = sum_sq(&hp);
-        res.high_pass = hp;
+        res.high_pass = res.sums.high_pass(&res.r, w / 2);
+        res.high_pass_sq = sum_sq(&res.high_pass);
         res
     }
 
@@ -323,6 +265,17 @@ impl<'a> Residual<'a> {
         self.settled = ends..n - ends;
         self.high_pass_sq -= sum_sq(&self.high_pass[..ends]) + sum_sq(&self.high_pass[n - ends..]);
         self
+    }
+
+    /// The residual at sample `j` smoothed over [`SMOOTH_MS`]: its centred moving mean.
+    #[inline]
+    pub fn smooth(&self, j: usize) -> f64 {
+        self.sums.mean(j, self.smooth_half)
+    }
+
+    /// Every how many samples the smoothed residual is independent of the last: its window.
+    fn smooth_width(&self) -> usize {
+        2 * self.smooth_half + 1
     }
 
     /// Sample `i` as a signature point (progress and set-up left at zero: only the place on
@@ -375,21 +328,21 @@ pub fn spike(res: &Residual, i: usize) -> Option<Spike> {
     if !res.has(i, -12.0, 12.0) {
         return None;
     }
-    let smooth = &res.smooth;
+    let smooth = |j: usize| res.smooth(j);
     let around: Vec<f64> = res
         .window(i, -12.0, -2.0)
         .chain(res.window(i, SPIKE_ZONE_DEG + 2.0, 12.0))
-        .map(|j| smooth[j])
+        .map(smooth)
         .collect();
     let level = median(&around);
     let zone = res.window(i, 0.0, SPIKE_ZONE_DEG);
     let peak = zone.clone().max_by(|&a, &b| {
-        (smooth[a] - level)
+        (smooth(a) - level)
             .abs()
-            .total_cmp(&(smooth[b] - level).abs())
+            .total_cmp(&(smooth(b) - level).abs())
     })?;
-    let h = smooth[peak] - level;
-    let half = |j: usize| (smooth[j] - level) * h.signum() >= 0.5 * h.abs();
+    let h = smooth(peak) - level;
+    let half = |j: usize| (smooth(j) - level) * h.signum() >= 0.5 * h.abs();
     let mut a = peak;
     while a > zone.start.saturating_sub(zone.len()) && half(a - 1) {
         a -= 1;
@@ -632,17 +585,19 @@ fn fft_length(n: usize) -> usize {
     (1..=n).rev().find(|&m| smooth(m)).unwrap_or(1)
 }
 
-/// The start transient of a trace: extreme of the smoothed residual in its first 5°, µm, and
-/// the robust noise of the smoothed residual elsewhere.
+/// The start transient of a trace: extreme of the smoothed residual in its first 5° above its
+/// median elsewhere (over one sample per smoothing window: the values between add nothing
+/// independent), µm.
 pub fn start_transient(res: &Residual) -> Option<f64> {
-    let smooth = &res.smooth;
     let zone = res.window(0, 0.0, 5.0);
     let rest = res.window(0, 10.0, 360.0);
     if zone.is_empty() || rest.len() < 10 {
         return None;
     }
-    let level = median_of(rest, |j| smooth[j]);
-    zone.map(|j| smooth[j] - level)
+    let k = res.smooth_width().min(rest.len() / 10);
+    let n = rest.len().div_ceil(k);
+    let level = select(n, n / 2, |i| res.smooth(rest.start + k * i));
+    zone.map(|j| res.smooth(j) - level)
         .max_by(|a, b| a.abs().total_cmp(&b.abs()))
 }
 
