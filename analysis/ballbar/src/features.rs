@@ -323,15 +323,19 @@ pub struct Spike {
     pub width_ms: f64,
 }
 
-/// The spike after the reversal at sample `i`, if the trace holds the zone around it.
+/// The spike after the reversal at sample `i`, if the trace holds the zone around it. The
+/// level around it is the median of one smoothed value per smoothing window (the values
+/// between add nothing independent).
 pub fn spike(res: &Residual, i: usize) -> Option<Spike> {
     if !res.has(i, -12.0, 12.0) {
         return None;
     }
     let smooth = |j: usize| res.smooth(j);
+    let k = res.smooth_width();
     let around: Vec<f64> = res
         .window(i, -12.0, -2.0)
-        .chain(res.window(i, SPIKE_ZONE_DEG + 2.0, 12.0))
+        .step_by(k)
+        .chain(res.window(i, SPIKE_ZONE_DEG + 2.0, 12.0).step_by(k))
         .map(smooth)
         .collect();
     let level = median(&around);
