@@ -9,9 +9,11 @@
 //! --profile-time 5`, the total divided by the number of diagnoses (calls of
 //! `iso230_4::figures_with_trig`).
 //!
-//! Measured November 2026 (load average 1, one core taken by another build): 34.8 M
-//! instructions per diagnosis; criterion about 2.8 ms (360/s), against 3.3 ms (300/s) and
-//! 43.9 M for the build before the estimators were cut (medians of three alternating runs).
+//! Measured November 2026: 34.6 M instructions per diagnosis against 43.8 M for the build
+//! before the estimators were cut (`--profile-time 12`, about 100 diagnoses); criterion 2.7 ms
+//! (about 370/s) against 3.1 ms (325/s), medians of five runs alternating the two builds (load
+//! average 0.4–1, another engineer's builds on the second core).
+//!
 //! Where the instructions go: ISO figures 22 % (least-squares sums 5 %, bounds about both
 //! centres 6 %, hysteresis path and blocks 9 %), vibration spectrum 14 % (the two 55 296-point
 //! FFTs 9 %), trigonometry 10 %, the model's residuals 10 %, cyclic search 7 %, medians of the
