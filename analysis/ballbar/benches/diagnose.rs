@@ -3,56 +3,27 @@
 //! and 0.3 µm noise. One core. Goal (issue 4): at least 1000 diagnoses per second.
 //!
 //! Run: `cargo bench -p vmt-ballbar --bench diagnose -- --measurement-time 5` (criterion's
-//! elem/s are diagnoses/s).
+//! elem/s are diagnoses/s). Wall-clock figures swing with the load on the shared machine;
+//! compare builds by instructions: `valgrind --tool=callgrind
+//! --toggle-collect=vmt_ballbar::diagnosis::diagnose` on the bench binary with `--bench full
+//! --profile-time 5`, the total divided by the number of diagnoses (calls of
+//! `iso230_4::figures_with_trig`).
 //!
-//! Measured November 2026 on the shared 2-core machine under load (load average 5–10): about
-//! 39 diagnoses/s wall clock (25 ms each, the process getting a fifth to a third of a core);
-//! in CPU time about 6 ms per diagnosis (≈ 170/s per core-second), against about 22 ms before
-//! the rewrite of issue 4 (17–18/s wall clock then).
+//! Measured November 2026: 34.6 M instructions per diagnosis against 43.8 M for the build
+//! before the estimators were cut (`--profile-time 12`, about 100 diagnoses); criterion 2.7 ms
+//! (about 370/s) against 3.1 ms (325/s), medians of five runs alternating the two builds (load
+//! average 0.4–1, another engineer's builds on the second core).
 //!
-//! After the perf-diagnose pass (same machine, load average 4–5; CPU time of the thread over
-//! 300 diagnoses, five alternating runs of the old and new build; instructions counted by
-//! `valgrind --tool=callgrind --toggle-collect=vmt_ballbar::diagnosis::diagnose`): about
-//! 4.5 ms CPU per diagnosis against 6.5 ms for the old build in the same runs (≈ 220/s per
-//! core-second), 55 M instructions against 69 M. Wall-clock criterion figures swing by ±50 %
-//! with the load and were no guide. The goal of 1000/s is still not met: the time is spread
-//! over a dozen full-rate passes over columns of 450 kB each that stream from the L3 cache
-//! (tabulated trig 9 %, residual 9 %, hysteresis 8 %, the 56 250-point FFTs 9 %, moving means
-//! 4 %, ISO sums and bounds 7 %, medians 9 %, cyclic search 4 %); the rest would need the
-//! passes fused into one blockwise sweep per trace.
+//! Where the instructions go: ISO figures 22 % (least-squares sums 5 %, bounds about both
+//! centres 6 %, hysteresis path and blocks 9 %), vibration spectrum 14 % (the two 55 296-point
+//! FFTs 9 %), trigonometry 10 %, the model's residuals 10 %, cyclic search 7 %, medians of the
+//! steps and spikes near reversals 6 %, fit 5 %, moving means 4 %, start transient 4 %, noise
+//! 3 %, trace checks, reversals and groups 9 %.
 //!
-//! After the second perf-diagnose pass (same machine, load average 2–6; same method): about
-//! 4.2 ms CPU per diagnosis against 5.4 ms for the build before it in the same runs (medians of
-//! five alternating runs; the pairs differ by 0.3–1.9 ms), 47.7 M instructions against 55.3 M;
-//! criterion 4.6 ms wall clock (215/s) on the less loaded machine. Gained by: the hysteresis
-//! evaluated only in the blocks of samples whose bound can beat the largest difference found
-//! (9.4 M to 4.4 M instructions), the ISO bounds and those blocks' extremes in one pass, the
-//! tabulated trig in blocks whose loops run on vectors (6.0 M to 4.2 M), one median of the
-//! spectrum (the strongest line's) instead of one per trace; every figure bit-identical. The
-//! build targets plain x86-64 (SSE2): loops with selects or table look-ups stay scalar. Where
-//! the instructions now go: ISO figures 20 % (sums 4 %, bounds 6 %, hysteresis path, sort and
-//! blocks 9 %), FFTs 9 %, the rest of the vibration search 5 %, trig 9 %, residual evaluation
-//! 10 %, moving means 6 %, medians of the noise and the start transient 11 %, cyclic search
-//! 7 %, fit 5 %, validation and reversals 5 %. The goal of 1000/s is still not met.
-//!
-//! After the third pass (perf-diagnose2; instructions counted as above with `--profile-time
-//! 20`, 58–85 diagnoses, the one-time set-up spread over them): 43.7 M instructions per
-//! diagnosis against 46.7 M for the build before it; criterion 3.89 ms (257/s) against
-//! 3.86 ms (259/s) for the build before it in the same session (load average 2–3: no
-//! difference in wall-clock time). Gained by: the model's residuals in a loop without branches or
-//! selects that runs on vectors (4.0 M to 3.3 M), the trace checks and the reversal search by
-//! branch-free counts, the hysteresis path's sort passed over when the path is sorted already,
-//! the spectrum's strongest line and the signatures' ranges by comparisons in vector
-//! registers. ISO figures bit-identical, findings within 1e-14. Tried and left out (no gain in
-//! instructions): the ISO bounds by four-lane minima and maxima, the fit's normal equations by
-//! the matrix library's product. On plain x86-64 (SSE2) a vector loop still costs 20–30
-//! instructions per sample for the residual and the trig (register copies of the two-operand
-//! forms), so what is left is in full-rate passes that each cost that much: trig 8 %,
-//! residual 8 %, moving means 6 %, ISO sums, bounds and hysteresis path 20 %, the two
-//! 56 250-point FFTs 9 % (a 55 296 = 2¹¹·3³ point one costs 30 % less), medians of the noise
-//! and the start transient 12 %, cyclic search 8 %. 1000/s (≈ 10 M instructions) needs those
-//! passes cut, not sped up: the medians and the spectrum on fewer values, the ISO sums in
-//! lanes (not bit-identical), one fused sweep per trace.
+//! What is left for 1000/s (about 10–13 M): every full-rate pass costs 10–30 instructions per
+//! sample on plain x86-64 (SSE2), and about ten remain (trig, residual, ISO sums, bounds and
+//! path, prefix sums, high-pass, FFT, checks, reversals, groups); they would have to be fused
+//! into one blockwise sweep per trace, and the ISO figures and the fit share one pass.
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use vmt_ballbar::synthetic::{Errors, test};

@@ -262,9 +262,10 @@ fn diagnose_once(
     let n: usize = residuals.iter().map(|r| r.r.len()).sum();
     let rss: f64 = residuals.iter().map(|r| features::sum_sq(&r.r)).sum();
     for r in residuals {
-        for v in [r.r, r.smooth, r.high_pass] {
+        for v in [r.r, r.high_pass] {
             crate::samples::recycle(v);
         }
+        r.sums.recycle();
     }
     Ok(((findings, (rss / n as f64).sqrt(), noise), cyclic))
 }

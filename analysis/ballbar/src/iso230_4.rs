@@ -77,20 +77,46 @@ pub fn least_squares_circle(traces: &[&Trace]) -> Circle {
     circle_of(&arcs.iter().collect::<Vec<_>>())
 }
 
+/// Partial sums advanced side by side in [`circle_sums`] (which the compiler keeps in vector
+/// registers; one running sum would wait on each addition).
+const LANES: usize = 4;
+
 /// The sums of the least-squares circle's normal equations over one arc: the upper triangle of
-/// Σ (1, c, s)ᵀ(1, c, s) and Σ d (1, c, s).
+/// Σ (1, c, s)ᵀ(1, c, s) and Σ d (1, c, s), each in [`LANES`] partial sums.
 fn circle_sums(arc: &Arc) -> [f64; 9] {
+    let (cos, sin, dev) = (&arc.cos[..], &arc.sin[..], &arc.t.deviation_um[..]);
+    // Σ c, Σ s, Σ c², Σ cs, Σ s², Σ d, Σ dc, Σ ds, lane by lane.
+    let mut l = [[0.0; LANES]; 8];
+    let blocks = cos
+        .chunks_exact(LANES)
+        .zip(sin.chunks_exact(LANES))
+        .zip(dev.chunks_exact(LANES));
+    for ((c, s), d) in blocks {
+        for j in 0..LANES {
+            l[0][j] += c[j];
+            l[1][j] += s[j];
+            l[2][j] += c[j] * c[j];
+            l[3][j] += c[j] * s[j];
+            l[4][j] += s[j] * s[j];
+            l[5][j] += d[j];
+            l[6][j] += d[j] * c[j];
+            l[7][j] += d[j] * s[j];
+        }
+    }
+    let rest = cos.len() / LANES * LANES;
+    for (i, (c, s, d)) in arc.samples().enumerate().skip(rest) {
+        let j = i - rest;
+        for (lane, t) in l
+            .iter_mut()
+            .zip([c, s, c * c, c * s, s * s, d, d * c, d * s])
+        {
+            lane[j] += t;
+        }
+    }
     let mut m = [0.0; 9];
-    for (c, s, d) in arc.samples() {
-        m[0] += 1.0;
-        m[1] += c;
-        m[2] += s;
-        m[3] += c * c;
-        m[4] += c * s;
-        m[5] += s * s;
-        m[6] += d;
-        m[7] += d * c;
-        m[8] += d * s;
+    m[0] = cos.len() as f64;
+    for (m, lane) in m[1..].iter_mut().zip(&l) {
+        *m = lane.iter().sum();
     }
     m
 }
@@ -302,12 +328,39 @@ fn rem360(x: f64) -> f64 {
     }
 }
 
-/// (angle in [0, 360), e about `c`) of each sample of `a`.
-fn path<'a>(a: &'a Arc, c: &'a Circle) -> impl Iterator<Item = (f64, f64)> + 'a {
-    a.t.angle_deg
-        .iter()
-        .zip(a.samples())
-        .map(|(x, (co, s, d))| (rem360(*x), c.radial_cs(co, s, d)))
+/// (angle in [0, 360), e about `c`) of each sample of `a`, appended to `p`.
+fn extend_path(p: &mut Path, a: &Arc, c: &Circle) {
+    let (angle, dev) = (&a.t.angle_deg[..], &a.t.deviation_um[..]);
+    let blocks = angle
+        .chunks(BLOCK)
+        .zip(dev.chunks(BLOCK))
+        .zip(a.cos.chunks(BLOCK).zip(a.sin.chunks(BLOCK)));
+    let mut turn = [0.0; BLOCK];
+    for ((x, d), (co, s)) in blocks {
+        let turn = &mut turn[..x.len()];
+        if !within_one_turn(x, turn) {
+            for (t, x) in turn.iter_mut().zip(x) {
+                *t = rem360(*x);
+            }
+        }
+        let e = (co.iter().zip(s))
+            .zip(d)
+            .map(|((co, s), d)| c.radial_cs(*co, *s, *d));
+        p.extend(turn.iter().copied().zip(e));
+    }
+}
+
+/// [`rem360`] of every angle of `x` into `out` when all of them lie in [−360, 360) (a run
+/// from 0° either way): x, or x + 360 below 0, which is what [`rem360`] gives there, bit for
+/// bit, as long as x + 360 rounds below 360. False when an angle lies outside (`out` left
+/// partly written), by one loop without branches.
+fn within_one_turn(x: &[f64], out: &mut [f64]) -> bool {
+    let mut ok = true;
+    for (o, x) in out.iter_mut().zip(x) {
+        *o = if *x < 0.0 { x + 360.0 } else { *x };
+        ok &= (*x >= -360.0) & (*o < 360.0);
+    }
+    ok
 }
 
 /// A path as (angle, radial deviation) pairs.
@@ -328,7 +381,7 @@ fn hysteresis(a: &Arc, blocks: &[Extremes], b: &Arc, c: &Circle) -> Option<f64> 
     PATH.with(|cell| {
         let pb = &mut *cell.borrow_mut();
         pb.clear();
-        pb.extend(path(b, c));
+        extend_path(pb, b, c);
         sort_by_angle(pb);
         let n = a.t.angle_deg.len();
         let mut order: Vec<(f64, usize)> = blocks
@@ -572,7 +625,8 @@ mod tests {
             let c = least_squares_circle(&[&cw, &ccw]);
             let (_, _, extremes) = radial_bounds(&a, c, c);
             let blocks = hysteresis(&a, &extremes, &b, &c).unwrap();
-            let mut pb: Path = path(&b, &c).collect();
+            let mut pb = Path::new();
+            extend_path(&mut pb, &b, &c);
             pb.sort_by(|x, y| x.0.total_cmp(&y.0));
             let walk = block_worst(&a, &c, &pb, 0..cw.angle_deg.len()).unwrap();
             assert_eq!(

@@ -6,6 +6,7 @@
 //!   H, least-squares and minimum-zone centres;
 //! - [`signatures`]: the radial signature of each physical error, to first order;
 //! - [`model`]: the error model and its weighted least-squares fit with confidences;
+//! - [`moving_mean`]: centred moving means from prefix sums;
 //! - [`features`]: reversal spikes, per-side backlash, stick-slip, vibration, start transient and
 //!   cyclic errors in the residual;
 //! - [`diagnosis`]: one test diagnosed into ranked findings;
@@ -18,6 +19,7 @@ pub mod features;
 pub mod iso230_4;
 pub mod kwon;
 pub mod model;
+pub mod moving_mean;
 pub mod report;
 pub mod samples;
 pub mod signatures;
