@@ -566,10 +566,13 @@ fn local_findings(
 ) -> Vec<Finding> {
     let (p, q) = fit.plane.axes();
     let mut out = Vec::new();
-    for axis in 0..2 {
+    let mut spikes = [None; 2];
+    for (axis, measured) in spikes.iter_mut().enumerate() {
         let letter = if axis == 0 { p } else { q };
         let l = letter.to_ascii_lowercase();
-        out.extend(spike_finding(residuals, axis, letter, noise));
+        let spike = spike_finding(residuals, axis, letter, noise);
+        *measured = spike.as_ref().map(|f| f.value);
+        out.extend(spike);
         if let Some(sides) = side_details(fit, residuals, axis, letter)
             && let Some(b) = findings
                 .iter_mut()
@@ -599,40 +602,66 @@ fn local_findings(
     }
     out.extend(vibration_finding(residuals, noise));
     for (t, res) in traces.iter().zip(residuals) {
-        if let Some(h) = features::start_transient(res) {
-            let floor = 6.0 * noise / ((features::SMOOTH_MS / res.dt_ms).max(1.0)).sqrt();
-            // A run starting at an axis reversal shows that axis' spike in its first degrees:
-            // the two cannot be told apart there, and the spike is reported on its own.
-            let at_reversal = res.sin[0].abs().min(res.cos[0].abs())
-                < features::SPIKE_ZONE_DEG.to_radians().sin() * 2.0;
-            let (name, floor) = if at_reversal {
-                (
-                    format!(
-                        "Transient at the start, {} (starts at an axis reversal: not separable from its spike)",
-                        t.sense.name().to_uppercase()
-                    ),
-                    f64::INFINITY,
-                )
-            } else {
-                (
-                    format!("Transient at the start, {}", t.sense.name().to_uppercase()),
-                    floor,
-                )
-            };
-            out.push(Finding {
-                key: format!("start_transient_{}", t.sense.name()),
-                name,
-                value: h,
-                unit: "µm",
-                ci95: 1.96 * noise,
-                contribution_um: if at_reversal { 0.0 } else { h.abs() },
-                threshold: MIN_CONTRIBUTION_UM.max(floor),
-                present: h.abs() >= MIN_CONTRIBUTION_UM.max(floor),
-                details: Vec::new(),
-            });
-        }
+        out.extend(start_transient_finding(t, res, noise, spikes, [p, q]));
     }
     out
+}
+
+/// The transient at the start of a run, against the noise of its smoothed residual.
+///
+/// A run that starts where an axis can reverse (p at θ = 0° or 180°, q at 90° or 270°) may hold
+/// that axis' reversal spike in its first degrees as well (it does when the axis reverses
+/// there, not when the feed-in already moved it the way the arc goes on): the transient is then
+/// known only to within that spike, as measured at the axis' reversals inside the runs (`spikes`,
+/// µm), which widens its interval and raises its threshold by the spike's size. With no spike
+/// measured the two cannot be told apart, and the transient is reported with no contribution.
+fn start_transient_finding(
+    t: &Trace,
+    res: &Residual,
+    noise: f64,
+    spikes: [Option<f64>; 2],
+    letters: [char; 2],
+) -> Option<Finding> {
+    let h = features::start_transient(res)?;
+    let floor =
+        MIN_CONTRIBUTION_UM.max(6.0 * noise / (features::SMOOTH_MS / res.dt_ms).max(1.0).sqrt());
+    let sense = t.sense.name();
+    let mut name = format!("Transient at the start, {}", sense.to_uppercase());
+    let (c, s) = (res.cos[0].abs(), res.sin[0].abs());
+    let near = features::SPIKE_ZONE_DEG.to_radians().sin() * 2.0;
+    // p reverses where sin θ = 0, q where cos θ = 0.
+    let reversing = (s.min(c) < near).then_some(usize::from(c < s));
+    let spike = match reversing {
+        None => Some(0.0),
+        Some(axis) => {
+            let letter = letters[axis];
+            match spikes[axis] {
+                Some(v) => name.push_str(&format!(
+                    " (starts where {letter} can reverse: within one {letter} spike, {:.2} µm)",
+                    v.abs()
+                )),
+                None => name.push_str(&format!(
+                    " (starts where {letter} can reverse: not separable from a spike there)"
+                )),
+            }
+            spikes[axis].map(f64::abs)
+        }
+    };
+    let (ci95, threshold, contribution) = match spike {
+        Some(spike) => (1.96 * noise + spike, floor + spike, h.abs()),
+        None => (1.96 * noise, f64::INFINITY, 0.0),
+    };
+    Some(Finding {
+        key: format!("start_transient_{sense}"),
+        name,
+        value: h,
+        unit: "µm",
+        ci95,
+        contribution_um: contribution,
+        threshold,
+        present: h.abs() >= threshold,
+        details: Vec::new(),
+    })
 }
 
 /// The step of the backlash at each end of the axis' travel (reversals at θ = 0° and 180° for

@@ -2,7 +2,7 @@
 //! displacement laws with exact geometry, 0.3 µm noise and 0.1 µm resolution.
 
 use vmt_ballbar::synthetic::{self as common, Errors, test};
-use vmt_ballbar::{Diagnosis, Options, Plane, Sense, diagnose};
+use vmt_ballbar::{Diagnosis, Options, Plane, Sense, Trace, diagnose};
 
 fn run(plane: Plane, e: &Errors) -> Diagnosis {
     let traces = test(plane, e, 7);
@@ -308,26 +308,7 @@ fn reversal_spikes_are_recovered_with_height_and_width() {
 /// the noise, ±0.2 µm); a machine without one shows none.
 #[test]
 fn a_start_transient_is_recovered_on_each_run() {
-    let traces = |e: &Errors| {
-        [Sense::Cw, Sense::Ccw]
-            .into_iter()
-            .zip([(0.0, 0.5), (0.5, 1.0)])
-            .enumerate()
-            .map(|(i, (sense, progress))| {
-                common::trace(
-                    Plane::Xy,
-                    sense,
-                    150.0,
-                    1000.0,
-                    45.0,
-                    360.0,
-                    e,
-                    progress,
-                    7 + i as u64,
-                )
-            })
-            .collect::<Vec<_>>()
-    };
+    let traces = |e: &Errors| runs_from(45.0, e);
     let with = Errors {
         start_transient: Some((6.0, 30.0)),
         ..noisy()
@@ -343,4 +324,60 @@ fn a_start_transient_is_recovered_on_each_run() {
             d.finding(key)
         );
     }
+}
+
+/// Runs that start at 0°, where X may reverse (as Kwon's programs do, with no overshoot): the
+/// transient is known to within one X spike, measured at the reversals at 180°. A 20 µm
+/// transient is reported present with an interval widened by that spike (4 µm); a machine with
+/// the spikes and no transient shows none.
+#[test]
+fn a_start_transient_at_a_reversal_is_bounded_by_the_spike() {
+    let spikes = Errors {
+        spike: [Some((4.0, 10.0)), None],
+        ..noisy()
+    };
+    let with = Errors {
+        start_transient: Some((20.0, 30.0)),
+        ..spikes
+    };
+    let d = diagnose(&runs_from(0.0, &with), &Options::default()).expect("diagnosis");
+    let spike = d.finding("reversal_spike_x").expect("X spike").value.abs();
+    assert!((spike - 4.0).abs() < 0.3, "X spike {spike} µm");
+    for key in ["start_transient_cw", "start_transient_ccw"] {
+        check(&d, key, 20.0, 2.0, true);
+        let f = d.finding(key).unwrap();
+        assert!(
+            f.ci95 >= spike,
+            "{key}: ±{} µm within a {spike} µm spike",
+            f.ci95
+        );
+        assert!(f.name.contains("X spike"), "{}", f.name);
+    }
+    let d = diagnose(&runs_from(0.0, &spikes), &Options::default()).expect("diagnosis");
+    for key in ["start_transient_cw", "start_transient_ccw"] {
+        let f = d.finding(key).unwrap();
+        assert!(!f.present, "{key}: {f:?}");
+    }
+}
+
+/// A CW and a CCW run of a 150 mm circle at 1000 mm/min from `start_deg`, back to back.
+fn runs_from(start_deg: f64, e: &Errors) -> Vec<Trace> {
+    [Sense::Cw, Sense::Ccw]
+        .into_iter()
+        .zip([(0.0, 0.5), (0.5, 1.0)])
+        .enumerate()
+        .map(|(i, (sense, progress))| {
+            common::trace(
+                Plane::Xy,
+                sense,
+                150.0,
+                1000.0,
+                start_deg,
+                360.0,
+                e,
+                progress,
+                7 + i as u64,
+            )
+        })
+        .collect()
 }
