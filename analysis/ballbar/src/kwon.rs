@@ -20,7 +20,8 @@
 //!   difference by `l tan θ` instead, which treats the path as rotated about the centre ball;
 //!   for a lean of the Z axis (a translation of the raised circle) the first-order result is
 //!   the one used here, larger than Kwon's by 1/cos²θ (19 % for this geometry);
-//! - step 5: servo mismatch (at 4000 mm/min it dominates the ellipse);
+//! - step 5: servo mismatch (at 4000 mm/min it dominates the ellipse) and the transient peak
+//!   at the start of each run (Section III.6);
 //! - steps 6 and 7: Z backlash, from the reversal of Z at the top of the half circles.
 
 use crate::diagnosis::{Diagnosis, Finding};
@@ -185,6 +186,15 @@ pub fn report_from(
             "5",
         ),
         None => missing.push("servo mismatch: needs step 5 in both directions".into()),
+    }
+    // The transient peak at the start (Kwon, Section III.6), largest at step 5's feed: what the
+    // run shows, not a machine parameter, so a truth has none and nothing is missing without it.
+    for sense in ["cw", "ccw"] {
+        let key = format!("start_transient_{sense}");
+        if let Some(v) = value(5, &key) {
+            let name = format!("Transient at the start, {}", sense.to_uppercase());
+            push(&key, &name, v, "µm", "5");
+        }
     }
     let z: Vec<f64> = [6, 7]
         .into_iter()

@@ -303,7 +303,7 @@ fn reversal_spikes_are_recovered_with_height_and_width() {
 }
 
 /// A start transient of 6 µm decaying with the position loop's 30 ms, on runs that start at 45°
-/// (away from every axis reversal, where it would be inseparable from a spike): recovered within
+/// (away from every axis reversal, where a spike may add to it): recovered within
 /// 10 % on each run (the 4 ms smoothing averages the first samples of the decay, −3 %, and of
 /// the noise, ±0.2 µm); a machine without one shows none.
 #[test]
