@@ -7,20 +7,13 @@
 //! real-time factor). Goals (issue 3): multibody ≥ 50, reduced ≥ 2000.
 //! Run: `cargo bench -p vmt-sim --bench circle`.
 //!
-//! Measured (2-core machine shared with other builds, load 3-14, so ±30 % between runs):
-//! multibody about 80-85× (was 6-8×: rapier now steps the links every 1 ms instead of every
-//! 62.5 µs plant step, see `plant::multibody`); peak RSS of the benchmark 47 MB (reduced) and
-//! 51 MB (multibody), of a whole `vmt run` of the scenario 136 MB and 127 MB.
-//!
-//! Reduced: about 440× real time, 282 ns per servo tick (was about 325×, 385 ns: best user time
-//! of one run, 142.9 simulated s, alternated A/B under the same load; criterion at load 3.5 gave
-//! 268 Kelem/s before and 360-430 after). Instructions (valgrind, robust to the load): 3180 per
-//! tick, was 3790. Where the time goes now (perf): the drive step 42 % (two LuGre contacts per
-//! axis and plant step, each one division and one or two inline `exp`, a third of these on the
-//! short path of an axis at rest; the three axes stage by stage, see `Drive::step_all`), the
-//! interpolator 20 % (`sin_cos` of the arc 6.5 %), the per-tick bookkeeping of `simulate` 11 %,
-//! the controllers 7 %, the error chain at the sample rate 4 %, the page faults of the logs 5 %.
-//! The reduced goal needs about 60 ns per servo tick for everything.
+//! Measured 24 November 2026 on the idle 2-core machine: reduced 437–453× real time (about
+//! 280 ns and 3,180 instructions per servo tick), multibody 117×; peak RSS 47 MB and 51 MB.
+//! Where a reduced tick goes (perf): the drive step 43 % (two LuGre contacts per axis and plant
+//! step, each one division and one or two inline `exp`; the three axes stage by stage, see
+//! `Drive::step_all`), the interpolator 20 % (libm's `sincos` of the arc 7 %), the per-tick
+//! bookkeeping of `simulate` 12 %, the controllers 7 %, the error chain at the sample rate 4 %.
+//! The reduced goal needs about 60 ns per servo tick for everything (README, "Benchmarks").
 
 use criterion::{Criterion, SamplingMode, Throughput, criterion_group, criterion_main};
 use std::time::Duration;
