@@ -817,7 +817,13 @@ fn kwon_job(pivot_mm: &[f64; 3], steps: &[u8], instruments: &InstrumentsToml) ->
         })?;
         let (gcode, lift_blocks) = if t.plane == Plane::Xy {
             let z_mm = (t.start_point().z + KWON_APPROACH_LIFT_M) * 1e3;
-            (approached_from(&gcode, z_mm), 1)
+            let lifted = approached_from(&gcode, z_mm).ok_or_else(|| {
+                Invalid::new(
+                    p.clone(),
+                    format!("step {n}: its program has no rapid approach to its start point"),
+                )
+            })?;
+            (lifted, 1)
         } else {
             (gcode, 0)
         };
@@ -857,22 +863,27 @@ fn kwon_job(pivot_mm: &[f64; 3], steps: &[u8], instruments: &InstrumentsToml) ->
     })
 }
 
-/// `gcode` with a rapid move to Z `z_mm` (mm) before its first rapid, the approach to the
-/// test's start point.
-fn approached_from(gcode: &str, z_mm: f64) -> String {
-    let mut out = String::with_capacity(gcode.len() + 32);
-    let mut lifted = false;
-    for line in gcode.lines() {
-        if !lifted && line.starts_with("G0 ") {
+/// `gcode` with a rapid move to Z `z_mm` (mm) before its first rapid (the approach to the
+/// test's start point) and the comment heading that rapid; `None` if it has no rapid.
+fn approached_from(gcode: &str, z_mm: f64) -> Option<String> {
+    let lines: Vec<&str> = gcode.lines().collect();
+    let rapid = lines.iter().position(|l| l.starts_with("G0 "))?;
+    let at = if rapid > 0 && lines[rapid - 1].starts_with('(') {
+        rapid - 1
+    } else {
+        rapid
+    };
+    let mut out = String::with_capacity(gcode.len() + 48);
+    for (i, line) in lines.iter().enumerate() {
+        if i == at {
             out.push_str(&format!(
-                "G0 Z{z_mm:.4} (lift: approach the start from above)\n"
+                "G0 Z{z_mm:.4} (come down onto the start from above)\n"
             ));
-            lifted = true;
         }
         out.push_str(line);
         out.push('\n');
     }
-    out
+    Some(out)
 }
 
 /// All axes' dynamics, if every axis has both a drive and a servo section.

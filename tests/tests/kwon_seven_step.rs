@@ -211,7 +211,16 @@ fn step_5_start_transient_is_the_logged_lag_at_the_corner() {
         values("position_y"),
     );
     let report = kwon::machine_report(d);
-    for (trace, sense) in run.ballbar[8..10].iter().zip(["cw", "ccw"]) {
+    let step5 = d
+        .iter()
+        .find(|diag| kwon::step_of(diag) == Some(5))
+        .expect("step 5's diagnosis");
+    for sense in ["cw", "ccw"] {
+        let trace = run
+            .ballbar
+            .iter()
+            .find(|t| t.label.starts_with("step 5:") && t.direction == sense)
+            .expect("step 5's trace");
         let (t0, t1) = (trace.times_s[0], trace.times_s[trace.times_s.len() - 1]);
         let start_deg = trace.angle_deg[0];
         let sweep = trace.angle_deg[trace.angle_deg.len() - 1] - start_deg;
@@ -247,7 +256,7 @@ fn step_5_start_transient_is_the_logged_lag_at_the_corner() {
         rest.sort_by(f64::total_cmp);
         let logged = early - rest[rest.len() / 2];
         let key = format!("start_transient_{sense}");
-        let diagnosed = d[4].finding(&key).expect("a start transient");
+        let diagnosed = step5.finding(&key).expect("a start transient");
         let in_report = report.figures.iter().find(|f| f.key == key);
         eprintln!(
             "{key}: diagnosed {:.2} µm, logged lag {logged:.2} µm",

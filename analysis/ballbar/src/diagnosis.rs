@@ -571,8 +571,8 @@ fn local_findings(
         let letter = if axis == 0 { p } else { q };
         let l = letter.to_ascii_lowercase();
         let spike = spike_finding(residuals, axis, letter, noise);
-        *measured = spike.as_ref().map(|f| f.value);
-        out.extend(spike);
+        *measured = spike.as_ref().map(|(_, largest)| *largest);
+        out.extend(spike.map(|(f, _)| f));
         if let Some(sides) = side_details(fit, residuals, axis, letter)
             && let Some(b) = findings
                 .iter_mut()
@@ -612,8 +612,8 @@ fn local_findings(
 /// A run that starts where an axis can reverse (p at θ = 0° or 180°, q at 90° or 270°) may hold
 /// that axis' reversal spike in its first degrees as well (it does when the axis reverses
 /// there, not when the feed-in already moved it the way the arc goes on): the transient is then
-/// known only to within that spike, as measured at the axis' reversals inside the runs (`spikes`,
-/// µm), which widens its interval and raises its threshold by the spike's size. With no spike
+/// known only to within that spike, taken as the largest measured at the axis' reversals inside
+/// the runs (`spikes`, µm), which widens its interval and raises its threshold. With no spike
 /// measured the two cannot be told apart, and the transient is reported with no contribution.
 fn start_transient_finding(
     t: &Trace,
@@ -637,14 +637,13 @@ fn start_transient_finding(
             let letter = letters[axis];
             match spikes[axis] {
                 Some(v) => name.push_str(&format!(
-                    " (starts where {letter} can reverse: within one {letter} spike, {:.2} µm)",
-                    v.abs()
+                    " (starts where {letter} can reverse: within one {letter} spike, {v:.2} µm)"
                 )),
                 None => name.push_str(&format!(
                     " (starts where {letter} can reverse: not separable from a spike there)"
                 )),
             }
-            spikes[axis].map(f64::abs)
+            spikes[axis]
         }
     };
     let (ci95, threshold, contribution) = match spike {
@@ -703,7 +702,14 @@ fn side_details(
     (!details.is_empty()).then_some(details)
 }
 
-fn spike_finding(residuals: &[Residual], axis: usize, letter: char, noise: f64) -> Option<Finding> {
+/// The reversal spike of an axis (the mean over its reversals inside the runs), and the largest
+/// of the spikes measured, µm.
+fn spike_finding(
+    residuals: &[Residual],
+    axis: usize,
+    letter: char,
+    noise: f64,
+) -> Option<(Finding, f64)> {
     let mut found = Vec::new();
     let mut floor: f64 = 0.0;
     for res in residuals {
@@ -717,12 +723,13 @@ fn spike_finding(residuals: &[Residual], axis: usize, letter: char, noise: f64) 
         return None;
     }
     let heights: Vec<f64> = found.iter().map(|s| s.height_um).collect();
+    let largest = heights.iter().fold(0.0, |m: f64, h| m.max(h.abs()));
     let widths: Vec<f64> = found.iter().map(|s| s.width_ms).collect();
     let (h, sd) = mean_sd(&heights);
     let (w, _) = mean_sd(&widths);
     let threshold = MIN_CONTRIBUTION_UM.max(floor);
     let l = letter.to_ascii_lowercase();
-    Some(Finding {
+    let finding = Finding {
         key: format!("reversal_spike_{l}"),
         name: format!("Reversal spike {letter}"),
         value: h,
@@ -735,7 +742,8 @@ fn spike_finding(residuals: &[Residual], axis: usize, letter: char, noise: f64) 
             ("width_ms".into(), w),
             ("reversals".into(), heights.len() as f64),
         ],
-    })
+    };
+    Some((finding, largest))
 }
 
 fn vibration_finding(residuals: &[Residual], noise: f64) -> Option<Finding> {

@@ -31,7 +31,8 @@ use realfft::RealFftPlanner;
 use realfft::num_complex::Complex;
 use std::cell::RefCell;
 
-/// Smoothing window for local shapes, ms.
+/// Smoothing window for local shapes, ms: a centred moving mean over ±SMOOTH_MS/2 (5 samples
+/// at 1 kHz; the noise floors divide by √(SMOOTH_MS/dt), a little above the √5 it gives).
 pub const SMOOTH_MS: f64 = 4.0;
 /// Zone after a reversal in which a spike is looked for, deg.
 pub const SPIKE_ZONE_DEG: f64 = 3.0;
@@ -77,9 +78,10 @@ thread_local! {
 /// The fewest first differences [`noise_sigma`] takes the median of when the series has more.
 const NOISE_DIFFERENCES: usize = 16_384;
 
-/// Robust white-noise σ of a series from its first differences: from every k-th of them when
-/// there are more than [`NOISE_DIFFERENCES`] (differences of disjoint pairs, independent; the
-/// median of 16 384 estimates σ to 1 %, well within the spread of the noise between runs).
+/// Robust white-noise σ of a series from the median of its first differences: of every k-th
+/// of them, k = ⌊(n − 1)/[`NOISE_DIFFERENCES`]⌋ (from k = 2 on, differences of disjoint pairs,
+/// independent; the median of at least 16 384 estimates σ to about 1 %, well within the spread
+/// of the noise between runs).
 pub fn noise_sigma(r: &[f64]) -> f64 {
     if r.len() < 2 {
         return 0.0;

@@ -561,6 +561,36 @@ mod tests {
     use super::*;
     use crate::trace::{Plane, Sense};
 
+    /// The shift into one turn gives what the reduction gives, bit for bit, on [−360, 360)
+    /// (at its ends, at ±0 and next to them), and declines angles outside and those just below
+    /// 0 whose shift rounds up to 360.
+    #[test]
+    fn one_turn_shift_is_the_reduction_bit_for_bit() {
+        let mut x = vec![
+            -360.0,
+            (-360.0f64).next_up(),
+            -1e-13,
+            -0.0,
+            0.0,
+            0.0f64.next_up(),
+            360.0f64.next_down(),
+        ];
+        x.extend((0..7200).map(|i| -360.0 + 0.1 * i as f64 + 1e-9 * (i % 7) as f64));
+        let mut out = vec![0.0; x.len()];
+        assert!(within_one_turn(&x, &mut out));
+        for (v, o) in x.iter().zip(&out) {
+            assert_eq!(
+                o.to_bits(),
+                rem360(*v).to_bits(),
+                "{v}: {o} against {}",
+                rem360(*v)
+            );
+        }
+        for declined in [(-360.0f64).next_down(), -1e-14, 360.0, f64::NAN] {
+            assert!(!within_one_turn(&[declined], &mut [0.0]), "{declined}");
+        }
+    }
+
     fn trace(sense: Sense, f: impl Fn(f64) -> f64) -> Trace {
         let angle_deg: Vec<f64> = (0..3600).map(|i| sense.sign() * i as f64 * 0.1).collect();
         let deviation_um = angle_deg.iter().map(|a| f(a.to_radians())).collect();
