@@ -623,8 +623,7 @@ fn start_transient_finding(
     letters: [char; 2],
 ) -> Option<Finding> {
     let h = features::start_transient(res)?;
-    let floor =
-        MIN_CONTRIBUTION_UM.max(6.0 * noise / (features::SMOOTH_MS / res.dt_ms).max(1.0).sqrt());
+    let floor = MIN_CONTRIBUTION_UM.max(smoothed_noise_floor(res, noise));
     let sense = t.sense.name();
     let mut name = format!("Transient at the start, {}", sense.to_uppercase());
     let (c, s) = (res.cos[0].abs(), res.sin[0].abs());
@@ -702,6 +701,13 @@ fn side_details(
     (!details.is_empty()).then_some(details)
 }
 
+/// The floor a local shape on `res` must clear: six standard deviations of the noise `noise`
+/// (µm) left by the smoothing over [`features::SMOOTH_MS`], taken as SMOOTH_MS/dt samples (the
+/// centred window holds one more, so the floor errs high).
+fn smoothed_noise_floor(res: &Residual, noise: f64) -> f64 {
+    6.0 * noise / (features::SMOOTH_MS / res.dt_ms).max(1.0).sqrt()
+}
+
 /// The reversal spike of an axis (the mean over its reversals inside the runs), and the largest
 /// of the spikes measured, µm.
 fn spike_finding(
@@ -713,8 +719,7 @@ fn spike_finding(
     let mut found = Vec::new();
     let mut floor: f64 = 0.0;
     for res in residuals {
-        let smooth_n = (features::SMOOTH_MS / res.dt_ms).max(1.0);
-        floor = floor.max(6.0 * noise / smooth_n.sqrt());
+        floor = floor.max(smoothed_noise_floor(res, noise));
         for &i in &res.reversals[axis] {
             found.extend(features::spike(res, i));
         }

@@ -32,7 +32,7 @@ use realfft::num_complex::Complex;
 use std::cell::RefCell;
 
 /// Smoothing window for local shapes, ms: a centred moving mean over ±SMOOTH_MS/2 (5 samples
-/// at 1 kHz; the noise floors divide by √(SMOOTH_MS/dt), a little above the √5 it gives).
+/// at 1 kHz; the diagnosis' noise floors count SMOOTH_MS/dt = 4 of them, which errs high).
 pub const SMOOTH_MS: f64 = 4.0;
 /// Zone after a reversal in which a spike is looked for, deg.
 pub const SPIKE_ZONE_DEG: f64 = 3.0;

@@ -29,6 +29,12 @@ fn check(d: &Diagnosis, key: &str, truth: f64, tol: f64, present: bool) {
     assert_eq!(f.present, present, "{key} present: {f:?}");
 }
 
+/// Asserts that `key` is diagnosed and not reported present.
+fn absent(d: &Diagnosis, key: &str) {
+    let f = d.finding(key).unwrap_or_else(|| panic!("no finding {key}"));
+    assert!(!f.present, "{key} reported: {f:?}");
+}
+
 /// Every fitted error stays below its threshold on a clean machine.
 #[test]
 fn a_perfect_machine_shows_nothing_but_noise() {
@@ -294,11 +300,7 @@ fn reversal_spikes_are_recovered_with_height_and_width() {
         "scale_mismatch_xy",
         "squareness_xy",
     ] {
-        assert!(
-            !d.finding(key).unwrap().present,
-            "{key} reported: {:?}",
-            d.finding(key)
-        );
+        absent(&d, key);
     }
 }
 
@@ -318,11 +320,7 @@ fn a_start_transient_is_recovered_on_each_run() {
     check(&d, "start_transient_ccw", 6.0, 0.6, true);
     let d = diagnose(&traces(&noisy()), &Options::default()).expect("diagnosis");
     for key in ["start_transient_cw", "start_transient_ccw"] {
-        assert!(
-            !d.finding(key).unwrap().present,
-            "{key}: {:?}",
-            d.finding(key)
-        );
+        absent(&d, key);
     }
 }
 
@@ -370,7 +368,7 @@ fn a_start_transient_at_a_reversal_is_bounded_by_the_spike() {
         let f = d.finding(key).unwrap();
         // The spike itself is what the start shows.
         assert!((f.value.abs() - spike).abs() < 1.0, "{key}: {f:?}");
-        assert!(!f.present, "{key}: {f:?}");
+        absent(&d, key);
     }
     let with = Errors {
         start_transient: Some((20.0, 30.0)),
