@@ -765,15 +765,8 @@ fn positioning_job(j: &PositioningToml, instruments: &InstrumentsToml) -> R<Job>
     })
 }
 
-/// Height above a horizontal step's start point from which the joined program lowers the head
-/// onto it, m: every XY step then reaches its height moving down, so that Kwon's step 3/4
-/// formula compares two circles taken with Z in one direction state (a Z axis' squareness can
-/// differ by direction), as a unidirectional approach does in positioning tests.
-const KWON_APPROACH_LIFT_M: f64 = 0.005;
-
 /// Kwon's steps in a row as one program (each step's program without its M30, the bar
-/// remounted at the next step's start point, which the XY steps approach from
-/// [`KWON_APPROACH_LIFT_M`] above), one ball-bar set-up per step.
+/// remounted at the next step's start point), one ball-bar set-up per step.
 fn kwon_job(pivot_mm: &[f64; 3], steps: &[u8], instruments: &InstrumentsToml) -> R<Job> {
     let p = KeyPath::of(&["job"]);
     if pivot_mm.iter().any(|v| !v.is_finite()) {
@@ -815,19 +808,6 @@ fn kwon_job(pivot_mm: &[f64; 3], steps: &[u8], instruments: &InstrumentsToml) ->
                 format!("step {n}: its program lost its data arcs"),
             )
         })?;
-        let (gcode, lift_blocks) = if t.plane == Plane::Xy {
-            let z_mm = (t.start_point().z + KWON_APPROACH_LIFT_M) * 1e3;
-            let lifted = approached_from(&gcode, z_mm).ok_or_else(|| {
-                Invalid::new(
-                    p.clone(),
-                    format!("step {n}: its program has no rapid approach to its start point"),
-                )
-            })?;
-            (lifted, 1)
-        } else {
-            (gcode, 0)
-        };
-        let first = blocks + lift_blocks;
         ballbar.push(BallbarSetup {
             name: Some(format!("step {n}")),
             spec,
@@ -838,10 +818,10 @@ fn kwon_job(pivot_mm: &[f64; 3], steps: &[u8], instruments: &InstrumentsToml) ->
             circle: Some((t.center, t.radius_m)),
             data: data
                 .into_iter()
-                .map(|(d, r)| (d, r.start + first..r.end + first))
+                .map(|(d, r)| (d, r.start + blocks..r.end + blocks))
                 .collect(),
         });
-        blocks = first + own.blocks.len();
+        blocks += own.blocks.len();
         text.push_str(&gcode);
     }
     text.push_str("M30\n");
@@ -861,29 +841,6 @@ fn kwon_job(pivot_mm: &[f64; 3], steps: &[u8], instruments: &InstrumentsToml) ->
         ballbar,
         laser: None,
     })
-}
-
-/// `gcode` with a rapid move to Z `z_mm` (mm) before its first rapid (the approach to the
-/// test's start point) and the comment heading that rapid; `None` if it has no rapid.
-fn approached_from(gcode: &str, z_mm: f64) -> Option<String> {
-    let lines: Vec<&str> = gcode.lines().collect();
-    let rapid = lines.iter().position(|l| l.starts_with("G0 "))?;
-    let at = if rapid > 0 && lines[rapid - 1].starts_with('(') {
-        rapid - 1
-    } else {
-        rapid
-    };
-    let mut out = String::with_capacity(gcode.len() + 48);
-    for (i, line) in lines.iter().enumerate() {
-        if i == at {
-            out.push_str(&format!(
-                "G0 Z{z_mm:.4} (come down onto the start from above)\n"
-            ));
-        }
-        out.push_str(line);
-        out.push('\n');
-    }
-    Some(out)
 }
 
 /// All axes' dynamics, if every axis has both a drive and a servo section.

@@ -41,6 +41,10 @@ pub struct BallbarArgs {
     /// Radial feed-in onto and feed-out off the circle, mm.
     #[arg(long, default_value_t = vmt_sim::nc::ballbar::DEFAULT_FEED_IN_M * 1e3)]
     pub feed_in_mm: f64,
+    /// Come down onto the start point from this height above it, mm (0 to 10; 0: straight
+    /// there), so that the test starts with Z last moved down.
+    #[arg(long, default_value_t = 0.0)]
+    pub approach_from_above_mm: f64,
     /// Write the program to this file (default: stdout).
     #[arg(long)]
     pub out: Option<PathBuf>,
@@ -74,6 +78,7 @@ fn flag(parameter: TestParameter) -> &'static str {
         TestParameter::Overshoot => "--overshoot-deg",
         TestParameter::Directions => "--directions",
         TestParameter::FeedIn => "--feed-in-mm",
+        TestParameter::Approach => "--approach-from-above-mm",
     }
 }
 
@@ -105,6 +110,7 @@ pub fn ballbar_test(args: &BallbarArgs) -> Result<CircularTest, CliError> {
         directions: args.directions.clone(),
         feed_in_m: args.feed_in_mm * 1e-3,
         overshoot_deg: args.overshoot_deg,
+        approach_from_above_m: args.approach_from_above_mm * 1e-3,
     };
     test.validate()
         .map_err(|e| CliError::Argument(format!("{} ({})", e, flag(e.parameter))))?;

@@ -31,8 +31,9 @@
 //! 4. run-out overshoot: an arc of `overshoot_deg` after it;
 //! 5. feed-out: a G1 move along the radius to `feed_in_m` outside the circle.
 //!
-//! The program starts with a G0 to the first run's feed-in start (where the ball bar is fitted)
-//! and ends with M30 at the last run's feed-out end. Runs in opposite directions join up: each
+//! The program starts with a G0 to the first run's feed-in start (where the ball bar is fitted),
+//! preceded, when [`CircularTest::approach_from_above_m`] is set, by a G0 in Z alone to that
+//! height above it, and ends with M30 at the last run's feed-out end. Runs in opposite directions join up: each
 //! starts where the previous one ended. Between two runs in the same direction the machine
 //! returns over the arc it has just travelled, at the feed-in radius. A data arc of 360° is one
 //! full-circle block; every other arc longer than 180° is split into equal blocks of at most
@@ -53,6 +54,8 @@ pub const BALLBAR_MAX_RADIUS_M: f64 = 0.6;
 pub const DEFAULT_FEED_IN_M: f64 = 1.5e-3;
 /// Largest accepted feed-in distance, m (10 mm; a ball bar's travel is a few mm).
 pub const MAX_FEED_IN_M: f64 = 10e-3;
+/// Largest accepted approach from above, m (10 mm: a lift clear of the bar's seat, not a move).
+pub const MAX_APPROACH_M: f64 = 10e-3;
 /// Run-in and run-out overshoot of [`CircularTest::iso230_4`], degrees.
 pub const DEFAULT_OVERSHOOT_DEG: f64 = 45.0;
 /// Centre-ball position of the programs in `scenarios/kwon_seven_step/`, mm: the middle of the
@@ -85,6 +88,11 @@ pub struct CircularTest {
     /// Run-in and run-out arcs before and after the data arc, degrees (>= 0;
     /// `arc_deg + 2 * overshoot_deg <= 720`).
     pub overshoot_deg: f64,
+    /// Height above the first run's feed-in start from which the program comes down onto it, m
+    /// (0 to 10 mm; 0: one rapid straight there). A test approached from above starts with Z
+    /// last moved down, whatever the machine did before it: a unidirectional approach, for
+    /// errors that depend on the direction Z last moved.
+    pub approach_from_above_m: f64,
 }
 
 /// The parameter of a [`CircularTest`] an [`InvalidTest`] is about.
@@ -106,6 +114,8 @@ pub enum TestParameter {
     Directions,
     /// [`CircularTest::feed_in_m`].
     FeedIn,
+    /// [`CircularTest::approach_from_above_m`].
+    Approach,
 }
 
 impl TestParameter {
@@ -120,6 +130,7 @@ impl TestParameter {
             TestParameter::Overshoot => "overshoot",
             TestParameter::Directions => "directions",
             TestParameter::FeedIn => "feed-in",
+            TestParameter::Approach => "approach from above",
         }
     }
 }
@@ -209,12 +220,14 @@ impl CircularTest {
             directions: vec![ArcDirection::Cw, ArcDirection::Ccw],
             feed_in_m: DEFAULT_FEED_IN_M,
             overshoot_deg: DEFAULT_OVERSHOOT_DEG,
+            approach_from_above_m: 0.0,
         }
     }
 
     /// Checks that the test can be run with a ball bar: a finite centre, a radius of 50 to
     /// 600 mm, a feed > 0, a data arc in (0, 360]°, a finite start angle, an overshoot >= 0 with
-    /// `arc + 2 * overshoot <= 720°`, at least one direction, and a feed-in of 0 to 10 mm.
+    /// `arc + 2 * overshoot <= 720°`, at least one direction, a feed-in of 0 to 10 mm and an
+    /// approach from 0 to 10 mm above the start.
     pub fn validate(&self) -> Result<(), InvalidTest> {
         use TestParameter as P;
         if !self.center.iter().all(|c| c.is_finite()) {
@@ -278,6 +291,13 @@ impl CircularTest {
                 P::FeedIn,
                 format!("{} mm", num(self.feed_in_m * 1e3)),
                 "the feed-in must be 0 to 10 mm (commercial ball bars use 1.5 mm)",
+            ));
+        }
+        if !(self.approach_from_above_m >= 0.0 && self.approach_from_above_m <= MAX_APPROACH_M) {
+            return Err(invalid(
+                P::Approach,
+                format!("{} mm", num(self.approach_from_above_m * 1e3)),
+                "the approach must start 0 to 10 mm above the start point",
             ));
         }
         Ok(())
@@ -581,8 +601,15 @@ impl<'t> Writer<'t> {
         let (_, g_plane, _) = plane_label(t.plane);
         self.line(&format!("G21 G90 G94 {g_plane}"));
         self.line(&format!("F{}", fmt_short(t.feed_m_s * 6e4)));
+        let start = t.start_point();
+        if t.approach_from_above_m > 0.0 {
+            self.comment("down onto the start from above");
+            let z_mm = (start.z + t.approach_from_above_m) * 1e3;
+            self.line(&format!("G0 Z{}", fmt4(z_mm)));
+            self.roles.push(Role::Approach);
+        }
         self.comment("to the feed-in start point: fit the ball bar here");
-        self.straight("G0", t.start_point(), Role::Approach);
+        self.straight("G0", start, Role::Approach);
         let mut previous: Option<RunAngles> = None;
         for (run, &direction) in t.directions.iter().enumerate() {
             let angles = t.run_angles(direction);
@@ -686,6 +713,12 @@ impl<'t> Writer<'t> {
 /// see the pitch motion errors, but gives no height; 100 mm is this choice.
 pub const KWON_STEP2_RAISE_M: f64 = 0.1;
 
+/// Height above each horizontal step's start from which its program comes down onto it, m
+/// ([`CircularTest::approach_from_above_m`]): every XY step then runs with Z last moved down,
+/// so that Kwon's step-to-step differences (pitch from steps 1–2, XZ/YZ squareness from 3–4)
+/// compare one Z direction state (a Z axis' squareness can differ by direction).
+pub const KWON_APPROACH_FROM_ABOVE_M: f64 = 0.005;
+
 /// One step of Kwon's procedure: its circular test and the ball bar that measures it.
 #[derive(Clone, Debug, PartialEq)]
 pub struct KwonStep {
@@ -721,6 +754,11 @@ fn kwon_test(
         directions: vec![ArcDirection::Cw, ArcDirection::Ccw],
         feed_in_m: DEFAULT_FEED_IN_M,
         overshoot_deg: 0.0,
+        approach_from_above_m: if plane == Plane::Xy {
+            KWON_APPROACH_FROM_ABOVE_M
+        } else {
+            0.0
+        },
     }
 }
 
@@ -754,6 +792,9 @@ fn kwon_test(
 ///   1.9″ — the paper's own example. The step-4 circle lies h above the centre ball.
 /// - **Steps 6 and 7** run the upper half circle (the table is below the centre ball), through
 ///   the top, where Z reverses: ZX from −X (−90°) to +X (+90°), YZ from +Y (0°) to −Y (180°).
+/// - **Approach.** Each XY step comes down onto its start from [`KWON_APPROACH_FROM_ABOVE_M`]
+///   above, so that steps reached from a lower and from a higher step (3 after 2, 4 after 3)
+///   share one Z direction state; the paper does not say how the heights are reached.
 /// - **No overshoot.** The paper sees the closing error and the transient start peak at the
 ///   start of the circle (Sections III.2 and III.6), so the data arc begins where the motion
 ///   does, right after the radial feed-in; the 1.5 mm feed-in itself is commercial practice,
@@ -1216,6 +1257,22 @@ mod tests {
                 },
                 TestParameter::FeedIn,
                 "feed-in 11 mm",
+            ),
+            (
+                CircularTest {
+                    approach_from_above_m: 11.0 * MM,
+                    ..ok.clone()
+                },
+                TestParameter::Approach,
+                "approach from above 11 mm: the approach must start 0 to 10 mm above the start point",
+            ),
+            (
+                CircularTest {
+                    approach_from_above_m: f64::NAN,
+                    ..ok.clone()
+                },
+                TestParameter::Approach,
+                "approach from above NaN mm",
             ),
             (
                 CircularTest {
