@@ -145,6 +145,37 @@ proptest! {
     }
 }
 
+/// Where the Stribeck force is zero the bristles carry no load (g = 0, a = |v|/g infinite), so
+/// the contact is viscous alone: `F = σ2 v` at any sliding speed, with no Coulomb or static
+/// force (a purely viscous contact), and with no Coulomb force far above vs (the Stribeck term
+/// underflows). A contact stepped 1 mm at 10 mm/s must not turn into a spring of stiffness σ0.
+#[test]
+fn lugre_without_stribeck_force_is_viscous_alone() {
+    let viscous = LuGreParams {
+        coulomb_n: 0.0,
+        static_n: 0.0,
+        ..guide_friction()
+    };
+    let no_coulomb = LuGreParams {
+        coulomb_n: 0.0,
+        ..guide_friction()
+    };
+    for (p, v) in [(viscous, 0.01), (viscous, -0.01), (no_coulomb, 50.0 * 1e-3)] {
+        let mut c = LuGre::default();
+        let mut f = 0.0;
+        for _ in 0..1000 {
+            f = c.step(&p, v, 1e-4);
+        }
+        let expected = p.sigma2_n_s_per_m * v;
+        assert!((f - expected).abs() < 1e-9, "v {v}: {f} N vs {expected} N");
+        assert_eq!(c.z_m, 0.0, "v {v}");
+    }
+    // At rest a load-free contact keeps its deflection and exerts no force.
+    let mut c = LuGre::default();
+    assert_eq!(c.step(&viscous, 0.0, 1e-4), 0.0);
+    assert_eq!(c.z_m, 0.0);
+}
+
 /// Before breakaway the contact is a spring of stiffness σ0 (pre-sliding): a 0.1 µm creep
 /// gives σ0 · 0.1 µm of force.
 #[test]
@@ -186,18 +217,27 @@ fn symplectic_euler_limit_separates_stable_from_unstable() {
 }
 
 /// At constant velocity the following error of a P position loop is v / Kv (the integral of
-/// the velocity loop takes up friction), within 1 %.
+/// the velocity loop takes up friction), within 1 %; with velocity feed-forward k it is
+/// (1 - k) v / Kv.
 #[test]
 fn following_error_at_constant_velocity_is_v_over_kv() {
-    let (p, s) = table_drive(0.0);
+    let (p, s0) = table_drive(0.0);
     let (h_max, _) = p.largest_stable_step_s();
     assert!(SERVO / SUBSTEPS as f64 <= h_max);
-    for v in [1000.0 / 60_000.0, 5000.0 / 60_000.0] {
+    for (v, k) in [
+        (1000.0 / 60_000.0, 0.0),
+        (5000.0 / 60_000.0, 0.0),
+        (5000.0 / 60_000.0, 0.5),
+    ] {
+        let s = ServoParams {
+            velocity_ff: k,
+            ..s0
+        };
         let mut axis = ReducedAxis::new(p, s, 0.0);
         let samples = run(&mut axis, 0.6, ramp(v));
         let steady: Vec<f64> = samples.iter().filter(|x| x.0 > 0.4).map(|x| x.3).collect();
         let mean = steady.iter().sum::<f64>() / steady.len() as f64;
-        let expected = v / s.kv_per_s;
+        let expected = (1.0 - k) * v / s.kv_per_s;
         assert!(
             (mean - expected).abs() < 0.01 * expected,
             "v {v}: {mean} vs {expected}"

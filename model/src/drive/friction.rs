@@ -179,7 +179,7 @@ pub struct LuGreStep {
     stribeck: Stribeck,
     inv_sigma0: f64,
     h_sigma0: f64,
-    /// On the plateau `F = Fc`: `g = Fc/σ0` and `a h = |v| hσ0/Fc` (0 without Coulomb force).
+    /// On the plateau `F = Fc`: `g = Fc/σ0` and `a h = |v| hσ0/Fc` (∞ without Coulomb force).
     coulomb_deflection: f64,
     coulomb_a_h_per_speed: f64,
 }
@@ -197,10 +197,13 @@ impl LuGreStep {
             inv_sigma0: 1.0 / p.sigma0_n_per_m,
             h_sigma0,
             coulomb_deflection: p.coulomb_n / p.sigma0_n_per_m,
+            // Without Coulomb force g = 0 on the plateau: a = |v|/g is infinite and the
+            // bristles stay at z = 0 (speed · ∞ = ∞; at rest 0 · ∞ is NaN, which `settle`
+            // takes as no slip).
             coulomb_a_h_per_speed: if p.coulomb_n > 0.0 {
                 h_sigma0 / p.coulomb_n
             } else {
-                0.0
+                f64::INFINITY
             },
         }
     }
@@ -215,7 +218,9 @@ impl LuGreStep {
         self.settle(contact, v, slip, exp(-slip.1))
     }
 
-    /// `g(v)` (m) and `a h` at velocity `v`; the plateau's are constants (a = 0 when g = 0).
+    /// `g(v)` (m) and `a h` at velocity `v`; the plateau's are constants. Where the Stribeck
+    /// force is 0 (no Coulomb force, far above vs or with no static force either) `a h` is
+    /// infinite when sliding and NaN at rest.
     #[inline]
     pub(crate) fn slip(&self, v: f64) -> (f64, f64) {
         let speed = v.abs();
@@ -242,6 +247,7 @@ impl LuGreStep {
         }
         let p = &self.params;
         let z0 = contact.z_m;
+        // a h NaN (g = 0 at rest) is false here: the bristles keep their deflection.
         let z1 = if a_h > 1e-12 {
             let zss = g.copysign(v);
             zss + (z0 - zss) * decay
