@@ -38,8 +38,8 @@ pub struct TruthInputs<'a> {
 /// - `static_deflection_um`: where that load holds the carriage from where its encoder puts
 ///   it, averaged over both directions: `F_load/k`, plus half the gap towards the load when the
 ///   nut stays on one flank.
-/// - `servo_mismatch_ms`: `1/Kv_a - 1/Kv_b` for the test plane's axes (a, b) in ms; a ball bar
-///   sees `±(F Δτ / 2) sin 2θ` from it.
+/// - `servo_mismatch_ms`: `τ_a − τ_b` for the plane's axes (a, b) in ms, with the servo lag
+///   `τ = (1 − k_vff)/K_v` at constant velocity; a ball bar sees `±(F Δτ / 2) sin 2θ` from it.
 /// - `squareness_um_per_m`: the ISO squareness of the plane, µm/m.
 ///
 /// `drives.<axis>.backlash_seen_um` is taken at the job's test feed ([`Job::test_feed_m_s`]);
@@ -82,7 +82,7 @@ pub fn ground_truth(
             }),
         );
     }
-    let kv = |a: Axis| axes[a.index()].servo.kv_per_s;
+    let lag = |a: Axis| lag_s(&axes[a.index()]);
     let mut squareness = serde_json::Map::new();
     for s in SquarenessError::ALL {
         let v = machine.volumetric.errors.squareness(s).values;
@@ -129,9 +129,9 @@ pub fn ground_truth(
         "machine": machine.name,
         "drives": drives,
         "servo_mismatch_ms": {
-            "xy": (1.0 / kv(Axis::X) - 1.0 / kv(Axis::Y)) * 1e3,
-            "zx": (1.0 / kv(Axis::Z) - 1.0 / kv(Axis::X)) * 1e3,
-            "yz": (1.0 / kv(Axis::Y) - 1.0 / kv(Axis::Z)) * 1e3,
+            "xy": (lag(Axis::X) - lag(Axis::Y)) * 1e3,
+            "zx": (lag(Axis::Z) - lag(Axis::X)) * 1e3,
+            "yz": (lag(Axis::Y) - lag(Axis::Z)) * 1e3,
         },
         "squareness": squareness,
         "ballbar": ballbar,
@@ -264,6 +264,15 @@ fn lag_s(d: &AxisDynamics) -> f64 {
     (1.0 - d.servo.velocity_ff) / d.servo.kv_per_s
 }
 
+/// The amplitude ratio of an axis' position to its command at `omega` (rad/s): a P position loop
+/// of gain `K_v` with velocity feed-forward `k` over an ideal velocity loop,
+/// `ẋ = K_v (x_c − x) + k ẋ_c`, has `X/X_c = (K_v + k s)/(s + K_v)`, so
+/// `|X/X_c| = √((K_v² + k²ω²)/(K_v² + ω²)) ≈ 1 − (1 − k²) ω²/(2 K_v²)`.
+fn amplitude_gain(d: &AxisDynamics, omega: f64) -> f64 {
+    let (kv, k) = (d.servo.kv_per_s, d.servo.velocity_ff);
+    ((kv * kv + k * k * omega * omega) / (kv * kv + omega * omega)).sqrt()
+}
+
 /// The figures a ball-bar diagnosis of circular test `b` reports, in its keys and units.
 ///
 /// From the error chain `chain` in the middle of the test (the tool-point error field `δ` on the nominal
@@ -273,8 +282,9 @@ fn lag_s(d: &AxisDynamics) -> f64 {
 /// is expanded in Fourier series `A_k cos kθ + B_k sin kθ` over the full circle, and
 /// the signatures of the diagnosis read off it (see `vmt-ballbar`'s signatures):
 /// straightness `S_p = -4 B_3`, `S_q = 4 A_3` (µm over the diameter); scale mismatch
-/// `2 A_2 / R` (ppm) plus the dynamic share `-(ω²/2)(τ_p² - τ_q²)` of unequal servo lags τ at
-/// ω = F/r (each axis' amplitude falls short by (ωτ)²/2); squareness `2 B_2 / (k R)` (µm/m, k = -1 XY and YZ, +1 ZX); the pivot
+/// `2 A_2 / R` (ppm) plus the dynamic share `|H_p| − |H_q|` of the position loops' amplitude
+/// ratios at ω = F/r (`amplitude_gain`, about `-(ω²/2)(τ_p² − τ_q²)` without feed-forward,
+/// τ = 1/K_v); squareness `2 B_2 / (k R)` (µm/m, k = -1 XY and YZ, +1 ZX); the pivot
 /// offset equivalent `e_p = -A_1 - S_q/4 - d_p`, `e_q = -B_1 - S_p/4 - d_q`, added to the bar's set-up
 /// eccentricity, with `d` the drives' static deflection under their constant load (a hanging
 /// Z head sits `m g / k` plus half its gap lower than its encoder says). Backlash and lateral
@@ -340,10 +350,10 @@ pub fn test_figures(
     );
     put(format!("straightness_{lp}"), s_p);
     put(format!("straightness_{lq}"), s_q);
-    // A position loop following a circle at ω = F/r lets each axis' amplitude fall short by
-    // (ωτ)²/2 (first-order lag τ): unequal lags read as a scale mismatch on the bar.
+    // A position loop following a circle at ω = F/r lets each axis' amplitude fall short
+    // (`amplitude_gain`): unequal shortfalls read as a scale mismatch on the bar.
     let omega = b.feed_m_s / radius;
-    let dynamic = |a: Axis| -0.5 * (omega * lag_s(&inputs.axes[a.index()])).powi(2);
+    let dynamic = |a: Axis| amplitude_gain(&inputs.axes[a.index()], omega) - 1.0;
     let dynamic_ppm = (dynamic(pa) - dynamic(qa)) * 1e6 * k * k;
     put(
         format!("scale_mismatch_{pl}"),

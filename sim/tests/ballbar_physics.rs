@@ -50,27 +50,41 @@ fn circle_run(axes: [AxisDynamics; 3], feed_mm_min: f64, fidelity: Fidelity) -> 
     simulate(&m, &axes, &ipo, &job, &settings, "", &mut |_| {}).unwrap()
 }
 
-/// Mean deviation (µm) of a trace over the angles within `half_width` degrees of `at` (mod 360).
-fn mean_near(t: &BallbarTrace, at: f64, half_width: f64) -> f64 {
-    let sel: Vec<f64> = t
-        .angle_deg
-        .iter()
-        .zip(&t.deviation_um)
-        .filter(|(a, _)| {
-            ((*a - at).rem_euclid(360.0) + 180.0).rem_euclid(360.0) - 180.0 < half_width
-                && ((*a - at).rem_euclid(360.0) + 180.0).rem_euclid(360.0) - 180.0 > -half_width
-        })
-        .map(|(_, d)| *d)
-        .collect();
-    sel.iter().sum::<f64>() / sel.len() as f64
-}
-
 fn trace<'a>(run: &'a Run, dir: &str) -> &'a BallbarTrace {
     run.ballbar.iter().find(|t| t.direction == dir).unwrap()
 }
 
-/// With backlash on X only, the trace steps at the X reversals (0° and 180°) by about the
-/// backlash the ball bar sees, b + 2F/k, and not at the Y reversals (90°, 270°).
+/// Least-squares lost motion of X and Y in a trace, µm: the trace fitted, away from the
+/// reversals (15°) and the run's first and last 10°, with `r0 + a cos θ + b sin θ +
+/// (lx/2) sign(ẋ) cos θ + (ly/2) sign(ẏ) sin θ`, and `(-lx, -ly)` returned: an axis that lags
+/// behind its motor by l/2 in its direction of travel has a lost motion `l`.
+fn lost_motion(t: &BallbarTrace) -> (f64, f64) {
+    let n = t.angle_deg.len();
+    let s = (t.angle_deg[n - 1] - t.angle_deg[0]).signum();
+    let mut ata = nalgebra::Matrix5::<f64>::zeros();
+    let mut atb = nalgebra::Vector5::<f64>::zeros();
+    for (a, d) in t.angle_deg.iter().zip(&t.deviation_um) {
+        let travelled = (a - t.angle_deg[0]).abs();
+        let off_axis = (a.rem_euclid(90.0) - 45.0).abs() < 30.0;
+        if !off_axis
+            || travelled < 10.0
+            || travelled > (t.angle_deg[n - 1] - t.angle_deg[0]).abs() - 10.0
+        {
+            continue;
+        }
+        let (sin, cos) = a.to_radians().sin_cos();
+        let (dir_x, dir_y) = (-s * sin.signum(), s * cos.signum());
+        let row = nalgebra::Vector5::new(1.0, cos, sin, 0.5 * dir_x * cos, 0.5 * dir_y * sin);
+        ata += row * row.transpose();
+        atb += row * *d;
+    }
+    let x = ata.lu().solve(&atb).unwrap();
+    (-x[3], -x[4])
+}
+
+/// With backlash on X only, the trace steps at the X reversals (0° and 180°) by the lost motion
+/// the ball bar sees there, b + 2F/k (the gap and the screw's stretch under the guideway
+/// friction F), and at the Y reversals (90°, 270°) by Y's 2F/k alone, without a gap.
 #[test]
 fn x_backlash_steps_at_0_and_180_degrees_only() {
     let b = 4e-6;
@@ -80,31 +94,31 @@ fn x_backlash_steps_at_0_and_180_degrees_only() {
         common::axis(180.0, 0.0, 33.0),
     ];
     let run = circle_run(axes, 1000.0, Fidelity::Reduced);
-    let seen = run.ground_truth["drives"]["x"]["backlash_seen_um"]
-        .as_f64()
-        .unwrap();
+    let seen = |a: &str| {
+        run.ground_truth["drives"][a]["backlash_seen_um"]
+            .as_f64()
+            .unwrap()
+    };
+    let (seen_x, seen_y) = (seen("x"), seen("y"));
+    // The friction's share is what tells b + 2F/k from b: 2 · 53 N / 180 N/µm.
+    assert!(
+        (seen_x - 4.0 - seen_y).abs() < 1e-9 && seen_y > 0.5,
+        "{seen_x} {seen_y}"
+    );
     for dir in ["cw", "ccw"] {
         let t = trace(&run, dir);
         assert!(t.angle_deg.len() > 50_000, "{} samples", t.angle_deg.len());
         let sweep = (t.angle_deg[t.angle_deg.len() - 1] - t.angle_deg[0]).abs();
         assert!((sweep - 360.0).abs() < 1.0, "sweep {sweep}");
-        // Step across a reversal: mean 5-15° after minus mean 5-15° before, in the run's sense.
-        let s = if dir == "ccw" { 1.0 } else { -1.0 };
-        let step = |at: f64| mean_near(t, at + s * 10.0, 5.0) - mean_near(t, at - s * 10.0, 5.0);
-        for at in [0.0, 180.0] {
-            assert!(
-                (step(at).abs() - seen).abs() < 0.3 * seen,
-                "{dir} at {at}: step {} vs {seen}",
-                step(at)
-            );
-        }
-        for at in [90.0, 270.0] {
-            assert!(
-                step(at).abs() < 0.2 * seen,
-                "{dir} at {at}: step {}",
-                step(at)
-            );
-        }
+        let (lx, ly) = lost_motion(t);
+        assert!(
+            (lx - seen_x).abs() < 0.1,
+            "{dir}: X lost motion {lx} vs {seen_x} µm"
+        );
+        assert!(
+            (ly - seen_y).abs() < 0.1,
+            "{dir}: Y lost motion {ly} vs {seen_y} µm"
+        );
     }
 }
 
@@ -139,6 +153,43 @@ fn servo_mismatch_ellipse_flips_between_cw_and_ccw() {
         assert!(
             (a - expected).abs() < 0.15 * expected,
             "amplitude {a} vs {expected} µm"
+        );
+    }
+}
+
+/// Velocity feed-forward on X only: with `X/X_c = (K_v + k s)/(s + K_v)` X's amplitude falls
+/// short by `(1 - k²) ω²/(2 K_v²)` and Y's by `ω²/(2 K_v²)`, so the bar reads a scale mismatch,
+/// `A₂ cos 2θ` with `A₂ = R (|H_x| - |H_y|)/2`, which the truth's figure must give (a lag-only
+/// formula, `(1 - k)²`, would make it three times larger).
+#[test]
+fn velocity_feed_forward_scale_mismatch_is_the_truth() {
+    let mut x = common::axis(250.0, 0.0, 33.0);
+    x.servo.velocity_ff = 0.5;
+    let axes = [
+        x,
+        common::axis(450.0, 0.0, 33.0),
+        common::axis(180.0, 0.0, 33.0),
+    ];
+    let run = circle_run(axes, 2000.0, Fidelity::Reduced);
+    let figures = &run.ground_truth["ballbar"]["tests"][0]["figures"];
+    let ppm = figures["scale_mismatch_xy"].as_f64().unwrap();
+    let expected = 0.15e6 * ppm * 1e-6 / 2.0; // µm
+    assert!(expected > 0.3, "{expected} µm");
+    for dir in ["cw", "ccw"] {
+        let t = trace(&run, dir);
+        // Least-squares amplitude of cos 2θ (the other terms are orthogonal over the turn).
+        let (num, den) =
+            t.angle_deg
+                .iter()
+                .zip(&t.deviation_um)
+                .fold((0.0, 0.0), |(n, d), (a, v)| {
+                    let c = (2.0 * a.to_radians()).cos();
+                    (n + c * v, d + c * c)
+                });
+        let a2 = num / den;
+        assert!(
+            (a2 - expected).abs() < 0.1,
+            "{dir}: cos 2θ {a2} µm vs truth {expected} µm"
         );
     }
 }
