@@ -358,9 +358,11 @@ pub fn check_step(
     for (a, d) in Axis::ALL.into_iter().zip(axes) {
         let (limit, mode) = d.drive.largest_stable_step_s();
         if h > limit {
+            // Saturating: a limit many orders below the period (absurd stiffness) must still
+            // give an error, not an overflow.
             let mut needed = (period_s / limit).ceil() as usize;
             if period_s / needed as f64 > limit {
-                needed += 1;
+                needed = needed.saturating_add(1);
             }
             return Err(SimError::StepTooCoarse {
                 axis: a,

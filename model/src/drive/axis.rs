@@ -15,9 +15,10 @@
 //! motor encoder (semi-closed loop, the usual case, in which the gap is not seen by the control)
 //! or a linear scale on the carriage (closed loop), quantised to its resolution.
 //!
-//! Integrator: semi-implicit (symplectic) Euler over a fixed step `h`: forces from the state at
-//! the start of the step, then velocities, then positions; the current lag and the LuGre
-//! bristles are integrated exactly over the step. For a mode of frequency ω and damping ratio ζ
+//! Integrator: semi-implicit (symplectic) Euler over a fixed step `h`: the screw force from the
+//! positions at the start of the step, the current lag and the LuGre bristles integrated exactly
+//! over the step (their end-of-step force enters the velocity update), then velocities, then
+//! positions. For a mode of frequency ω and damping ratio ζ
 //! this is stable for `h < (2/ω)(√(1+ζ²) - ζ)`; [`DriveParams::largest_stable_step_s`] applies it
 //! to the screw mode (k on the reduced mass of motor and carriage) and to the stuck bristles of
 //! both contacts (σ0 on the mass they hold), and a step beyond it is refused. The constants of
@@ -276,7 +277,8 @@ impl Drive {
     /// Advances the motor side by `h` (s) against the screw and the guideway friction of
     /// `carriage` by the same step (its bristles advance; its motion is the caller's), and
     /// returns the net force on the carriage: screw force, guideway friction and `external_n`
-    /// (N). All forces are from the state at the start of the step.
+    /// (N). The screw force is from the positions at the start of the step, the motor force and
+    /// the friction from the current lag and the bristles advanced over it (see the module doc).
     #[inline]
     pub fn step(&mut self, h: f64, carriage: &mut CarriageState, external_n: f64) -> f64 {
         Self::step_all([(self, carriage)], [external_n], h)[0]

@@ -75,8 +75,8 @@ pub enum Motion {
         feed: f64,
     },
     /// G2/G3: arc (helix if `to` leaves the plane) about `center` (m) to `to` at `feed` (m/s).
-    /// `turns` extra full turns are made before ending at `to` (a full circle has `to` equal to
-    /// the start point and `turns = 0` swept as 360°).
+    /// A full circle has `to` equal to the start point and is swept as 360°; multi-turn arcs
+    /// (a P word on G2/G3) are refused by the parser.
     Arc {
         /// End point, m.
         to: Vector3<f64>,
