@@ -20,7 +20,7 @@ use mcap::MessageStream;
 use serde_json::Value;
 use std::collections::BTreeMap;
 use std::path::Path;
-use vmt_ballbar::Trace;
+use vmt_ballbar::{Trace, TraceError};
 use vmt_sim::run::BallbarTrace;
 
 /// The set-up of a CSV trace, from the command line.
@@ -238,6 +238,30 @@ pub(crate) fn finite_cell(
     }
 }
 
+/// A trace's refusal as an error of the CSV file: at the line of the sample at fault (the
+/// header is line 1), or at the first line of the direction's rows; the set-up values as the
+/// command-line options they came from.
+fn csv_trace_error(e: TraceError, file: &str, first_line: usize, direction: &str) -> CliError {
+    if let TraceError::Setup {
+        what,
+        value,
+        accepted,
+        ..
+    } = &e
+    {
+        let option = format!("--{}", what.replace('_', "-"));
+        return CliError::Argument(format!("{option} {value}: {accepted}"));
+    }
+    match e.sample() {
+        Some(i) => CliError::input(file, Some(first_line + i), e.to_string()),
+        None => CliError::input(
+            file,
+            Some(first_line),
+            format!("{e} (the {direction} rows start here)"),
+        ),
+    }
+}
+
 fn read_csv(bytes: &[u8], file: &str, setup: CsvSetup) -> Result<Vec<Trace>, CliError> {
     let (mut reader, header) = csv_with_header(bytes, file)?;
     let cols = columns(&header, file)?;
@@ -300,13 +324,7 @@ fn read_csv(bytes: &[u8], file: &str, setup: CsvSetup) -> Result<Vec<Trace>, Cli
                 r.deviation,
                 cols.time.map(|_| r.time),
             )
-            .map_err(|e| {
-                CliError::input(
-                    file,
-                    Some(r.first_line),
-                    format!("{e} (the {} rows start here)", r.direction),
-                )
-            })
+            .map_err(|e| csv_trace_error(e, file, r.first_line, &r.direction))
         })
         .collect()
 }

@@ -123,7 +123,9 @@ fn angles_that_go_backwards_are_refused_at_their_sample() {
     }));
     assert!(!ok);
     assert!(
-        e.contains("sample 300") && e.contains("against the CCW sense"),
+        e.contains("bad.csv:302:")
+            && e.contains("sample 300")
+            && e.contains("against the CCW sense"),
         "{e}"
     );
 }
@@ -135,7 +137,35 @@ fn a_gap_in_the_angles_is_refused_with_its_place() {
     }));
     assert!(!ok);
     assert!(
-        e.contains("a gap of 5.50 deg") && e.contains("largest accepted gap is 2.00"),
+        e.contains("bad.csv:402:")
+            && e.contains("a gap of 5.50 deg")
+            && e.contains("largest accepted gap is 2.00"),
+        "{e}"
+    );
+}
+
+/// A run whose angles increase but is labelled CW (labels swapped on export): each step is
+/// within the jitter allowed, the run as a whole is refused, at its first row.
+#[test]
+fn a_run_labelled_with_the_other_direction_is_refused() {
+    let mut text = String::from("angle_deg,deviation_um,direction\n");
+    for i in 0..60_000 {
+        text += &format!("{},0.1,cw\n", i as f64 * 0.006);
+    }
+    let (ok, e) = diagnose_text(&text);
+    assert!(!ok);
+    assert!(
+        e.contains("bad.csv:2:") && e.contains("check the direction labels"),
+        "{e}"
+    );
+}
+
+#[test]
+fn an_arc_under_90_degrees_is_refused() {
+    let (ok, e) = diagnose_text(&rows(100, |_, a| (a, "0.1".into())));
+    assert!(!ok);
+    assert!(
+        e.contains("sweeps 49.50 deg") && e.contains("at least 90 deg"),
         "{e}"
     );
 }

@@ -199,6 +199,32 @@ pub enum TraceError {
         /// Time at `index`, s.
         to: f64,
     },
+    /// The angles run against the trace's direction label over the whole run.
+    #[error(
+        "{label}: the angle runs from {from} to {to} deg, the other way from the {sense} the trace is labelled (angles must increase for CCW and decrease for CW); check the direction labels"
+    )]
+    WrongSense {
+        /// Trace label.
+        label: String,
+        /// First angle, deg.
+        from: f64,
+        /// Last angle, deg.
+        to: f64,
+        /// `CW` or `CCW`.
+        sense: String,
+    },
+    /// Too short an arc for a circular test.
+    #[error(
+        "{label}: the trace sweeps {sweep:.2} deg; a circular test needs an arc of at least {min} deg (below it the centre and radius of the circle cannot be told apart)"
+    )]
+    ShortArc {
+        /// Trace label.
+        label: String,
+        /// Angle swept, deg.
+        sweep: f64,
+        /// Least accepted, deg.
+        min: f64,
+    },
     /// A plane or direction name that is not known.
     #[error("{label}: {what} `{value}` is not known; {accepted}")]
     Name {
@@ -225,6 +251,20 @@ pub enum TraceError {
     },
 }
 
+impl TraceError {
+    /// The index (0-based) of the sample at fault, where one is: the first of a NaN, a step
+    /// back or a time out of order, the sample after a gap.
+    pub fn sample(&self) -> Option<usize> {
+        match self {
+            Self::NotFinite { index, .. }
+            | Self::Backwards { index, .. }
+            | Self::TimeBackwards { index, .. } => Some(*index),
+            Self::Gap { next, .. } => Some(*next),
+            _ => None,
+        }
+    }
+}
+
 /// The largest angular gap between samples accepted by [`Trace::validate`], deg.
 pub const MAX_GAP_DEG: f64 = 2.0;
 /// How far (deg) the angle may step back against the trace's sense: a real tool point jitters
@@ -233,6 +273,10 @@ pub const MAX_GAP_DEG: f64 = 2.0;
 pub const MAX_BACKWARD_DEG: f64 = 0.05;
 /// The fewest samples a trace may have.
 pub const MIN_SAMPLES: usize = 16;
+/// The shortest arc accepted, deg: the shortest on which the diagnosis fits scale and
+/// squareness (see [`crate::model::Terms`]); on less, the circle's centre and radius are
+/// nearly collinear unknowns (a 10° arc put the centre 3.5 mm off).
+pub const MIN_SWEEP_DEG: f64 = 90.0;
 
 impl Trace {
     /// A trace from its columns, the plane and direction given by name (`XY`, `ZX`, `YZ`;
@@ -315,7 +359,7 @@ impl Trace {
             });
         }
         if self.columns_ok() {
-            return Ok(());
+            return self.check_sweep();
         }
         let mut columns: Vec<(&'static str, &[f64])> = vec![
             ("angle_deg", &self.angle_deg),
@@ -343,6 +387,7 @@ impl Trace {
             }
         }
         self.check_angles()?;
+        self.check_sweep()?;
         if let Some(t) = &self.time_s
             && let Some(i) = (1..n).find(|&i| t[i] <= t[i - 1])
         {
@@ -383,6 +428,29 @@ impl Trace {
             }
         }
         bad == 0
+    }
+
+    /// The run as a whole goes the labelled way, over at least [`MIN_SWEEP_DEG`] (sample to
+    /// sample, [`Trace::check_angles`] lets small steps back through).
+    fn check_sweep(&self) -> Result<(), TraceError> {
+        let (from, to) = (self.angle_deg[0], self.angle_deg[self.angle_deg.len() - 1]);
+        let sweep = (to - from) * self.sense.sign();
+        if sweep < 0.0 {
+            return Err(TraceError::WrongSense {
+                label: self.label.clone(),
+                from,
+                to,
+                sense: self.sense.name().to_uppercase(),
+            });
+        }
+        if sweep < MIN_SWEEP_DEG {
+            return Err(TraceError::ShortArc {
+                label: self.label.clone(),
+                sweep,
+                min: MIN_SWEEP_DEG,
+            });
+        }
+        Ok(())
     }
 
     fn check_angles(&self) -> Result<(), TraceError> {
@@ -446,5 +514,33 @@ mod tests {
         t.sense = Sense::Cw;
         let e = t.validate().unwrap_err();
         assert!(e.to_string().contains("against the CW sense"), "{e}");
+    }
+
+    /// A CCW run labelled CW at 1 kHz steps 0.006° a sample, within the jitter allowed
+    /// sample to sample: the run as a whole must still be refused.
+    #[test]
+    fn a_run_labelled_with_the_other_direction_is_refused() {
+        let mut t = trace((0..60_000).map(|i| i as f64 * 0.006).collect());
+        assert!(t.validate().is_ok());
+        t.sense = Sense::Cw;
+        let e = t.validate().unwrap_err();
+        assert!(matches!(e, TraceError::WrongSense { .. }), "{e}");
+        assert!(e.to_string().contains("check the direction labels"), "{e}");
+    }
+
+    #[test]
+    fn an_arc_under_90_degrees_is_refused_and_90_accepted() {
+        let e = trace((0..=890).map(|i| i as f64 * 0.1).collect())
+            .validate()
+            .unwrap_err();
+        assert!(
+            matches!(e, TraceError::ShortArc { sweep, .. } if (sweep - 89.0).abs() < 1e-9),
+            "{e}"
+        );
+        assert!(
+            trace((0..=900).map(|i| i as f64 * 0.1).collect())
+                .validate()
+                .is_ok()
+        );
     }
 }
