@@ -189,7 +189,9 @@ fn execution(
         )?),
         _ => None,
     };
+    let job_kind = job;
     let job = dynamics::job(job, &raw.instruments, tool, base_dir)?;
+    check_test_rates(&job, job_kind, &controller)?;
     Ok(Some(Execution {
         axes,
         controller,
@@ -198,6 +200,46 @@ fn execution(
         program_file,
         milling,
     }))
+}
+
+/// A test's feed and its instruments' sample rates within what the controller can give:
+/// a controller clamps a programmed feed to its maximum, so a ball-bar or positioning test
+/// above it would run slower than the feed it is labelled (and diagnosed) with; a ball bar is
+/// sampled at servo ticks, so it cannot be sampled faster than the servo rate.
+fn check_test_rates(
+    job: &vmt_sim::simulate::Job,
+    kind: &crate::dynamics::JobToml,
+    controller: &vmt_sim::interpolator::InterpolatorConfig,
+) -> Result<()> {
+    // Back in the units of the keys, rounded off the m/s conversion.
+    let user = |x: f64| (x * 1e6).round() / 1e6;
+    let max_mm_min = user(controller.limits.max_feed_m_s * 60_000.0);
+    let feed_key = match kind {
+        crate::dynamics::JobToml::KwonSevenStep { .. } => KeyPath::of(&["job", "steps"]),
+        _ => KeyPath::of(&["job", "feed_mm_min"]),
+    };
+    let feeds = job.ballbar.iter().map(|b| b.feed_m_s);
+    for feed in feeds.chain(job.laser.iter().map(|l| l.test.feed_m_s)) {
+        let mm_min = user(feed * 60_000.0);
+        if mm_min > max_mm_min {
+            let msg = format!(
+                "a test feed of {mm_min} mm/min is not accepted: the controller's largest feed is {max_mm_min} mm/min (controller.max_feed_mm_min), to which it would clamp the test"
+            );
+            return Err(Invalid::new(feed_key.clone(), msg).into());
+        }
+    }
+    let servo_hz = user(1.0 / controller.servo_period_s);
+    for b in &job.ballbar {
+        if b.spec.sample_rate_hz > servo_hz {
+            let msg = format!(
+                "{} Hz is not accepted: the ball bar is sampled at servo ticks, at most {servo_hz} Hz (1 / controller.servo_period_us)",
+                b.spec.sample_rate_hz
+            );
+            let key = KeyPath::of(&["instruments", "ballbar", "sample_rate_hz"]);
+            return Err(Invalid::new(key, msg).into());
+        }
+    }
+    Ok(())
 }
 
 fn machine(m: &MachineToml, base_dir: Option<&Path>) -> Result<Machine> {

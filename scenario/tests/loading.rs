@@ -223,3 +223,33 @@ fn a_value_of_the_wrong_type_or_length_names_its_key() {
         "{e}"
     );
 }
+
+/// A controller clamps a programmed feed to its maximum, and samples the ball bar at servo
+/// ticks: a test above either is refused at its key, not run slower than it is labelled.
+#[test]
+fn a_test_feed_or_sample_rate_beyond_the_controller_is_refused() {
+    let text = with("feed_mm_min = 1000.0", "feed_mm_min = 50000.0");
+    let e = error_of(&text);
+    assert_eq!(e.key.as_deref(), Some("job.feed_mm_min"), "{e}");
+    assert_eq!(
+        e.position.map(|p| p.0),
+        Some(line_of(&text, "feed_mm_min = 50000.0")),
+        "{e}"
+    );
+    assert!(
+        e.message
+            .contains("largest feed is 10000 mm/min (controller.max_feed_mm_min)"),
+        "{e}"
+    );
+    let text = with("sample_rate_hz = 1000.0", "sample_rate_hz = 1e9");
+    let e = error_of(&text);
+    assert_eq!(
+        e.key.as_deref(),
+        Some("instruments.ballbar.sample_rate_hz"),
+        "{e}"
+    );
+    assert!(e.message.contains("at most 8000 Hz"), "{e}");
+    // At the limits they run.
+    let text = with("feed_mm_min = 1000.0", "feed_mm_min = 10000.0");
+    assert!(parse(&text, "machine.toml", None).is_ok());
+}
