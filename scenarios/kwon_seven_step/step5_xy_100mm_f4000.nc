@@ -8,8 +8,9 @@
 (runs: CW, CCW; each data arc lies between DATA <dir> START and DATA <dir> END)
 G21 G90 G94 G17
 F4000
-(down onto the start from above)
+(up, over the start and down onto it)
 G0 Z65.0000
+G0 X351.5000 Y200.0000 Z65.0000
 (to the feed-in start point: fit the ball bar here)
 G0 X351.5000 Y200.0000 Z60.0000
 (run 1: CW)

@@ -32,8 +32,8 @@
 //! 5. feed-out: a G1 move along the radius to `feed_in_m` outside the circle.
 //!
 //! The program starts with a G0 to the first run's feed-in start (where the ball bar is fitted),
-//! preceded, when [`CircularTest::approach_from_above_m`] is set, by a G0 in Z alone to that
-//! height above it, and ends with M30 at the last run's feed-out end. Runs in opposite directions join up: each
+//! preceded, when [`CircularTest::approach_from_above_m`] is set, by a G0 in Z alone up to that
+//! height above it, a G0 over the start at that height and the G0 down onto it, and ends with M30 at the last run's feed-out end. Runs in opposite directions join up: each
 //! starts where the previous one ended. Between two runs in the same direction the machine
 //! returns over the arc it has just travelled, at the feed-in radius. A data arc of 360° is one
 //! full-circle block; every other arc longer than 180° is split into equal blocks of at most
@@ -603,10 +603,11 @@ impl<'t> Writer<'t> {
         self.line(&format!("F{}", fmt_short(t.feed_m_s * 6e4)));
         let start = t.start_point();
         if t.approach_from_above_m > 0.0 {
-            self.comment("down onto the start from above");
-            let z_mm = (start.z + t.approach_from_above_m) * 1e3;
-            self.line(&format!("G0 Z{}", fmt4(z_mm)));
+            self.comment("up, over the start and down onto it");
+            let above = start + Vector3::z() * t.approach_from_above_m;
+            self.line(&format!("G0 Z{}", fmt4(above.z * 1e3)));
             self.roles.push(Role::Approach);
+            self.straight("G0", above, Role::Approach);
         }
         self.comment("to the feed-in start point: fit the ball bar here");
         self.straight("G0", start, Role::Approach);
