@@ -192,6 +192,7 @@ fn execution(
     let job_kind = job;
     let job = dynamics::job(job, &raw.instruments, tool, base_dir)?;
     check_test_rates(&job, job_kind, &controller)?;
+    check_generated_travel(&machine, &controller, &job, job_kind)?;
     Ok(Some(Execution {
         axes,
         controller,
@@ -240,6 +241,28 @@ fn check_test_rates(
         }
     }
     Ok(())
+}
+
+/// The program a test job generates kept within the strokes, refused at the job's keys (the
+/// generated program's line numbers mean nothing to the scenario's author); a program file's
+/// own job is checked when it runs, at its file's lines.
+fn check_generated_travel(
+    machine: &Machine,
+    controller: &vmt_sim::interpolator::InterpolatorConfig,
+    job: &vmt_sim::simulate::Job,
+    kind: &crate::dynamics::JobToml,
+) -> Result<()> {
+    use crate::dynamics::JobToml;
+    let (key, fix) = match kind {
+        JobToml::Program { .. } | JobToml::Milling(_) => return Ok(()),
+        JobToml::Ballbar { .. } => ("center_mm", "move the centre or shorten job.radius_mm"),
+        JobToml::KwonSevenStep { .. } => ("pivot_mm", "move the pivot"),
+        JobToml::Iso230_2(_) => ("axis", "bring the targets and overrun within the stroke"),
+    };
+    vmt_sim::simulate::check_travel(machine, controller, job).map_err(|e| {
+        let msg = format!("the test program generated from [job] leaves a stroke ({e}): {fix}");
+        Invalid::new(KeyPath::of(&["job", key]), msg).into()
+    })
 }
 
 fn machine(m: &MachineToml, base_dir: Option<&Path>) -> Result<Machine> {

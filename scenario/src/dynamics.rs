@@ -592,8 +592,19 @@ pub fn job(
                 CircularTest::iso230_4(plane, center, radius_mm * 1e-3, feed_mm_min / 60_000.0);
             test.arc_deg = *arc_deg;
             test.directions = dirs;
-            test.validate()
-                .map_err(|e| Invalid::new(p.clone(), e.to_string()))?;
+            test.validate().map_err(|e| {
+                use vmt_sim::nc::ballbar::TestParameter as T;
+                let key = match e.parameter {
+                    T::Center => p.key("center_mm"),
+                    T::Radius => p.key("radius_mm"),
+                    T::Feed => p.key("feed_mm_min"),
+                    T::Arc => p.key("arc_deg"),
+                    T::Directions => p.key("directions"),
+                    // Not keys of [job]: the generator's defaults.
+                    T::Start | T::Overshoot | T::FeedIn | T::Approach => p.clone(),
+                };
+                Invalid::new(key, e.to_string())
+            })?;
             let program = parse(&test.gcode(), test.start_point())
                 .map_err(|e| Invalid::new(p.clone(), e.to_string()))?;
             let data = test.data_blocks(&program).unwrap_or_default();

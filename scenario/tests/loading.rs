@@ -253,3 +253,28 @@ fn a_test_feed_or_sample_rate_beyond_the_controller_is_refused() {
     let text = with("feed_mm_min = 1000.0", "feed_mm_min = 10000.0");
     assert!(parse(&text, "machine.toml", None).is_ok());
 }
+
+/// A generated test program that would leave a stroke is refused at load, at the job's keys,
+/// with the axis and how far it would go.
+#[test]
+fn a_test_circle_beyond_a_stroke_is_refused_at_the_job() {
+    let text = with("radius_mm = 150.0", "radius_mm = 300.0");
+    let e = error_of(&text);
+    assert_eq!(e.key.as_deref(), Some("job.center_mm"), "{e}");
+    assert!(
+        e.message
+            .contains("the Y axis would reach 413.193 mm, beyond its stroke 0 to 400 mm")
+            && e.message
+                .contains("move the centre or shorten job.radius_mm"),
+        "{e}"
+    );
+}
+
+/// A circular test's bad value is refused at its own key of [job].
+#[test]
+fn a_bad_test_value_is_refused_at_its_key() {
+    let e = error_of(&with("radius_mm = 150.0", "radius_mm = -150.0"));
+    assert_eq!(e.key.as_deref(), Some("job.radius_mm"), "{e}");
+    let e = error_of(&with("arc_deg = 360.0", "arc_deg = 400.0"));
+    assert_eq!(e.key.as_deref(), Some("job.arc_deg"), "{e}");
+}

@@ -309,6 +309,18 @@ fn test_midpoints(job: &Job, block_times: &[(usize, f64, f64)]) -> Vec<f64> {
         .collect()
 }
 
+/// Whether `job`'s program, interpolated with `ipo`, stays within `machine`'s strokes (the check
+/// [`simulate`] makes before it runs, for callers that want it earlier).
+pub fn check_travel(
+    machine: &Machine,
+    ipo: &InterpolatorConfig,
+    job: &Job,
+) -> Result<(), SimError> {
+    let interpolator = Interpolator::new(&job.program, ipo)?;
+    let tcp = machine.volumetric.kinematics.tool_offset;
+    check_strokes(machine, &interpolator, &job.program, &tcp)
+}
+
 pub(crate) fn check_strokes(
     machine: &Machine,
     ipo: &Interpolator,
@@ -326,11 +338,20 @@ pub(crate) fn check_strokes(
     if inside {
         return Ok(());
     }
-    // Else the first setpoint past a stroke names the block.
-    for sp in ipo.iter() {
+    // Else the first setpoint past a stroke names the block, and the block's farthest
+    // setpoint along that axis (its target, for a straight move) the position it would reach.
+    let mut setpoints = ipo.iter();
+    while let Some(sp) = setpoints.next() {
         let q = sp.position - tcp;
         if let Some(axis) = machine.outside_stroke(&q) {
             let spec = machine.axis(axis);
+            let i = axis.index();
+            let above = q[i] > spec.max_m;
+            let farthest = setpoints
+                .by_ref()
+                .take_while(|s| s.block == sp.block)
+                .map(|s| s.position[i] - tcp[i])
+                .fold(q[i], |m, x| if above { m.max(x) } else { m.min(x) });
             let line = sp
                 .block
                 .and_then(|b| program.blocks.get(b))
@@ -338,7 +359,7 @@ pub(crate) fn check_strokes(
             return Err(SimError::Stroke {
                 line,
                 axis,
-                position_mm: q[axis.index()] * 1e3,
+                position_mm: farthest * 1e3,
                 min_mm: spec.min_m * 1e3,
                 max_mm: spec.max_m * 1e3,
             });

@@ -44,9 +44,9 @@ fn travel_beyond_the_stroke_is_refused_before_the_run_naming_the_line() {
     let (e, started) = refuse(&axes(), "G1 X200 F1000\nG1 Y150\nG1 X600\n", 2);
     assert!(!started, "refused before the run");
     let m = e.to_string();
-    // The first setpoint past the end of the stroke, not the block's end point.
+    // The block's farthest point (its target), not where it crosses the end of the stroke.
     assert!(
-        m.starts_with("block at line 3: the X axis would reach 500.0"),
+        m.starts_with("block at line 3: the X axis would reach 600.000 mm"),
         "{m}"
     );
     assert!(m.ends_with("mm, beyond its stroke 0 to 500 mm"), "{m}");

@@ -72,7 +72,7 @@ fn travel_beyond_a_stroke_is_refused_before_the_run() {
     let (_, e, written) = run_program(&format!("{MOVE}G1 X300 F2000\nG1 X520\n"), &[]);
     assert!(!written, "refused before the run");
     assert!(
-        e.contains("bad.nc:3: block at line 3: the X axis would reach 500.0"),
+        e.contains("bad.nc:3: block at line 3: the X axis would reach 520.000 mm"),
         "{e}"
     );
     assert!(e.contains("beyond its stroke 0 to 500 mm"), "{e}");
