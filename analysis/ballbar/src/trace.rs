@@ -225,6 +225,35 @@ pub enum TraceError {
         /// Least accepted, deg.
         min: f64,
     },
+    /// A deviation beyond any ball bar's measuring range.
+    #[error(
+        "{label}: sample {index}: deviation_um is {value}; a ball bar measures within ±{max} µm (check the unit: µm)"
+    )]
+    Deviation {
+        /// Trace label.
+        label: String,
+        /// Sample index (0-based).
+        index: usize,
+        /// The value, µm.
+        value: f64,
+        /// Largest magnitude accepted, µm.
+        max: f64,
+    },
+    /// The time column's speed along the arc disagrees with the stated feed.
+    #[error(
+        "{label}: the times give {implied:.1} mm/min along the {radius_mm} mm arc, not the stated feed of {feed} mm/min (within {tolerance} % is accepted); check the feed, the radius and the unit of time_s (s)",
+        tolerance = FEED_TOLERANCE * 100.0
+    )]
+    FeedMismatch {
+        /// Trace label.
+        label: String,
+        /// Feed from the angles and times, mm/min.
+        implied: f64,
+        /// The stated radius, mm.
+        radius_mm: f64,
+        /// The stated feed, mm/min.
+        feed: f64,
+    },
     /// A plane or direction name that is not known.
     #[error("{label}: {what} `{value}` is not known; {accepted}")]
     Name {
@@ -257,6 +286,7 @@ impl TraceError {
     pub fn sample(&self) -> Option<usize> {
         match self {
             Self::NotFinite { index, .. }
+            | Self::Deviation { index, .. }
             | Self::Backwards { index, .. }
             | Self::TimeBackwards { index, .. } => Some(*index),
             Self::Gap { next, .. } => Some(*next),
@@ -277,6 +307,13 @@ pub const MIN_SAMPLES: usize = 16;
 /// squareness (see [`crate::model::Terms`]); on less, the circle's centre and radius are
 /// nearly collinear unknowns (a 10° arc put the centre 3.5 mm off).
 pub const MIN_SWEEP_DEG: f64 = 90.0;
+/// The largest deviation accepted, µm: a ball bar's transducer travels about ±1 mm, so a larger
+/// value is a unit slip (mm as µm) or a broken log.
+pub const MAX_DEVIATION_UM: f64 = 2000.0;
+/// How far the speed along the arc from the time column may differ from the stated feed
+/// (relative): a feed override or a mistyped feed or radius beyond it would scale every
+/// figure in ms.
+pub const FEED_TOLERANCE: f64 = 0.1;
 
 impl Trace {
     /// A trace from its columns, the plane and direction given by name (`XY`, `ZX`, `YZ`;
@@ -359,7 +396,8 @@ impl Trace {
             });
         }
         if self.columns_ok() {
-            return self.check_sweep();
+            self.check_sweep()?;
+            return self.check_feed();
         }
         let mut columns: Vec<(&'static str, &[f64])> = vec![
             ("angle_deg", &self.angle_deg),
@@ -386,6 +424,16 @@ impl Trace {
                 });
             }
         }
+        if let Some((index, &value)) =
+            (self.deviation_um.iter().enumerate()).find(|(_, v)| v.abs() > MAX_DEVIATION_UM)
+        {
+            return Err(TraceError::Deviation {
+                label: label(),
+                index,
+                value,
+                max: MAX_DEVIATION_UM,
+            });
+        }
         self.check_angles()?;
         self.check_sweep()?;
         if let Some(t) = &self.time_s
@@ -398,7 +446,7 @@ impl Trace {
                 to: t[i],
             });
         }
-        Ok(())
+        self.check_feed()
     }
 
     /// Whether the columns pass every check of [`Trace::validate`] after the set-up values,
@@ -412,11 +460,12 @@ impl Trace {
         }
         let s = self.sense.sign();
         let (a, d) = (&self.angle_deg[..n], &self.deviation_um[..n]);
-        let mut bad = u64::from(!(a[0].is_finite() & d[0].is_finite()));
+        let mut bad = u64::from(!(a[0].is_finite() & (d[0].abs() <= MAX_DEVIATION_UM)));
         for i in 1..n {
             let step = (a[i] - a[i - 1]) * s;
             // NaN fails every comparison; an infinite angle makes a NaN or infinite step.
-            let ok = (-MAX_BACKWARD_DEG..=MAX_GAP_DEG).contains(&step) & d[i].is_finite();
+            let ok = (-MAX_BACKWARD_DEG..=MAX_GAP_DEG).contains(&step)
+                & (d[i].abs() <= MAX_DEVIATION_UM);
             bad += u64::from(!ok);
         }
         if let Some(t) = &self.time_s {
@@ -448,6 +497,25 @@ impl Trace {
                 label: self.label.clone(),
                 sweep,
                 min: MIN_SWEEP_DEG,
+            });
+        }
+        Ok(())
+    }
+
+    /// With times, the speed along the arc (radius × angle swept / time) is the stated feed
+    /// within [`FEED_TOLERANCE`].
+    fn check_feed(&self) -> Result<(), TraceError> {
+        let Some(t) = &self.time_s else {
+            return Ok(());
+        };
+        let duration_min = (t[t.len() - 1] - t[0]) / 60.0;
+        let implied = self.radius_mm * self.sweep_deg().to_radians() / duration_min;
+        if (implied / self.feed_mm_min - 1.0).abs() > FEED_TOLERANCE {
+            return Err(TraceError::FeedMismatch {
+                label: self.label.clone(),
+                implied,
+                radius_mm: self.radius_mm,
+                feed: self.feed_mm_min,
             });
         }
         Ok(())
@@ -541,6 +609,31 @@ mod tests {
             trace((0..=900).map(|i| i as f64 * 0.1).collect())
                 .validate()
                 .is_ok()
+        );
+    }
+
+    #[test]
+    fn a_deviation_beyond_a_ball_bars_range_is_refused_at_its_sample() {
+        let mut t = trace((0..3600).map(|i| i as f64 * 0.1).collect());
+        t.deviation_um[7] = 1e300;
+        let e = t.validate().unwrap_err();
+        assert!(matches!(e, TraceError::Deviation { index: 7, .. }), "{e}");
+        assert_eq!(e.sample(), Some(7));
+    }
+
+    /// 150 mm at 1000 mm/min sweeps 360° in 56.55 s: times at that pace pass, the same times
+    /// with the feed typed as 10 are refused with the speed they give.
+    #[test]
+    fn times_that_disagree_with_the_feed_are_refused() {
+        let mut t = trace((0..3600).map(|i| i as f64 * 0.1).collect());
+        let duration = 150.0 * 359.9_f64.to_radians() / 1000.0 * 60.0;
+        t.time_s = Some((0..3600).map(|i| i as f64 * duration / 3599.0).collect());
+        assert!(t.validate().is_ok(), "{:?}", t.validate());
+        t.feed_mm_min = 10.0;
+        let e = t.validate().unwrap_err();
+        assert!(
+            matches!(e, TraceError::FeedMismatch { implied, .. } if (implied - 1000.0).abs() < 1e-6),
+            "{e}"
         );
     }
 }
