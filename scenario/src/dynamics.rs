@@ -495,6 +495,16 @@ fn ballbar_spec(b: Option<&BallbarToml>) -> R<BallbarSpec> {
         return Ok(BallbarSpec::default());
     };
     let p = KeyPath::of(&["instruments", "ballbar"]);
+    let within = |v: f64, key: &str, (lo, hi): (f64, f64), what: &str| -> R<f64> {
+        if (lo..=hi).contains(&v) {
+            Ok(v)
+        } else {
+            Err(Invalid::new(
+                p.key(key),
+                format!("{v} is not accepted; {what} from {lo} to {hi}"),
+            ))
+        }
+    };
     Ok(BallbarSpec {
         resolution_m: nonneg(b.resolution_um, &p.key("resolution_um"), "a resolution")? * 1e-6,
         noise_m: nonneg(b.noise_um, &p.key("noise_um"), "a noise")? * 1e-6,
@@ -503,8 +513,19 @@ fn ballbar_spec(b: Option<&BallbarToml>) -> R<BallbarSpec> {
             * 1e-6,
         setup_drift_m_per_s: finite3(&b.setup_drift_um_per_min, &p.key("setup_drift_um_per_min"))?
             * (1e-6 / 60.0),
-        bar_temperature_c: b.bar_temperature_c,
-        bar_alpha_per_k: b.bar_alpha_per_k,
+        bar_temperature_c: within(
+            b.bar_temperature_c,
+            "bar_temperature_c",
+            (-50.0, 150.0),
+            "a workshop temperature (°C)",
+        )?,
+        // Invar and carbon fibre near 0, steel 11.5e-6, aluminium 23e-6.
+        bar_alpha_per_k: within(
+            b.bar_alpha_per_k,
+            "bar_alpha_per_k",
+            (-5e-6, 5e-5),
+            "an expansion coefficient (1/K)",
+        )?,
     })
 }
 
@@ -652,6 +673,10 @@ fn program_job(
         .map_err(|e| crate::build::external(&file, None, format!("cannot read: {e}")))?;
     let program = parse(&text, tool_offset)
         .map_err(|e| crate::build::external(&file, Some((e.line, e.column)), e.message.clone()))?;
+    if program.blocks.is_empty() {
+        let msg = "the program has no blocks to run (no motion, dwell or spindle command)";
+        return Err(crate::build::external(&file, None, msg.to_string()));
+    }
     Ok(Job {
         program,
         ballbar: Vec::new(),

@@ -278,3 +278,32 @@ fn a_bad_test_value_is_refused_at_its_key() {
     let e = error_of(&with("arc_deg = 360.0", "arc_deg = 400.0"));
     assert_eq!(e.key.as_deref(), Some("job.arc_deg"), "{e}");
 }
+
+#[test]
+fn an_implausible_bar_temperature_is_refused() {
+    let e = error_of(&with(
+        "bar_temperature_c = 20.0",
+        "bar_temperature_c = 2000.0",
+    ));
+    assert_eq!(
+        e.key.as_deref(),
+        Some("instruments.ballbar.bar_temperature_c"),
+        "{e}"
+    );
+    assert!(e.message.contains("from -50 to 150"), "{e}");
+}
+
+#[test]
+fn an_empty_program_is_refused_naming_its_file() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("empty.nc"), "(nothing but a comment)\n").unwrap();
+    let job = "kind = \"ballbar\"\nplane = \"XY\"\ncenter_mm = [250.0, 200.0, 200.0]\n\
+               radius_mm = 150.0\nfeed_mm_min = 1000.0\narc_deg = 360.0\n\
+               directions = [\"cw\", \"ccw\"]\n";
+    let text = with(job, "kind = \"program\"\nprogram = \"empty.nc\"\n");
+    let path = dir.path().join("s.toml");
+    std::fs::write(&path, text).unwrap();
+    let e = load(&path).expect_err("refused");
+    assert!(e.file.ends_with("empty.nc"), "{e}");
+    assert!(e.message.contains("no blocks to run"), "{e}");
+}

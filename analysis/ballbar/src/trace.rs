@@ -241,8 +241,8 @@ pub enum TraceError {
     },
     /// The time column's speed along the arc disagrees with the stated feed.
     #[error(
-        "{label}: the times give {implied:.1} mm/min along the {radius_mm} mm arc, not the stated feed of {feed} mm/min (within {tolerance} % is accepted); check the feed, the radius and the unit of time_s (s)",
-        tolerance = FEED_TOLERANCE * 100.0
+        "{label}: the times give {implied:.1} mm/min along a circle of the bar's {radius_mm} mm, against the stated feed of {feed} mm/min (from {low:.0} % of it, or up to {MAX_INCLINED_RATIO} times it for a bar inclined out of the plane, is accepted); check the feed, the radius and the unit of time_s (s)",
+        low = 100.0 / (1.0 + FEED_TOLERANCE)
     )]
     FeedMismatch {
         /// Trace label.
@@ -310,10 +310,14 @@ pub const MIN_SWEEP_DEG: f64 = 90.0;
 /// The largest deviation accepted, µm: a ball bar's transducer travels about ±1 mm, so a larger
 /// value is a unit slip (mm as µm) or a broken log.
 pub const MAX_DEVIATION_UM: f64 = 2000.0;
-/// How far the speed along the arc from the time column may differ from the stated feed
-/// (relative): a feed override or a mistyped feed or radius beyond it would scale every
-/// figure in ms.
+/// How far the speed along a circle of the bar's length from the time column may fall below
+/// the stated feed (relative): a feed override or a mistyped feed or radius beyond it would
+/// scale every figure in ms.
 pub const FEED_TOLERANCE: f64 = 0.1;
+/// How far it may exceed the feed (a factor): a bar inclined out of the plane (Kwon's step 4)
+/// runs a circle smaller than its length, down to a tenth of it here; beyond, the feed or the
+/// radius is mistyped (a feed of 10 for 1000, a radius in µm).
+pub const MAX_INCLINED_RATIO: f64 = 10.0;
 
 impl Trace {
     /// A trace from its columns, the plane and direction given by name (`XY`, `ZX`, `YZ`;
@@ -502,15 +506,17 @@ impl Trace {
         Ok(())
     }
 
-    /// With times, the speed along the arc (radius × angle swept / time) is the stated feed
-    /// within [`FEED_TOLERANCE`].
+    /// With times, the speed along a circle of the bar's length (length × angle swept / time)
+    /// is the stated feed: not below it by more than [`FEED_TOLERANCE`], and not above it by
+    /// more than [`MAX_INCLINED_RATIO`] (an inclined bar's circle is smaller than its length).
     fn check_feed(&self) -> Result<(), TraceError> {
         let Some(t) = &self.time_s else {
             return Ok(());
         };
         let duration_min = (t[t.len() - 1] - t[0]) / 60.0;
         let implied = self.radius_mm * self.sweep_deg().to_radians() / duration_min;
-        if (implied / self.feed_mm_min - 1.0).abs() > FEED_TOLERANCE {
+        let ratio = implied / self.feed_mm_min;
+        if !(1.0 / (1.0 + FEED_TOLERANCE)..=MAX_INCLINED_RATIO).contains(&ratio) {
             return Err(TraceError::FeedMismatch {
                 label: self.label.clone(),
                 implied,
