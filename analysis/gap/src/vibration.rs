@@ -502,6 +502,16 @@ impl<'a> Problem<'a> {
                 first.name
             )));
         }
+        // Every log must carry the axes read from the first: a log without one would otherwise
+        // give that axis no samples, which reads as a log too short for a spectrum.
+        for log in &logs[1..] {
+            if let Some(c) = channels
+                .iter()
+                .find(|c| !log.channels.iter().any(|(n, _)| n == *c))
+            {
+                return Err(missing_channel(&log.name, c, &first.name));
+            }
+        }
         let fs = model.base.sample_rate_hz;
         let bands = bands(fs);
         let noise = bands
@@ -559,7 +569,7 @@ impl<'a> Problem<'a> {
                             .iter()
                             .find(|(n, _)| n == c)
                             .map(|(_, x)| piece.samples(x))
-                            .unwrap_or_default();
+                            .ok_or_else(|| missing_channel(&log.name, c, &self.logs[0].name))?;
                         let levels = band_levels(x, log.sample_rate_hz, &self.bands)
                             .ok_or_else(|| too_short(&piece.label(self.logs)))?;
                         Ok(levels
@@ -630,6 +640,13 @@ impl<'a> Problem<'a> {
     fn stack(&self, r: &[Vec<f64>], rows: &[usize]) -> Vec<f64> {
         rows.iter().flat_map(|i| r[*i].iter().copied()).collect()
     }
+}
+
+fn missing_channel(log: &str, channel: &str, first: &str) -> GapError {
+    GapError::Model(format!(
+        "{log}: no channel {channel}, which {first} has; every log must carry the same \
+         accelerometer axes"
+    ))
 }
 
 fn too_short(piece: &str) -> GapError {

@@ -105,3 +105,22 @@ fn a_log_of_another_job_is_refused_naming_the_mismatch() {
         "{e}"
     );
 }
+
+/// A log without an axis the first log has is refused naming the axis and the file (it was
+/// reported as shorter than one spectrum segment).
+#[test]
+fn a_log_missing_a_channel_is_refused_naming_it() {
+    let model = MillingModel::new(&stable(), "model.toml", dir()).unwrap();
+    let first = measured(&[]);
+    let mut second = first.clone();
+    second.name = "second.mcap".into();
+    second.channels.retain(|(n, _)| n != "ay");
+    assert!(first.channels.iter().any(|(n, _)| n == "ay"));
+    let e = analyse(&model, &[first, second], &Options::default()).unwrap_err();
+    let text = e.to_string();
+    assert!(
+        text.contains("second.mcap") && text.contains("no channel ay") && text.contains("measured"),
+        "{e}"
+    );
+    assert!(!text.contains("shorter"), "{e}");
+}
