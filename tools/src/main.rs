@@ -76,8 +76,9 @@ enum Command {
     #[command(verbatim_doc_comment)]
     Diagnose(DiagnoseArgs),
     /// Simulate N random machines drawn from the scenario's [dataset] distributions: writes
-    /// OUT/runs/<id>/{run.mcap,labels.json,scenario.toml} and OUT/manifest.{csv,parquet};
-    /// continues where an interrupted invocation stopped.
+    /// OUT/dataset.json (seed and scenario hash), OUT/runs/<id>/{run.mcap,labels.json,
+    /// scenario.toml} and OUT/manifest.{csv,parquet}; continues where an interrupted invocation
+    /// stopped, and refuses a folder made with another seed or scenario text.
     ///
     /// Example:
     ///   vmt dataset --scenario scenarios/dataset_xy.toml --count 500 --seed 1 --out ds
@@ -148,7 +149,7 @@ struct DatasetArgs {
     /// Scenario file with a [dataset] section.
     #[arg(long)]
     scenario: PathBuf,
-    /// Number of runs.
+    /// Number of runs (ids 0 to N-1), at least 1.
     #[arg(long)]
     count: u64,
     /// Seed of the dataset; run i's seed is derived from it and i.
