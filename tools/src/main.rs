@@ -85,7 +85,9 @@ enum Command {
     #[command(verbatim_doc_comment)]
     Dataset(DatasetArgs),
     /// Diagnose every run of a dataset and compare with its truth: bias, RMS, 95th percentile,
-    /// worst, share within tolerance and false positives per figure (DIR/accuracy.{md,json}).
+    /// worst, share within tolerance, quiet runs (truth below half the threshold) and the
+    /// false-positive rate among them, per figure (DIR/accuracy.{md,json}); warns when the
+    /// dataset is unfinished (fewer runs than asked for, no manifest).
     Accuracy(AccuracyArgs),
     /// Stability lobes of a milling operation by semi-discretization (Insperger–Stépán) and
     /// the zero-order approximation (Altintas–Budak), side by side: OUT/lobes.csv (critical

@@ -198,9 +198,29 @@ fn accuracy_compares_the_diagnosis_with_the_truth() {
     assert!(rms > 0.0 && rms < 0.3, "rms {rms}");
     assert!(p95 <= worst && rms <= worst, "{b}");
     assert_eq!(b["within"], 1.0);
-    // Backlash is present in every run, so no run counts towards its false positives.
-    assert_eq!(b["fp_runs"], 0);
+    // Backlash is present in every run, so no run is quiet (eligible for a false positive).
+    assert_eq!(b["quiet_runs"], 0);
     assert_eq!(report["runs"], 3);
+    assert!(!stderr(&o).contains("warning"), "{}", stderr(&o));
+    assert_eq!(report["warnings"].as_array().map(Vec::len), Some(0));
+    // An interrupted dataset: run 2 never finished, the manifest never written.
+    std::fs::remove_dir_all(out.join("runs/000002")).unwrap();
+    std::fs::remove_file(out.join("manifest.csv")).unwrap();
+    let o = vmt(&["accuracy", out.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let e = stderr(&o);
+    for w in [
+        "warning:",
+        "incomplete: 2 of the 3 runs",
+        "manifest.csv is missing",
+    ] {
+        assert!(e.contains(w), "`{w}` not in: {e}");
+    }
+    let md = String::from_utf8(bytes(&out, "accuracy.md")).unwrap();
+    assert!(
+        md.contains("**Warning:**") && md.contains("quiet runs"),
+        "{md}"
+    );
 }
 
 /// The run folders of `out`, by name.
