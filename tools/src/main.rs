@@ -57,8 +57,9 @@ enum Command {
     Run(RunArgs),
     /// The built-in machine runs the ISO 230-4 XY test (150 mm, 1000 mm/min, CW and CCW);
     /// writes the MCAP, the Rerun recording and the polar plot, diagnoses the traces and prints
-    /// the diagnosis beside the run's ground truth.
-    Demo(RunArgs),
+    /// the diagnosis beside the run's ground truth. Takes no scenario: `vmt run SCENARIO
+    /// --diagnose` does the same for a scenario of yours.
+    Demo(DemoArgs),
     /// Diagnose ball-bar traces (ISO 230-4 figures and the machine errors behind them) or a
     /// laser positioning test (ISO 230-2 figures, trend, compensation table).
     ///
@@ -224,9 +225,9 @@ fn diagnose_cmd(args: DiagnoseArgs) -> Result<(), CliError> {
     };
     let d = vmt_tools::diagnose::diagnose_file(&args.file, csv, &options)?;
     if args.json {
-        println!("{:#}", vmt_tools::diagnose::json(&d));
+        vmt_tools::outln!("{:#}", vmt_tools::diagnose::json(&d))?;
     } else {
-        print!("{}", vmt_tools::diagnose::text(&d));
+        vmt_tools::out!("{}", vmt_tools::diagnose::text(&d))?;
     }
     if let Some(dir) = &args.out {
         for f in vmt_tools::diagnose::write(&d, dir)? {
@@ -243,9 +244,9 @@ fn positioning_report(
     out: Option<&Path>,
 ) -> Result<(), CliError> {
     if json {
-        println!("{:#}", vmt_tools::positioning::json(p));
+        vmt_tools::outln!("{:#}", vmt_tools::positioning::json(p))?;
     } else {
-        print!("{}", vmt_tools::positioning::text(p));
+        vmt_tools::out!("{}", vmt_tools::positioning::text(p))?;
     }
     if let Some(dir) = out {
         for f in vmt_tools::positioning::write(p, dir)? {
@@ -335,6 +336,19 @@ struct RunArgs {
     diagnose: bool,
 }
 
+#[derive(Args)]
+struct DemoArgs {
+    /// Output folder.
+    #[arg(long, default_value = "out")]
+    out: PathBuf,
+    /// Plant fidelity: reduced or multibody.
+    #[arg(long)]
+    fidelity: Option<String>,
+    /// No progress bar.
+    #[arg(long)]
+    quiet: bool,
+}
+
 fn run_job(args: RunArgs) -> Result<(), CliError> {
     let text = match &args.scenario {
         Some(p) => std::fs::read_to_string(p)
@@ -354,31 +368,33 @@ fn run_job(args: RunArgs) -> Result<(), CliError> {
     };
     let run = vmt_tools::job::execute(&scenario, &text, fidelity, args.quiet)?;
     let written = vmt_tools::job::write(&run, &args.out)?;
-    println!(
+    vmt_tools::outln!(
         "{} ({} plant, seed {})",
-        run.scenario_name, run.fidelity, run.seed
-    );
-    println!("{}", vmt_tools::job::summary_figures(&run));
+        run.scenario_name,
+        run.fidelity,
+        run.seed
+    )?;
+    vmt_tools::outln!("{}", vmt_tools::job::summary_figures(&run))?;
     let truth = &run.ground_truth["drives"];
     for a in ["x", "y", "z"] {
-        println!(
+        vmt_tools::outln!(
             "  truth {}: drive backlash {:.2} um, Kv {} 1/s",
             a.to_uppercase(),
             truth[a]["backlash_um"].as_f64().unwrap_or(f64::NAN),
             truth[a]["kv_per_s"]
-        );
+        )?;
     }
     for f in &written.files {
-        println!("wrote {}", f.display());
+        vmt_tools::outln!("wrote {}", f.display())?;
     }
     if args.diagnose && !run.ballbar.is_empty() {
         // The diagnosis reads the traces back from the MCAP file, as it would a real log.
         let mcap = args.out.join("run.mcap");
         let d = vmt_tools::diagnose::diagnose_file(&mcap, None, &vmt_ballbar::Options::default())?;
-        println!();
-        print!("{}", vmt_tools::diagnose::text(&d));
+        vmt_tools::outln!()?;
+        vmt_tools::out!("{}", vmt_tools::diagnose::text(&d))?;
         for f in vmt_tools::diagnose::write(&d, &args.out.join("diagnosis"))? {
-            println!("wrote {}", f.display());
+            vmt_tools::outln!("wrote {}", f.display())?;
         }
     }
     Ok(())
@@ -393,8 +409,10 @@ fn main() -> ExitCode {
         Command::Run(args) => run_job(args),
         Command::Demo(args) => run_job(RunArgs {
             scenario: None,
+            out: args.out,
+            fidelity: args.fidelity,
+            quiet: args.quiet,
             diagnose: true,
-            ..args
         }),
         Command::Diagnose(args) => diagnose_cmd(args),
         Command::Dataset(a) => {
@@ -407,10 +425,7 @@ fn main() -> ExitCode {
         Command::Chatter(ChatterCommand::Compensate(a)) => vmt_tools::chatter_bench::compensate(&a),
         Command::Gap(a) => vmt_tools::gap::command(&a),
         Command::GapBench(a) => vmt_tools::gap::bench_command(&a),
-        Command::Topologies => {
-            topologies();
-            Ok(())
-        }
+        Command::Topologies => topologies(),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -451,8 +466,7 @@ fn volumetric(args: VolumetricArgs) -> Result<(), CliError> {
             }
             None => {
                 let mut w = std::io::stdout().lock();
-                points::write(&mut w, &errors, args.json)
-                    .map_err(|e| CliError::output(Path::new("<stdout>"), e))
+                points::write(&mut w, &errors, args.json).map_err(CliError::stdout)
             }
         };
     }
@@ -481,14 +495,16 @@ fn volumetric(args: VolumetricArgs) -> Result<(), CliError> {
         .map_err(|e| CliError::output(&csv_path, e))?;
     let image = dir.join(format!("{stem}.{}", args.format.extension()));
     plot::draw_map(&m, &image, args.format)?;
-    println!(
+    vmt_tools::outln!(
         "{}: volumetric error on the {} plane at {} = {at_mm} mm",
-        scenario.machine.name, args.plane, m.plane.normal
-    );
+        scenario.machine.name,
+        args.plane,
+        m.plane.normal
+    )?;
     for (k, name) in ["X", "Y", "Z"].iter().enumerate() {
-        println!("  max |Δ{name}| = {:8.3} µm", m.max_abs(k) * 1e6);
+        vmt_tools::outln!("  max |Δ{name}| = {:8.3} µm", m.max_abs(k) * 1e6)?;
     }
-    println!("wrote {}\nwrote {}", csv_path.display(), image.display());
+    vmt_tools::outln!("wrote {}\nwrote {}", csv_path.display(), image.display())?;
     Ok(())
 }
 
@@ -541,23 +557,25 @@ fn thermal_run(args: ThermalArgs) -> Result<(), CliError> {
         .iter()
         .map(|t| format!("{:.2}", t / 3600.0))
         .collect();
-    println!(
+    vmt_tools::outln!(
         "{}: thermal run of {:.1} h",
         scenario.machine.name,
         h.times_s.last().copied().unwrap_or(0.0) / 3600.0
-    );
-    println!("  time constants of the network (h): {}", taus.join(", "));
+    )?;
+    vmt_tools::outln!("  time constants of the network (h): {}", taus.join(", "))?;
     let worst = h.drift.iter().map(|d| d.amax()).fold(0.0, f64::max);
-    println!(
+    vmt_tools::outln!(
         "  largest drift of the tool point at the probe: {:.2} µm",
         worst * 1e6
-    );
-    println!("wrote {}\nwrote {}", csv_path.display(), image.display());
+    )?;
+    vmt_tools::outln!("wrote {}\nwrote {}", csv_path.display(), image.display())?;
     Ok(())
 }
 
-fn topologies() {
-    println!("The 24 topologies of a three-axis machine, workpiece (W) to tool (T), G = ground:");
+fn topologies() -> Result<(), CliError> {
+    vmt_tools::outln!(
+        "The 24 topologies of a three-axis machine, workpiece (W) to tool (T), G = ground:"
+    )?;
     for t in Topology::all() {
         let side = |s: Side| {
             let axes: Vec<String> = t
@@ -572,10 +590,11 @@ fn topologies() {
                 axes.join(" ")
             }
         };
-        println!(
+        vmt_tools::outln!(
             "  {t}   workpiece carried by: {:6} tool carried by: {}",
             side(Side::Workpiece),
             side(Side::Tool)
-        );
+        )?;
     }
+    Ok(())
 }

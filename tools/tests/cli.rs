@@ -236,3 +236,16 @@ fn times_beyond_the_evaluated_range_are_refused_not_run_forever() {
     ]));
     assert!(e.contains("up to 1 000 000 are accepted"), "{e}");
 }
+
+#[test]
+fn demo_takes_no_scenario() {
+    let o = vmt(&["demo", "/nonexistent.toml"]);
+    assert!(!o.status.success());
+    let e = stderr(&o);
+    assert!(e.contains("unexpected argument '/nonexistent.toml'"), "{e}");
+    let help = String::from_utf8_lossy(&vmt(&["demo", "--help"]).stdout).into_owned();
+    assert!(
+        help.contains("Takes no scenario") && !help.contains("[SCENARIO]"),
+        "{help}"
+    );
+}
