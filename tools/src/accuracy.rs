@@ -386,13 +386,13 @@ pub fn command(dir: &Path) -> Result<(), CliError> {
     for w in &s.warnings {
         eprintln!("warning: {w}");
     }
-    print!("{}", markdown(&s));
+    crate::out!("{}", markdown(&s))?;
     write(&s, dir)?;
-    println!(
+    crate::outln!(
         "\nwrote {}\nwrote {}",
         dir.join("accuracy.md").display(),
         dir.join("accuracy.json").display()
-    );
+    )?;
     Ok(())
 }
 

@@ -421,14 +421,14 @@ pub fn write_csv(r: &Report, w: &mut impl Write) -> std::io::Result<()> {
 pub fn command(args: &DetectArgs) -> Result<(), CliError> {
     let log = read(&args.log)?;
     let report = detect(&log, args)?;
-    print!("{}", text(&log, &report));
+    crate::out!("{}", text(&log, &report))?;
     if let Some(path) = &args.csv {
         let f = std::fs::File::create(path).map_err(|e| CliError::output(path, e))?;
         let mut w = std::io::BufWriter::new(f);
         write_csv(&report, &mut w)
             .and_then(|_| w.flush())
             .map_err(|e| CliError::output(path, e))?;
-        println!("wrote {}", path.display());
+        crate::outln!("wrote {}", path.display())?;
     }
     Ok(())
 }

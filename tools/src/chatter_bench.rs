@@ -255,7 +255,7 @@ pub fn bench(a: &BenchArgs) -> Result<(), CliError> {
         .map_err(sim_error)?;
         scores_line(&mut out, &format!("{name} (limit {limit:.2} m/s²)"), &s);
     }
-    print!("{out}");
+    crate::out!("{out}")?;
     Ok(())
 }
 
@@ -439,6 +439,6 @@ pub fn compensate(a: &CompensateArgs) -> Result<(), CliError> {
         out,
         "\nKim, Song & Koh report for their feed-override loop: feed 200 -> about 152 mm/min, Ra 4.2 -> 4.0 µm."
     );
-    print!("{out}");
+    crate::out!("{out}")?;
     Ok(())
 }

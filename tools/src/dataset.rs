@@ -512,7 +512,7 @@ pub fn command(
         quiet,
     })?;
     let minutes = start.elapsed().as_secs_f64() / 60.0;
-    println!(
+    crate::outln!(
         "{} runs simulated in {:.1} min ({:.1} runs/min on {} threads), {} already complete; \
          manifest of {} runs: {}",
         o.simulated,
@@ -522,6 +522,6 @@ pub fn command(
         o.skipped,
         o.rows,
         out.join("manifest.{csv,parquet}").display()
-    );
+    )?;
     Ok(())
 }

@@ -45,6 +45,11 @@ impl CliError {
         }
     }
 
+    /// Standard output could not be written (closed, e.g. piped into `head`).
+    pub fn stdout(e: impl std::fmt::Display) -> Self {
+        Self::output(std::path::Path::new("<stdout>"), e)
+    }
+
     /// An output error for `path`.
     pub fn output(path: &std::path::Path, e: impl std::fmt::Display) -> Self {
         CliError::Output {

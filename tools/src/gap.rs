@@ -411,13 +411,13 @@ pub fn command(a: &GapArgs) -> Result<(), CliError> {
     let measured = measured(&a.real, csv)?;
     let report = analyse(&a.model, &a.real, &measured)?;
     if a.json {
-        println!(
+        crate::outln!(
             "{}",
             serde_json::to_string_pretty(&json(&report))
                 .map_err(|e| CliError::Argument(e.to_string()))?
-        );
+        )?;
     } else {
-        print!("{}", text(&report));
+        crate::out!("{}", text(&report))?;
     }
     if let Some(dir) = &a.out {
         for f in write(&report, dir)? {
@@ -432,13 +432,13 @@ fn vibration_command(a: &GapArgs) -> Result<(), CliError> {
     let model = a.model.display().to_string();
     let g = vg::analyse(&a.model, &a.real)?;
     if a.json {
-        println!(
+        crate::outln!(
             "{}",
             serde_json::to_string_pretty(&vg::json(&model, &a.real, &g))
                 .map_err(|e| CliError::Argument(e.to_string()))?
-        );
+        )?;
     } else {
-        print!("{}", vg::text(&model, &a.real, &g));
+        crate::out!("{}", vg::text(&model, &a.real, &g))?;
     }
     if let Some(dir) = &a.out {
         for f in vg::write(&model, &a.real, &g, dir)? {
@@ -581,7 +581,7 @@ fn finish_bench(
     figures: &vmt_gap::bench::Figures,
     outcomes: &[vmt_gap::bench::Outcome],
 ) -> Result<(), CliError> {
-    print!("{report}");
+    crate::out!("{report}")?;
     let Some(dir) = &a.out else {
         return Ok(());
     };

@@ -320,13 +320,13 @@ pub fn command(args: &LobesArgs) -> Result<(), CliError> {
     }
     let image = args.out.join(format!("lobes.{}", args.format.extension()));
     draw(&cases, &image, args.format)?;
-    print!("{}", summary(&cases));
-    println!(
+    crate::out!("{}", summary(&cases))?;
+    crate::outln!(
         "wrote {}, {} and {}",
         args.out.join("lobes.csv").display(),
         args.out.join("sd_map.csv").display(),
         image.display()
-    );
+    )?;
     Ok(())
 }
 

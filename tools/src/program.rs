@@ -3,7 +3,7 @@
 use crate::CliError;
 use clap::Args;
 use nalgebra::Vector3;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use vmt_sim::nc::ballbar::{CircularTest, TestParameter};
 use vmt_sim::nc::{ArcDirection, Plane};
 
@@ -132,15 +132,9 @@ pub fn ballbar(args: &BallbarArgs) -> Result<(), CliError> {
                 std::fs::create_dir_all(dir).map_err(|e| CliError::output(dir, e))?;
             }
             std::fs::write(path, text).map_err(|e| CliError::output(path, e))?;
-            println!("wrote {}", path.display());
+            crate::outln!("wrote {}", path.display())?;
         }
-        None => {
-            use std::io::Write;
-            std::io::stdout()
-                .lock()
-                .write_all(text.as_bytes())
-                .map_err(|e| CliError::output(Path::new("<stdout>"), e))?;
-        }
+        None => crate::out!("{text}")?,
     }
     Ok(())
 }
