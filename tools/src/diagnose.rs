@@ -20,6 +20,57 @@ pub struct Diagnosed {
     pub ground_truth: Option<Value>,
 }
 
+/// Ball-bar lengths accepted for a CSV trace, mm, and why (the diagnosis' cyclic-error search
+/// grows with the radius: 1e7 mm exhausts memory).
+pub const RADIUS_MM: (f64, f64) = (1.0, 1500.0);
+const RADIUS_WHY: &str = "ball bars are 50-600 mm long, with extensions to about 1500 mm";
+/// Feeds accepted for a CSV trace, mm/min, and why.
+pub const FEED_MM_MIN: (f64, f64) = (1.0, 120_000.0);
+const FEED_WHY: &str = "the feeds of machine tools, up to 120 m/min";
+
+/// The set-up of a CSV ball-bar trace from the command line: all of --radius-mm, --feed-mm-min
+/// and --plane or none of them, each within its range.
+pub fn csv_setup(
+    radius_mm: Option<f64>,
+    feed_mm_min: Option<f64>,
+    plane: Option<&str>,
+) -> Result<Option<CsvSetup<'_>>, CliError> {
+    match (radius_mm, feed_mm_min, plane) {
+        (Some(radius_mm), Some(feed_mm_min), Some(plane)) => Ok(Some(CsvSetup {
+            plane,
+            radius_mm: crate::error::check_range(
+                "--radius-mm",
+                radius_mm,
+                RADIUS_MM,
+                "mm",
+                RADIUS_WHY,
+            )?,
+            feed_mm_min: crate::error::check_range(
+                "--feed-mm-min",
+                feed_mm_min,
+                FEED_MM_MIN,
+                "mm/min",
+                FEED_WHY,
+            )?,
+        })),
+        (None, None, None) => Ok(None),
+        _ => {
+            let missing: Vec<&str> = [
+                ("--radius-mm", radius_mm.is_none()),
+                ("--feed-mm-min", feed_mm_min.is_none()),
+                ("--plane", plane.is_none()),
+            ]
+            .into_iter()
+            .filter_map(|(n, m)| m.then_some(n))
+            .collect();
+            Err(CliError::Argument(format!(
+                "a CSV trace needs all of --radius-mm, --feed-mm-min and --plane; missing: {}",
+                missing.join(", ")
+            )))
+        }
+    }
+}
+
 /// Reads and diagnoses `path`.
 pub fn diagnose_file(
     path: &Path,

@@ -395,19 +395,7 @@ pub fn command(a: &GapArgs) -> Result<(), CliError> {
         }
         return vibration_command(a);
     }
-    let csv = match (a.radius_mm, a.feed_mm_min, a.plane.as_deref()) {
-        (Some(radius_mm), Some(feed_mm_min), Some(plane)) => Some(CsvSetup {
-            plane,
-            radius_mm,
-            feed_mm_min,
-        }),
-        (None, None, None) => None,
-        _ => {
-            return Err(CliError::Argument(
-                "CSV traces need all of --radius-mm, --feed-mm-min and --plane".into(),
-            ));
-        }
-    };
+    let csv = crate::diagnose::csv_setup(a.radius_mm, a.feed_mm_min, a.plane.as_deref())?;
     let measured = measured(&a.real, csv)?;
     let report = analyse(&a.model, &a.real, &measured)?;
     if a.json {

@@ -179,10 +179,10 @@ struct AccuracyArgs {
 struct DiagnoseArgs {
     /// A run (MCAP) or a CSV trace file.
     file: PathBuf,
-    /// Nominal radius (bar length) of a CSV trace, mm.
+    /// Nominal radius (bar length) of a CSV trace, mm (1 to 1500).
     #[arg(long)]
     radius_mm: Option<f64>,
-    /// Programmed feed of a CSV trace, mm/min.
+    /// Programmed feed of a CSV trace, mm/min (1 to 120 000).
     #[arg(long)]
     feed_mm_min: Option<f64>,
     /// Test plane of a CSV trace: XY, ZX or YZ.
@@ -203,19 +203,8 @@ struct DiagnoseArgs {
 }
 
 fn diagnose_cmd(args: DiagnoseArgs) -> Result<(), CliError> {
-    let csv = match (args.radius_mm, args.feed_mm_min, args.plane.as_deref()) {
-        (Some(radius_mm), Some(feed_mm_min), Some(plane)) => Some(vmt_tools::traces::CsvSetup {
-            plane,
-            radius_mm,
-            feed_mm_min,
-        }),
-        (None, None, None) => None,
-        _ => {
-            return Err(CliError::Argument(
-                "a CSV trace needs all of --radius-mm, --feed-mm-min and --plane".into(),
-            ));
-        }
-    };
+    let csv =
+        vmt_tools::diagnose::csv_setup(args.radius_mm, args.feed_mm_min, args.plane.as_deref())?;
     if let Some(p) = vmt_tools::positioning::read(&args.file, args.axis.as_deref())? {
         return positioning_report(&p, args.json, args.out.as_deref());
     }
