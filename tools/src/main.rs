@@ -131,8 +131,10 @@ enum ChatterCommand {
     ///
     /// Detectors: `kim` (Kim, Song & Koh 2015: Chebyshev band-pass 6–7 kHz, 50 ms block RMS
     /// against --limit, feed override = limit / RMS) and `better` (share of the short-time
-    /// spectrum in the strongest peak that is not a tooth-passing harmonic; needs no band).
-    /// Prints the decision, the detection time and the chatter frequency.
+    /// spectrum in the strongest peak that is not a tooth-passing harmonic; needs no band, but
+    /// the tooth-passing frequency: for a CSV log give --spindle-rpm and --teeth, which a CSV
+    /// does not carry, or run --detector kim). Prints the decision, the detection time and the
+    /// chatter frequency.
     ///
     /// Examples:
     ///   vmt chatter detect out/run.mcap
