@@ -365,15 +365,12 @@ fn run_job(args: RunArgs) -> Result<(), CliError> {
         run.fidelity,
         run.seed
     )?;
-    vmt_tools::outln!("{}", vmt_tools::job::summary_figures(&run))?;
-    let truth = &run.ground_truth["drives"];
-    for a in ["x", "y", "z"] {
-        vmt_tools::outln!(
-            "  truth {}: drive backlash {:.2} um, Kv {} 1/s",
-            a.to_uppercase(),
-            truth[a]["backlash_um"].as_f64().unwrap_or(f64::NAN),
-            truth[a]["kv_per_s"]
-        )?;
+    let figures = vmt_tools::job::summary_figures(&run);
+    if !figures.is_empty() {
+        vmt_tools::outln!("{figures}")?;
+    }
+    for line in vmt_tools::job::truth_summary(&run.ground_truth) {
+        vmt_tools::outln!("{line}")?;
     }
     for f in &written.files {
         vmt_tools::outln!("wrote {}", f.display())?;
