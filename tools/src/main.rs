@@ -187,10 +187,10 @@ struct DiagnoseArgs {
     /// Programmed feed of a CSV trace, mm/min (1 to 120 000).
     #[arg(long)]
     feed_mm_min: Option<f64>,
-    /// Test plane of a CSV trace: XY, ZX or YZ.
+    /// Test plane of a CSV trace: XY, ZX or YZ. These three apply to ball-bar CSVs only.
     #[arg(long)]
     plane: Option<String>,
-    /// Axis name of a positioning test's CSV (for the report).
+    /// Axis name of a laser positioning CSV (for the report; an MCAP run names its axis).
     #[arg(long)]
     axis: Option<String>,
     /// Also write report.txt, report.md, report.json and the polar plots into this folder.
@@ -205,6 +205,34 @@ struct DiagnoseArgs {
 }
 
 fn diagnose_cmd(args: DiagnoseArgs) -> Result<(), CliError> {
+    use vmt_tools::diagnose::FileKind;
+    let kind = vmt_tools::diagnose::file_kind(&args.file)?;
+    let what = match kind {
+        FileKind::Mcap => "an MCAP run, which records its own set-up",
+        FileKind::LaserCsv => "a laser positioning CSV",
+        FileKind::BallbarCsv => "a ball-bar CSV",
+    };
+    let flags: Vec<&str> = [
+        ("--radius-mm", args.radius_mm.is_some()),
+        ("--feed-mm-min", args.feed_mm_min.is_some()),
+        ("--plane", args.plane.is_some()),
+    ]
+    .into_iter()
+    .filter_map(|(n, given)| given.then_some(n))
+    .collect();
+    if !flags.is_empty() && kind != FileKind::BallbarCsv {
+        return Err(CliError::Argument(format!(
+            "{} is {what}: {} apply to ball-bar CSV traces only",
+            args.file.display(),
+            flags.join(", ")
+        )));
+    }
+    if args.axis.is_some() && kind != FileKind::LaserCsv {
+        return Err(CliError::Argument(format!(
+            "{} is {what}: --axis applies to laser positioning CSVs only",
+            args.file.display()
+        )));
+    }
     let csv =
         vmt_tools::diagnose::csv_setup(args.radius_mm, args.feed_mm_min, args.plane.as_deref())?;
     if let Some(p) = vmt_tools::positioning::read(&args.file, args.axis.as_deref())? {
