@@ -37,7 +37,9 @@ pub fn csv_setup(
 ) -> Result<Option<CsvSetup<'_>>, CliError> {
     match (radius_mm, feed_mm_min, plane) {
         (Some(radius_mm), Some(feed_mm_min), Some(plane)) => Ok(Some(CsvSetup {
-            plane,
+            plane: crate::plane::parse(plane)
+                .map_err(|e| CliError::Argument(format!("--plane {e}")))?
+                .name(),
             radius_mm: crate::error::check_range(
                 "--radius-mm",
                 radius_mm,

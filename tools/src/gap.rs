@@ -13,7 +13,7 @@ use crate::traces::{self, CsvSetup};
 use serde_json::{Value, json};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
-use vmt_ballbar::{Plane, Trace};
+use vmt_ballbar::Trace;
 use vmt_gap::localise::{self, Localisation, Place};
 use vmt_gap::model::ScenarioModel;
 use vmt_gap::select::{self, Linearisation, Selection, Split};
@@ -518,9 +518,8 @@ pub fn bench_command(a: &BenchArgs) -> Result<(), CliError> {
             vmt_scenario::BUILTIN_NAME.to_string(),
         ),
     };
-    let plane = Plane::parse(&a.plane).ok_or_else(|| {
-        CliError::Argument(format!("--plane {}: XY, ZX or YZ is accepted", a.plane))
-    })?;
+    let plane =
+        crate::plane::parse(&a.plane).map_err(|e| CliError::Argument(format!("--plane {e}")))?;
     if vmt_scenario::edit::Template::parse(&text, &file)?
         .text("job.kind")?
         .as_deref()

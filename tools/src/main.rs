@@ -52,8 +52,9 @@ enum Command {
     /// Generate NC programs (G-code) for tests.
     #[command(subcommand)]
     Program(ProgramCommand),
-    /// Run a scenario's job (e.g. a ball-bar test) through the controller, drives and error
-    /// chain; writes run.mcap, run.rrd, ballbar_polar.png and ground_truth.json.
+    /// Run a scenario's job (a ball-bar test, a laser positioning test or a milling job) through
+    /// the controller, drives and error chain; writes run.mcap, run.rrd and ground_truth.json,
+    /// and ballbar_polar.png for ball-bar traces or laser_iso230_2.json for a positioning test.
     Run(RunArgs),
     /// The built-in machine runs the ISO 230-4 XY test (150 mm, 1000 mm/min, CW and CCW);
     /// writes the MCAP, the Rerun recording and the polar plot, diagnoses the traces and prints
@@ -299,7 +300,7 @@ struct VolumetricArgs {
     /// Map the error over a plane, for forward and backward approach.
     #[arg(long)]
     map: bool,
-    /// Plane of the map: xy, xz or yz.
+    /// Plane of the map: xy, xz (= zx) or yz, any case, or G17, G18, G19.
     #[arg(long, default_value = "xy", requires = "map")]
     plane: Plane,
     /// Coordinate of the axis normal to the plane, mm (within its stroke).
@@ -324,7 +325,12 @@ struct ThermalArgs {
     /// Scenario file (TOML); the built-in default machine when omitted.
     scenario: Option<PathBuf>,
     /// Tool position whose drift is reported, mm, as x,y,z.
-    #[arg(long, value_delimiter = ',', default_values_t = [250.0, 200.0, 200.0], allow_negative_numbers = true)]
+    #[arg(
+        long,
+        value_delimiter = ',',
+        default_value = "250,200,200",
+        allow_negative_numbers = true
+    )]
     probe_mm: Vec<f64>,
     /// Sampling interval of the report, s.
     #[arg(long, default_value_t = 60.0)]

@@ -51,12 +51,12 @@ pub struct BallbarArgs {
 }
 
 fn parse_plane(s: &str) -> Result<Plane, String> {
-    match s.to_ascii_uppercase().as_str() {
-        "XY" | "YX" | "G17" => Ok(Plane::Xy),
-        "ZX" | "XZ" | "G18" => Ok(Plane::Zx),
-        "YZ" | "ZY" | "G19" => Ok(Plane::Yz),
-        _ => Err(format!("`{s}`: the plane is XY, ZX (or XZ) or YZ")),
-    }
+    use crate::plane::Plane as Name;
+    Ok(match crate::plane::parse(s)? {
+        Name::Xy => Plane::Xy,
+        Name::Zx => Plane::Zx,
+        Name::Yz => Plane::Yz,
+    })
 }
 
 fn parse_direction(s: &str) -> Result<ArcDirection, String> {
