@@ -4,15 +4,20 @@
 //!
 //! Per figure: n, bias (mean of diagnosed − truth), RMS, the 95th percentile of |error|
 //! (nearest rank), the worst error and its run, the share within the tolerance of the issue's
-//! goals, and the false-positive rate: among runs whose |truth| is below half the finding's
-//! stated threshold, the share where the finding is reported present.
+//! goals, the quiet runs (those whose |truth| is below half the finding's stated threshold: the
+//! runs where a finding reported present is a false positive) and the false-positive rate, the
+//! share of the quiet runs where the finding is reported present. A figure no run was diagnosed
+//! with has no bias, RMS, percentile, worst or share (NaN, `null` in JSON, `–` in the table).
+//!
+//! The study warns when the dataset looks unfinished: fewer runs than `dataset.json` asked for,
+//! no manifest, or a manifest listing another number of runs (an interrupted `vmt dataset`).
 //!
 //! Tolerances: max(0.3 µm, 5 % of |truth|) for lengths (backlash, lateral play, eccentricity,
 //! closing error, straightness); scale mismatch as the length it makes over the radius R:
 //! max(0.3 µm / R, 5 %) in ppm; 1 µm/m for squareness; 0.1 ms for servo mismatch. Goals: 95 %
 //! within tolerance and false positives under 2 %; straightness is reported but is no goal.
 
-use crate::dataset::complete_runs;
+use crate::dataset::{complete_runs, read_identity};
 use crate::diagnose::{diagnose_file, truth_figures};
 use crate::error::CliError;
 use rayon::prelude::*;
@@ -54,25 +59,28 @@ pub struct FigureStats {
     pub n: usize,
     /// Runs whose diagnosis has no such finding.
     pub not_diagnosed: usize,
-    /// Mean error (diagnosed − truth).
+    /// Mean error (diagnosed − truth); NaN (JSON null) when n = 0.
     pub bias: f64,
-    /// Root mean square error.
+    /// Root mean square error; NaN (JSON null) when n = 0.
     pub rms: f64,
-    /// 95th percentile of |error|.
+    /// 95th percentile of |error| (nearest rank); NaN (JSON null) when n = 0.
     pub p95_abs: f64,
-    /// Largest |error| and its run.
+    /// Largest |error|; NaN (JSON null) when n = 0.
     pub worst: f64,
     /// Id of the worst run.
     pub worst_id: String,
     /// The worst runs: (id, truth, diagnosed).
     pub worst_runs: Vec<(String, f64, f64)>,
-    /// Share of runs within tolerance.
+    /// Share of runs within tolerance; NaN (JSON null) when n = 0.
     pub within: f64,
     /// The tolerance, in words.
     pub tolerance: String,
-    /// Runs whose |truth| is below half the threshold.
-    pub fp_runs: usize,
-    /// Share of those reported present (None without such runs).
+    /// Quiet runs: those whose |truth| is below half the threshold, so that the finding
+    /// reported present is a false positive (the runs the false-positive rate is taken over,
+    /// not the false positives).
+    pub quiet_runs: usize,
+    /// False-positive rate: the share of the quiet runs reported present (None without quiet
+    /// runs).
     pub fp_rate: Option<f64>,
     /// Whether the issue sets a goal for this figure.
     pub goal: bool,
@@ -83,8 +91,11 @@ pub struct FigureStats {
 /// The study: one entry per figure key, and the runs that could not be diagnosed.
 #[derive(Clone, Debug, Serialize)]
 pub struct Study {
-    /// Runs in the dataset.
+    /// Runs found in the dataset (complete run folders).
     pub runs: usize,
+    /// Why the dataset looks incomplete (no manifest, fewer runs than asked for); empty when
+    /// it looks whole.
+    pub warnings: Vec<String>,
     /// Per figure, in key order.
     pub figures: Vec<FigureStats>,
     /// Runs whose file could not be diagnosed, with the reason.
@@ -136,9 +147,45 @@ pub fn study(dir: &Path) -> Result<Study, CliError> {
         .collect();
     Ok(Study {
         runs: runs.len(),
+        warnings: completeness(dir, runs.len())?,
         figures,
         failed,
     })
+}
+
+/// What makes dataset `dir` with `found` complete runs look unfinished.
+fn completeness(dir: &Path, found: usize) -> Result<Vec<String>, CliError> {
+    let mut warnings = Vec::new();
+    let d = dir.display();
+    match read_identity(dir)? {
+        Some(id) if (found as u64) < id.count => warnings.push(format!(
+            "{d} is incomplete: {found} of the {} runs asked for are found (an interrupted \
+             `vmt dataset`? run it again with the same arguments to finish it)",
+            id.count
+        )),
+        Some(_) => {}
+        None => warnings.push(format!(
+            "{d} has no dataset.json, so the number of runs asked for is unknown; {found} runs \
+             found"
+        )),
+    }
+    let manifest = dir.join("manifest.csv");
+    match std::fs::read_to_string(&manifest) {
+        Err(_) => warnings.push(format!(
+            "{} is missing: `vmt dataset` did not finish; {found} runs found",
+            manifest.display()
+        )),
+        Ok(text) => {
+            let rows = text.lines().count().saturating_sub(1);
+            if rows != found {
+                warnings.push(format!(
+                    "{} lists {rows} runs but {found} are found: `vmt dataset` did not finish",
+                    manifest.display()
+                ));
+            }
+        }
+    }
+    Ok(warnings)
 }
 
 /// Every truth figure of run `path`'s first test with its finding (None when not diagnosed).
@@ -182,7 +229,6 @@ fn stats(key: &str, unit: &str, cs: &[Option<Comparison>]) -> FigureStats {
     let done: Vec<&Comparison> = cs.iter().flatten().collect();
     let n = done.len();
     let errors: Vec<f64> = done.iter().map(|c| c.value - c.truth).collect();
-    let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len().max(1) as f64;
     let squares: Vec<f64> = errors.iter().map(|e| e * e).collect();
     let mut ranked: Vec<(f64, &Comparison)> = errors
         .iter()
@@ -195,11 +241,20 @@ fn stats(key: &str, unit: &str, cs: &[Option<Comparison>]) -> FigureStats {
         0 => f64::NAN,
         _ => abs[((GOAL_WITHIN * n as f64).ceil() as usize).clamp(1, n) - 1],
     };
-    let within = done
-        .iter()
-        .filter(|c| (c.value - c.truth).abs() <= tolerance(key, c.truth, c.radius_mm).0)
-        .count() as f64
-        / n.max(1) as f64;
+    // Means over no runs are undefined, not zero.
+    let mean = |v: &[f64]| match v.len() {
+        0 => f64::NAN,
+        len => v.iter().sum::<f64>() / len as f64,
+    };
+    let within = mean(
+        &done
+            .iter()
+            .map(|c| {
+                let ok = (c.value - c.truth).abs() <= tolerance(key, c.truth, c.radius_mm).0;
+                f64::from(u8::from(ok))
+            })
+            .collect::<Vec<f64>>(),
+    );
     let quiet: Vec<&&Comparison> = done
         .iter()
         .filter(|c| c.truth.abs() < 0.5 * c.threshold)
@@ -228,7 +283,7 @@ fn stats(key: &str, unit: &str, cs: &[Option<Comparison>]) -> FigureStats {
             .collect(),
         within,
         tolerance: tolerance(key, 0.0, 100.0).1.to_string(),
-        fp_runs: quiet.len(),
+        quiet_runs: quiet.len(),
         fp_rate,
         goal,
         met,
@@ -244,9 +299,12 @@ pub fn markdown(s: &Study) -> String {
         s.runs,
         s.failed.len()
     );
+    for w in &s.warnings {
+        let _ = writeln!(out, "**Warning:** {w}\n");
+    }
     let _ = writeln!(
         out,
-        "| figure | unit | n | bias | RMS | p95 \\|err\\| | worst (run) | tolerance | within | FP runs | FP rate | goals |"
+        "| figure | unit | n | bias | RMS | p95 \\|err\\| | worst (run) | tolerance | within | quiet runs | FP rate | goals |"
     );
     let _ = writeln!(
         out,
@@ -261,20 +319,21 @@ pub fn markdown(s: &Study) -> String {
             (true, true) => "met",
             (true, false) => "MISSED",
         };
+        // A figure never diagnosed has no error statistics: a dash, not +0.000.
+        let num = |x: f64, text: String| if x.is_finite() { text } else { "–".into() };
         let _ = writeln!(
             out,
-            "| {} | {} | {} | {:+.3} | {:.3} | {:.3} | {:.3} ({}) | {} | {:.1} % | {} | {} | {} |",
+            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
             f.key,
             f.unit,
             f.n,
-            f.bias,
-            f.rms,
-            f.p95_abs,
-            f.worst,
-            f.worst_id,
+            num(f.bias, format!("{:+.3}", f.bias)),
+            num(f.rms, format!("{:.3}", f.rms)),
+            num(f.p95_abs, format!("{:.3}", f.p95_abs)),
+            num(f.worst, format!("{:.3} ({})", f.worst, f.worst_id)),
             f.tolerance,
-            100.0 * f.within,
-            f.fp_runs,
+            num(f.within, format!("{:.1} %", 100.0 * f.within)),
+            f.quiet_runs,
             fp,
             verdict
         );
@@ -298,10 +357,23 @@ pub fn markdown(s: &Study) -> String {
     out
 }
 
+/// What the columns of `accuracy.md` mean.
+const HEADER: &str = "Every run's first circular test is diagnosed and each finding compared \
+with the run's ground truth. Per figure: n (runs diagnosed with it), bias (mean of diagnosed − \
+truth), RMS, the 95th percentile of |error| (nearest rank), the worst |error| and its run, the \
+tolerance and the share of runs within it, quiet runs (runs whose |truth| is below half the \
+finding's threshold, where a finding reported present is a false positive: the runs the \
+false-positive rate is taken over, not false positives), the false-positive rate (the share of \
+the quiet runs reported present; – without quiet runs) and whether the goals (95 % within \
+tolerance, false positives under 2 %) are met. – marks a figure no run was diagnosed with.";
+
 /// Writes `accuracy.md` and `accuracy.json` into `dir`.
 pub fn write(s: &Study, dir: &Path) -> Result<(), CliError> {
     let md = dir.join("accuracy.md");
-    let text = format!("# Ball-bar diagnosis accuracy\n\n{}", markdown(s));
+    let text = format!(
+        "# Ball-bar diagnosis accuracy\n\n{HEADER}\n\n{}",
+        markdown(s)
+    );
     std::fs::write(&md, text).map_err(|e| CliError::output(&md, e))?;
     let js = dir.join("accuracy.json");
     let text = serde_json::to_string_pretty(s).map_err(|e| CliError::output(&js, e))?;
@@ -311,12 +383,97 @@ pub fn write(s: &Study, dir: &Path) -> Result<(), CliError> {
 /// `vmt accuracy`: runs the study on `dir`, prints the table and writes the reports.
 pub fn command(dir: &Path) -> Result<(), CliError> {
     let s = study(dir)?;
-    print!("{}", markdown(&s));
+    for w in &s.warnings {
+        eprintln!("warning: {w}");
+    }
+    crate::out!("{}", markdown(&s))?;
     write(&s, dir)?;
-    println!(
+    crate::outln!(
         "\nwrote {}\nwrote {}",
         dir.join("accuracy.md").display(),
         dir.join("accuracy.json").display()
-    );
+    )?;
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn c(i: usize, truth: f64, value: f64, present: bool) -> Option<Comparison> {
+        Some(Comparison {
+            id: format!("{i:06}"),
+            truth,
+            value,
+            present,
+            threshold: 1.0,
+            radius_mm: 100.0,
+        })
+    }
+
+    /// 17 runs with 2 µm of truth and errors 0.01 to 0.17 µm, three quiet runs (0.1 µm of
+    /// truth, threshold 1 µm) with errors +0.5 (reported present), -0.2 and +0.05, and one run
+    /// not diagnosed.
+    fn comparisons() -> Vec<Option<Comparison>> {
+        let mut cs: Vec<Option<Comparison>> = (0..17)
+            .map(|i| c(i, 2.0, 2.0 + 0.01 * (i + 1) as f64, true))
+            .collect();
+        cs.push(c(17, 0.1, 0.6, true));
+        cs.push(c(18, 0.1, -0.1, false));
+        cs.push(c(19, 0.1, 0.15, false));
+        cs.push(None);
+        cs
+    }
+
+    #[test]
+    fn statistics_of_hand_made_comparisons() {
+        let f = stats("backlash_x", "µm", &comparisons());
+        assert_eq!((f.n, f.not_diagnosed), (20, 1));
+        // Errors sum to 1.53 + 0.5 - 0.2 + 0.05 = 1.88; squares to 0.1785 + 0.2925 = 0.471.
+        assert!((f.bias - 0.094).abs() < 1e-12, "bias {}", f.bias);
+        assert!((f.rms - 0.02355f64.sqrt()).abs() < 1e-12, "rms {}", f.rms);
+        // Nearest rank: the 19th of the 20 |errors| in ascending order (0.5 is the 20th, 0.17
+        // the 18th).
+        assert!((f.p95_abs - 0.2).abs() < 1e-12, "p95 {}", f.p95_abs);
+        assert!((f.worst - 0.5).abs() < 1e-12, "worst {}", f.worst);
+        assert_eq!(f.worst_id, "000017");
+        let worst: Vec<&str> = f.worst_runs.iter().map(|r| r.0.as_str()).collect();
+        assert_eq!(worst, ["000017", "000018", "000016", "000015", "000014"]);
+        // Tolerance 0.3 µm: only the quiet run with +0.5 is outside.
+        assert!((f.within - 0.95).abs() < 1e-12, "within {}", f.within);
+        assert_eq!(f.quiet_runs, 3);
+        assert_eq!(f.fp_rate, Some(1.0 / 3.0));
+        // A run not diagnosed misses the goals even with 95 % within and ...
+        assert!(f.goal && !f.met);
+        // ... and so does one false positive in three quiet runs.
+        let diagnosed: Vec<Option<Comparison>> =
+            comparisons().into_iter().flatten().map(Some).collect();
+        assert!(!stats("backlash_x", "µm", &diagnosed).met);
+        let mut clean = diagnosed.clone();
+        clean[17] = c(17, 0.1, 0.2, false);
+        assert!(stats("backlash_x", "µm", &clean).met);
+    }
+
+    #[test]
+    fn a_figure_never_diagnosed_prints_dashes() {
+        let f = stats("backlash_y", "", &[None, None]);
+        assert_eq!((f.n, f.not_diagnosed, f.quiet_runs), (0, 2, 0));
+        assert!(f.bias.is_nan() && f.rms.is_nan() && f.p95_abs.is_nan() && f.within.is_nan());
+        let s = Study {
+            runs: 2,
+            warnings: vec![],
+            figures: vec![f],
+            failed: vec![],
+        };
+        let md = markdown(&s);
+        assert!(
+            md.contains(
+                "| backlash_y |  | 0 | – | – | – | – | max(0.3 µm, 5 %) | – | 0 | – | MISSED |"
+            ),
+            "{md}"
+        );
+        assert!(md.contains("| quiet runs | FP rate |"), "{md}");
+        let js = serde_json::to_value(&s).unwrap();
+        assert!(js["figures"][0]["bias"].is_null(), "{js}");
+    }
 }

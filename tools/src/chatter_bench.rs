@@ -23,6 +23,69 @@ use vmt_sim::milling::{
 /// Programmed feed per tooth of every cut, m.
 const FEED_PER_TOOTH: f64 = 0.05e-3;
 
+/// Spindle speeds accepted, rpm: the simulation's memory grows with the tooth passes (1e9 rpm
+/// aborts on allocation).
+pub const SPINDLE_RPM: (f64, f64) = (100.0, 60_000.0);
+const SPINDLE_WHY: &str =
+    "the speeds of milling spindles; the simulation's record grows with the tooth passes";
+/// Cut durations accepted by `vmt chatter compensate`, s: its three runs keep their records of
+/// about 8 MB (6000 rpm) to 25 MB (60 000 rpm) per second of cut each.
+pub const COMPENSATE_DURATION_S: (f64, f64) = (0.1, 20.0);
+/// Seconds of cut accepted in all of `vmt chatter bench` (speeds x depths x duration): every
+/// run's 20 kHz accelerometer record is kept, and each thread simulates at 8-25 MB per second.
+pub const BENCH_TOTAL_S: f64 = 2000.0;
+
+/// Checks --spindle-rpm, --depth-mm and --duration-s of `vmt chatter compensate` in the units
+/// typed.
+fn check_compensate(a: &CompensateArgs) -> Result<(), CliError> {
+    use crate::error::{check_positive, check_range};
+    check_range(
+        "--spindle-rpm",
+        a.spindle_rpm,
+        SPINDLE_RPM,
+        "rpm",
+        SPINDLE_WHY,
+    )?;
+    check_positive(
+        "--depth-mm",
+        a.depth_mm,
+        30.0,
+        "mm",
+        "the axial depth of cut, within the bench tool's 30 mm flutes",
+    )?;
+    check_range(
+        "--duration-s",
+        a.duration_s,
+        COMPENSATE_DURATION_S,
+        "s",
+        "each of the three runs keeps 8-25 MB per second of cut",
+    )?;
+    Ok(())
+}
+
+/// Checks the grid and duration of `vmt chatter bench`.
+fn check_bench(a: &BenchArgs) -> Result<(), CliError> {
+    use crate::error::{check_count, check_range};
+    check_count("--speeds", a.speeds, (1, 200), "speeds of the grid")?;
+    check_count("--depths", a.depths, (1, 200), "depths per speed")?;
+    check_range(
+        "--duration-s",
+        a.duration_s,
+        (0.1, 10.0),
+        "s",
+        "seconds of cut per run; Kim's blocks are 50 ms",
+    )?;
+    let total = (a.speeds * a.depths) as f64 * a.duration_s;
+    if total > BENCH_TOTAL_S {
+        return Err(CliError::Argument(format!(
+            "--speeds {} x --depths {} x --duration-s {} = {total} s of cut: at most {BENCH_TOTAL_S} s \
+             is accepted (every run's accelerometer record is kept in memory)",
+            a.speeds, a.depths, a.duration_s
+        )));
+    }
+    Ok(())
+}
+
 /// The bench's tool: a 12 mm four-flute end mill, 30° helix, on a two-mode tool point whose
 /// upper mode (6.5 kHz) sits in Kim's 6–7 kHz band; aluminium coefficients.
 fn setup(depth_mm: f64, seed: u64) -> MillingSetup {
@@ -192,6 +255,7 @@ fn kim_limit(band: (f64, f64)) -> Result<f64, CliError> {
 /// Runs `vmt chatter bench`.
 pub fn bench(a: &BenchArgs) -> Result<(), CliError> {
     use rayon::prelude::*;
+    check_bench(a)?;
     let runs: Vec<LabelledRun> = grid(a)
         .par_iter()
         .enumerate()
@@ -255,17 +319,17 @@ pub fn bench(a: &BenchArgs) -> Result<(), CliError> {
         .map_err(sim_error)?;
         scores_line(&mut out, &format!("{name} (limit {limit:.2} m/s²)"), &s);
     }
-    print!("{out}");
+    crate::out!("{out}")?;
     Ok(())
 }
 
 /// `vmt chatter compensate` arguments.
 #[derive(clap::Args, Debug)]
 pub struct CompensateArgs {
-    /// Spindle speed, rpm.
+    /// Spindle speed, rpm (100 to 60 000).
     #[arg(long, default_value_t = 20000.0)]
     pub spindle_rpm: f64,
-    /// Axial depth, mm.
+    /// Axial depth, mm (> 0, at most 30).
     #[arg(long, default_value_t = 0.3)]
     pub depth_mm: f64,
     /// Length of the cut, s.
@@ -411,6 +475,7 @@ fn row(out: &mut String, name: &str, run: &MillingRun) {
 
 /// Runs `vmt chatter compensate`.
 pub fn compensate(a: &CompensateArgs) -> Result<(), CliError> {
+    check_compensate(a)?;
     let (s, d) = (setup(a.depth_mm, 1), drive(a.spindle_rpm, a.duration_s));
     let none = simulate_milling(&s, &d).map_err(sim_error)?;
     let band = (1900.0, 2700.0);
@@ -439,6 +504,6 @@ pub fn compensate(a: &CompensateArgs) -> Result<(), CliError> {
         out,
         "\nKim, Song & Koh report for their feed-override loop: feed 200 -> about 152 mm/min, Ra 4.2 -> 4.0 µm."
     );
-    print!("{out}");
+    crate::out!("{out}")?;
     Ok(())
 }

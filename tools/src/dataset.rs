@@ -10,6 +10,10 @@
 //!   continues with the runs still missing.
 //! - `manifest.csv`, `manifest.parquet`: one row per complete run, sorted by id: `id`, `seed`,
 //!   every parameter, every ground-truth figure of the first circular test as `truth.<key>`.
+//! - `dataset.json`: the dataset's identity, written before the first run: `seed`, `scenario`
+//!   (the file as given), `scenario_fnv1a64` (a hash of its text) and `count` (the runs last
+//!   asked for). An invocation into a folder made with another seed or scenario text is refused,
+//!   and so is one whose --count would leave complete runs out of the manifest.
 //!
 //! Run `i`'s seed is splitmix64 of (K, i), so a run does not depend on the number of threads
 //! nor on which runs were already done.
@@ -31,6 +35,8 @@ use vmt_scenario::dataset::{self, Dataset};
 
 /// Prefix of a run folder being written.
 const TMP_PREFIX: &str = ".tmp-";
+/// The identity file of a dataset folder.
+pub const IDENTITY_FILE: &str = "dataset.json";
 
 /// What `vmt dataset` is asked for.
 pub struct Request<'a> {
@@ -71,8 +77,140 @@ fn run_id(i: u64) -> String {
     format!("{i:06}")
 }
 
+/// FNV-1a (64 bit) of `text`, as 16 hex digits: the scenario's fingerprint in `dataset.json`.
+pub fn fnv1a64(text: &str) -> String {
+    let h = text.bytes().fold(0xcbf2_9ce4_8422_2325_u64, |h, b| {
+        (h ^ u64::from(b)).wrapping_mul(0x0000_0100_0000_01b3)
+    });
+    format!("{h:016x}")
+}
+
+/// The identity of a dataset folder (`dataset.json`).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Identity {
+    /// The dataset's seed K.
+    pub seed: u64,
+    /// The scenario file as given when the dataset was started.
+    pub scenario: String,
+    /// FNV-1a of the scenario's text.
+    pub scenario_fnv1a64: String,
+    /// The number of runs last asked for.
+    pub count: u64,
+}
+
+impl Identity {
+    fn json(&self) -> String {
+        let v = json!({
+            "seed": self.seed,
+            "scenario": self.scenario,
+            "scenario_fnv1a64": self.scenario_fnv1a64,
+            "count": self.count,
+        });
+        format!("{v:#}\n")
+    }
+}
+
+/// Reads `dir/dataset.json`; None when the folder has none.
+pub fn read_identity(dir: &Path) -> Result<Option<Identity>, CliError> {
+    let path = dir.join(IDENTITY_FILE);
+    if !path.exists() {
+        return Ok(None);
+    }
+    let v = read_labels(&path)?;
+    let file = path.display().to_string();
+    let bad = |key: &str| {
+        CliError::input(
+            &file,
+            None,
+            format!("`{key}` missing or not valid: dataset.json is written by `vmt dataset`"),
+        )
+    };
+    Ok(Some(Identity {
+        seed: v["seed"].as_u64().ok_or_else(|| bad("seed"))?,
+        scenario: v["scenario"]
+            .as_str()
+            .ok_or_else(|| bad("scenario"))?
+            .into(),
+        scenario_fnv1a64: v["scenario_fnv1a64"]
+            .as_str()
+            .ok_or_else(|| bad("scenario_fnv1a64"))?
+            .into(),
+        count: v["count"].as_u64().ok_or_else(|| bad("count"))?,
+    }))
+}
+
+/// Checks that `out` is a new folder or the same dataset (seed and scenario text) as `want`,
+/// and that no complete run has an id of `want.count` or more; then records `want`.
+fn claim(out: &Path, want: &Identity) -> Result<(), CliError> {
+    let dir = out.display();
+    let done = if out.join("runs").is_dir() {
+        complete_runs(out)?
+    } else {
+        Vec::new()
+    };
+    match read_identity(out)? {
+        Some(have) => {
+            let mut differs = Vec::new();
+            if have.seed != want.seed {
+                differs.push(format!(
+                    "it was made with --seed {}, this invocation has --seed {}",
+                    have.seed, want.seed
+                ));
+            }
+            if have.scenario_fnv1a64 != want.scenario_fnv1a64 {
+                differs.push(format!(
+                    "it was made from another scenario text ({} when started, hash {}; {} now, hash {})",
+                    have.scenario, have.scenario_fnv1a64, want.scenario, want.scenario_fnv1a64
+                ));
+            }
+            if !differs.is_empty() {
+                return Err(CliError::Argument(format!(
+                    "{dir} holds another dataset: {}; continue it with the same --seed and \
+                     scenario, or give a new --out folder",
+                    differs.join(" and ")
+                )));
+            }
+        }
+        None if !done.is_empty() => {
+            return Err(CliError::Argument(format!(
+                "{dir} holds {} runs but no {IDENTITY_FILE}, so their seed and scenario are \
+                 unknown: give a new --out folder",
+                done.len()
+            )));
+        }
+        None => {}
+    }
+    let beyond: Vec<String> = done
+        .iter()
+        .map(|p| name_of(p))
+        .filter(|n| n.parse::<u64>().map_or(true, |i| i >= want.count))
+        .collect();
+    if let Some(last) = beyond.last() {
+        return Err(CliError::Argument(format!(
+            "--count {}: {dir} already holds complete runs up to id {last}, which a dataset of \
+             ids below {} would leave out of its manifest; give --count {} or more to continue \
+             this dataset, or a new --out folder",
+            want.count,
+            want.count,
+            last.parse::<u64>()
+                .map_or(0, |i| i + 1)
+                .max(done.len() as u64)
+        )));
+    }
+    std::fs::create_dir_all(out).map_err(|e| CliError::output(out, e))?;
+    let path = out.join(IDENTITY_FILE);
+    let tmp = out.join(format!("{TMP_PREFIX}{IDENTITY_FILE}"));
+    write_file(&tmp, &want.json())?;
+    std::fs::rename(&tmp, &path).map_err(|e| CliError::output(&path, e))
+}
+
 /// Simulates the runs of `req` that are not complete yet and rebuilds the manifest.
 pub fn build(req: &Request) -> Result<Outcome, CliError> {
+    if req.count == 0 {
+        return Err(CliError::Argument(
+            "--count 0: a dataset needs at least 1 run".into(),
+        ));
+    }
     let file = req.scenario.display().to_string();
     let text = std::fs::read_to_string(req.scenario)
         .map_err(|e| CliError::input(&file, None, e.to_string()))?;
@@ -86,6 +224,15 @@ pub fn build(req: &Request) -> Result<Outcome, CliError> {
     })?;
     // The template itself must load, so a scenario error is reported once, not per run.
     vmt_scenario::parse(&text, &file, Some(base))?;
+    claim(
+        req.out,
+        &Identity {
+            seed: req.seed,
+            scenario: file.clone(),
+            scenario_fnv1a64: fnv1a64(&text),
+            count: req.count,
+        },
+    )?;
     let runs = req.out.join("runs");
     std::fs::create_dir_all(&runs).map_err(|e| CliError::output(&runs, e))?;
     remove_leftovers(&runs)?;
@@ -365,7 +512,7 @@ pub fn command(
         quiet,
     })?;
     let minutes = start.elapsed().as_secs_f64() / 60.0;
-    println!(
+    crate::outln!(
         "{} runs simulated in {:.1} min ({:.1} runs/min on {} threads), {} already complete; \
          manifest of {} runs: {}",
         o.simulated,
@@ -375,6 +522,6 @@ pub fn command(
         o.skipped,
         o.rows,
         out.join("manifest.{csv,parquet}").display()
-    );
+    )?;
     Ok(())
 }

@@ -20,6 +20,128 @@ pub struct Diagnosed {
     pub ground_truth: Option<Value>,
 }
 
+/// Ball-bar lengths accepted for a CSV trace, mm, and why (the diagnosis' cyclic-error search
+/// grows with the radius: 1e7 mm exhausts memory).
+pub const RADIUS_MM: (f64, f64) = (1.0, 1500.0);
+const RADIUS_WHY: &str = "ball bars are 50-600 mm long, with extensions to about 1500 mm";
+/// Feeds accepted for a CSV trace, mm/min, and why.
+pub const FEED_MM_MIN: (f64, f64) = (1.0, 120_000.0);
+const FEED_WHY: &str = "the feeds of machine tools, up to 120 m/min";
+
+/// The set-up of a CSV ball-bar trace from the command line: all of --radius-mm, --feed-mm-min
+/// and --plane or none of them, each within its range.
+pub fn csv_setup(
+    radius_mm: Option<f64>,
+    feed_mm_min: Option<f64>,
+    plane: Option<&str>,
+) -> Result<Option<CsvSetup<'_>>, CliError> {
+    match (radius_mm, feed_mm_min, plane) {
+        (Some(radius_mm), Some(feed_mm_min), Some(plane)) => Ok(Some(CsvSetup {
+            plane: crate::plane::parse(plane)
+                .map_err(|e| CliError::Argument(format!("--plane {e}")))?
+                .name(),
+            radius_mm: crate::error::check_range(
+                "--radius-mm",
+                radius_mm,
+                RADIUS_MM,
+                "mm",
+                RADIUS_WHY,
+            )?,
+            feed_mm_min: crate::error::check_range(
+                "--feed-mm-min",
+                feed_mm_min,
+                FEED_MM_MIN,
+                "mm/min",
+                FEED_WHY,
+            )?,
+        })),
+        (None, None, None) => Ok(None),
+        _ => {
+            let missing: Vec<&str> = [
+                ("--radius-mm", radius_mm.is_none()),
+                ("--feed-mm-min", feed_mm_min.is_none()),
+                ("--plane", plane.is_none()),
+            ]
+            .into_iter()
+            .filter_map(|(n, m)| m.then_some(n))
+            .collect();
+            Err(CliError::Argument(format!(
+                "a CSV trace needs all of --radius-mm, --feed-mm-min and --plane; missing: {}",
+                missing.join(", ")
+            )))
+        }
+    }
+}
+
+/// What `vmt diagnose` was given, told from the file's first bytes or its CSV header.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FileKind {
+    /// An MCAP run of ours (ball-bar traces or laser readings, with its set-up).
+    Mcap,
+    /// A ball-bar CSV (`angle_deg` column).
+    BallbarCsv,
+    /// A laser positioning CSV (`target_mm` column).
+    LaserCsv,
+}
+
+/// Columns of a ball-bar CSV, for messages.
+const BALLBAR_COLUMNS: &str = "angle_deg, deviation_um, direction (cw/ccw) and optionally time_s";
+/// Columns of a laser CSV, for messages.
+const LASER_COLUMNS: &str =
+    "target_mm, direction (forward/backward), run, and deviation_um or reading_mm";
+
+/// Tells the kind of `path` from its first bytes (MCAP) or its CSV header; an empty file, or a
+/// header of neither kind, is refused naming what is missing.
+pub fn file_kind(path: &Path) -> Result<FileKind, CliError> {
+    let file = path.display().to_string();
+    let bytes = std::fs::read(path).map_err(|e| CliError::input(&file, None, e.to_string()))?;
+    if bytes.starts_with(mcap::MAGIC) {
+        return Ok(FileKind::Mcap);
+    }
+    let mut r = csv::ReaderBuilder::new()
+        .trim(csv::Trim::All)
+        .from_reader(bytes.as_slice());
+    let header: Vec<String> = r
+        .headers()
+        .map(|h| h.iter().map(str::to_string).collect())
+        .unwrap_or_default();
+    let has = |c: &str| header.iter().any(|h| h == c);
+    if header.iter().all(|h| h.is_empty()) {
+        return Err(CliError::input(
+            &file,
+            Some(1),
+            format!(
+                "empty: no header; a ball-bar CSV has the columns {BALLBAR_COLUMNS}, a laser \
+                 positioning CSV {LASER_COLUMNS}"
+            ),
+        ));
+    }
+    if has("angle_deg") {
+        return Ok(FileKind::BallbarCsv);
+    }
+    if has("target_mm") {
+        return Ok(FileKind::LaserCsv);
+    }
+    let found = header.join(", ");
+    // Columns only a laser CSV has: one missing its target column.
+    let message = if has("run") || has("reading_mm") {
+        format!(
+            "no `target_mm` column: a laser positioning CSV has {LASER_COLUMNS} (found: {found})"
+        )
+    } else if has("deviation_um") && has("direction") {
+        format!(
+            "no `angle_deg` column (a ball-bar CSV: {BALLBAR_COLUMNS}) nor `target_mm` column (a \
+             laser positioning CSV: {LASER_COLUMNS}); found: {found}"
+        )
+    } else {
+        format!(
+            "neither a ball-bar CSV ({BALLBAR_COLUMNS}) nor a laser positioning CSV \
+             ({LASER_COLUMNS}); found: {found}"
+        )
+    };
+    Err(CliError::input(&file, Some(1), message))
+}
+
 /// Reads and diagnoses `path`.
 pub fn diagnose_file(
     path: &Path,

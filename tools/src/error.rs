@@ -45,11 +45,82 @@ impl CliError {
         }
     }
 
+    /// Standard output could not be written (closed, e.g. piped into `head`).
+    pub fn stdout(e: impl std::fmt::Display) -> Self {
+        Self::output(std::path::Path::new("<stdout>"), e)
+    }
+
+    /// A command-line option's value refused: `--name value: accepted`.
+    pub fn option(
+        name: &str,
+        value: impl std::fmt::Display,
+        accepted: impl std::fmt::Display,
+    ) -> Self {
+        CliError::Argument(format!("{name} {value}: {accepted}"))
+    }
+
     /// An output error for `path`.
     pub fn output(path: &std::path::Path, e: impl std::fmt::Display) -> Self {
         CliError::Output {
             path: path.display().to_string(),
             message: e.to_string(),
         }
+    }
+}
+
+/// Checks option `name`'s `value`, in the unit the user typed (`unit`), against `lo..=hi`; the
+/// error names the option and value, the accepted range and `why` it is bounded.
+pub fn check_range(
+    name: &str,
+    value: f64,
+    (lo, hi): (f64, f64),
+    unit: &str,
+    why: &str,
+) -> Result<f64, CliError> {
+    if (lo..=hi).contains(&value) {
+        Ok(value)
+    } else {
+        Err(CliError::option(
+            name,
+            value,
+            format!("from {lo} to {hi} {unit} is accepted ({why})"),
+        ))
+    }
+}
+
+/// Checks a count option `name` against `lo..=hi`, saying `why` it is bounded.
+pub fn check_count(
+    name: &str,
+    value: usize,
+    (lo, hi): (usize, usize),
+    why: &str,
+) -> Result<usize, CliError> {
+    if (lo..=hi).contains(&value) {
+        Ok(value)
+    } else {
+        Err(CliError::option(
+            name,
+            value,
+            format!("from {lo} to {hi} is accepted ({why})"),
+        ))
+    }
+}
+
+/// Checks that option `name`'s `value` is a finite number above 0 and at most `hi` `unit`.
+pub fn check_positive(
+    name: &str,
+    value: f64,
+    hi: f64,
+    unit: &str,
+    why: &str,
+) -> Result<f64, CliError> {
+    if value.is_finite() && value > 0.0 && value <= hi {
+        Ok(value)
+    } else {
+        Err(CliError::option(
+            name,
+            value,
+            format!("must be > 0 and at most {hi} {unit} ({why})"),
+        ))
     }
 }

@@ -13,7 +13,7 @@ use crate::traces::{self, CsvSetup};
 use serde_json::{Value, json};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
-use vmt_ballbar::{Plane, Trace};
+use vmt_ballbar::Trace;
 use vmt_gap::localise::{self, Localisation, Place};
 use vmt_gap::model::ScenarioModel;
 use vmt_gap::select::{self, Linearisation, Selection, Split};
@@ -395,29 +395,17 @@ pub fn command(a: &GapArgs) -> Result<(), CliError> {
         }
         return vibration_command(a);
     }
-    let csv = match (a.radius_mm, a.feed_mm_min, a.plane.as_deref()) {
-        (Some(radius_mm), Some(feed_mm_min), Some(plane)) => Some(CsvSetup {
-            plane,
-            radius_mm,
-            feed_mm_min,
-        }),
-        (None, None, None) => None,
-        _ => {
-            return Err(CliError::Argument(
-                "CSV traces need all of --radius-mm, --feed-mm-min and --plane".into(),
-            ));
-        }
-    };
+    let csv = crate::diagnose::csv_setup(a.radius_mm, a.feed_mm_min, a.plane.as_deref())?;
     let measured = measured(&a.real, csv)?;
     let report = analyse(&a.model, &a.real, &measured)?;
     if a.json {
-        println!(
+        crate::outln!(
             "{}",
             serde_json::to_string_pretty(&json(&report))
                 .map_err(|e| CliError::Argument(e.to_string()))?
-        );
+        )?;
     } else {
-        print!("{}", text(&report));
+        crate::out!("{}", text(&report))?;
     }
     if let Some(dir) = &a.out {
         for f in write(&report, dir)? {
@@ -432,13 +420,13 @@ fn vibration_command(a: &GapArgs) -> Result<(), CliError> {
     let model = a.model.display().to_string();
     let g = vg::analyse(&a.model, &a.real)?;
     if a.json {
-        println!(
+        crate::outln!(
             "{}",
             serde_json::to_string_pretty(&vg::json(&model, &a.real, &g))
                 .map_err(|e| CliError::Argument(e.to_string()))?
-        );
+        )?;
     } else {
-        print!("{}", vg::text(&model, &a.real, &g));
+        crate::out!("{}", vg::text(&model, &a.real, &g))?;
     }
     if let Some(dir) = &a.out {
         for f in vg::write(&model, &a.real, &g, dir)? {
@@ -530,9 +518,8 @@ pub fn bench_command(a: &BenchArgs) -> Result<(), CliError> {
             vmt_scenario::BUILTIN_NAME.to_string(),
         ),
     };
-    let plane = Plane::parse(&a.plane).ok_or_else(|| {
-        CliError::Argument(format!("--plane {}: XY, ZX or YZ is accepted", a.plane))
-    })?;
+    let plane =
+        crate::plane::parse(&a.plane).map_err(|e| CliError::Argument(format!("--plane {e}")))?;
     if vmt_scenario::edit::Template::parse(&text, &file)?
         .text("job.kind")?
         .as_deref()
@@ -581,7 +568,7 @@ fn finish_bench(
     figures: &vmt_gap::bench::Figures,
     outcomes: &[vmt_gap::bench::Outcome],
 ) -> Result<(), CliError> {
-    print!("{report}");
+    crate::out!("{report}")?;
     let Some(dir) = &a.out else {
         return Ok(());
     };

@@ -160,3 +160,70 @@ pub fn summary_figures(run: &Run) -> String {
         .collect::<Vec<_>>()
         .join("\n")
 }
+
+/// The lines of the run's ground truth that `vmt run` prints: for a milling run the chatter
+/// (onset, frequency, or none), the cut and the surface (Ra, Rz, surface location error); for
+/// a run through the feed drives, each axis' drive backlash and position-loop gain. A figure
+/// the truth does not hold is left out, never printed as NaN or null.
+pub fn truth_summary(truth: &serde_json::Value) -> Vec<String> {
+    let mut lines = Vec::new();
+    let m = &truth["milling"];
+    if m.is_object() {
+        let num = |k: &str| m[k].as_f64();
+        let cut = match (
+            num("spindle_rpm"),
+            m["teeth"].as_u64(),
+            num("tooth_passing_hz"),
+        ) {
+            (Some(n), Some(z), Some(f)) => {
+                format!(" ({n:.0} rpm, {z} teeth: tooth passing {f:.1} Hz)")
+            }
+            _ => String::new(),
+        };
+        let chatter = match (m["chatter"].as_bool(), num("chatter_onset_s")) {
+            (Some(true), onset) => format!(
+                "chatter{}{}",
+                onset.map(|t| format!(" from {t:.3} s")).unwrap_or_default(),
+                num("chatter_frequency_hz")
+                    .map(|f| format!(" at {f:.1} Hz"))
+                    .unwrap_or_default()
+            ),
+            (Some(false), _) => "no chatter".to_string(),
+            (None, _) => "chatter not recorded".to_string(),
+        };
+        lines.push(format!("  truth: {chatter}{cut}"));
+        let surface: Vec<String> = [
+            ("Ra", "ra_um", "um"),
+            ("Rz", "rz_um", "um"),
+            ("SLE mean", "sle_mean_um", "um"),
+            ("max |SLE|", "sle_max_abs_um", "um"),
+        ]
+        .into_iter()
+        .filter_map(|(name, key, unit)| num(key).map(|v| format!("{name} {v:.3} {unit}")))
+        .collect();
+        if !surface.is_empty() {
+            lines.push(format!("  truth: surface {}", surface.join(", ")));
+        }
+    }
+    if let Some(drives) = truth["drives"].as_object() {
+        for (axis, d) in drives {
+            let figures: Vec<String> = [
+                d["backlash_um"]
+                    .as_f64()
+                    .map(|b| format!("drive backlash {b:.2} um")),
+                d["kv_per_s"].as_f64().map(|k| format!("Kv {k} 1/s")),
+            ]
+            .into_iter()
+            .flatten()
+            .collect();
+            if !figures.is_empty() {
+                lines.push(format!(
+                    "  truth {}: {}",
+                    axis.to_uppercase(),
+                    figures.join(", ")
+                ));
+            }
+        }
+    }
+    lines
+}

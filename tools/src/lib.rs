@@ -12,6 +12,8 @@ pub mod gap;
 pub mod job;
 pub mod lobes;
 pub mod map;
+pub mod out;
+pub mod plane;
 pub mod plot;
 pub mod points;
 pub mod positioning;

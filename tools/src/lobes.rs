@@ -175,8 +175,48 @@ fn depth_grid(
     grid("axial depth, m", max / args.depths as f64, max, args.depths).map_err(model_error)
 }
 
+/// Checks the grid options in the units typed, before anything is computed: the
+/// semi-discretization costs speeds x depths eigenvalue problems of a matrix growing with
+/// --sd-steps.
+fn check(args: &LobesArgs) -> Result<(), CliError> {
+    use crate::error::{check_count, check_positive, check_range};
+    let rpm = (1.0, 200_000.0);
+    let why = "spindle speeds of milling";
+    check_range("--speed-min-rpm", args.speed_min_rpm, rpm, "rpm", why)?;
+    check_range("--speed-max-rpm", args.speed_max_rpm, rpm, "rpm", why)?;
+    if args.speed_min_rpm >= args.speed_max_rpm {
+        return Err(CliError::Argument(format!(
+            "--speed-min-rpm {} must be below --speed-max-rpm {} (the spindle speed range)",
+            args.speed_min_rpm, args.speed_max_rpm
+        )));
+    }
+    check_count(
+        "--speeds",
+        args.speeds,
+        (2, 5000),
+        "points of the speed grid",
+    )?;
+    check_count(
+        "--depths",
+        args.depths,
+        (2, 2000),
+        "points of the depth grid",
+    )?;
+    check_count(
+        "--sd-steps",
+        args.sd_steps,
+        (2, 400),
+        "steps per tooth period; the cost grows with their cube",
+    )?;
+    if let Some(mm) = args.depth_max_mm {
+        check_positive("--depth-max-mm", mm, 1000.0, "mm", "an axial depth of cut")?;
+    }
+    Ok(())
+}
+
 /// Both diagrams of every case. The semi-discretization map runs over the speeds in parallel.
 pub fn compute(args: &LobesArgs) -> Result<Vec<Case>, CliError> {
+    check(args)?;
     let speeds = grid(
         "spindle speed, rpm",
         args.speed_min_rpm,
@@ -320,13 +360,13 @@ pub fn command(args: &LobesArgs) -> Result<(), CliError> {
     }
     let image = args.out.join(format!("lobes.{}", args.format.extension()));
     draw(&cases, &image, args.format)?;
-    print!("{}", summary(&cases));
-    println!(
+    crate::out!("{}", summary(&cases))?;
+    crate::outln!(
         "wrote {}, {} and {}",
         args.out.join("lobes.csv").display(),
         args.out.join("sd_map.csv").display(),
         image.display()
-    );
+    )?;
     Ok(())
 }
 

@@ -52,13 +52,15 @@ enum Command {
     /// Generate NC programs (G-code) for tests.
     #[command(subcommand)]
     Program(ProgramCommand),
-    /// Run a scenario's job (e.g. a ball-bar test) through the controller, drives and error
-    /// chain; writes run.mcap, run.rrd, ballbar_polar.png and ground_truth.json.
+    /// Run a scenario's job (a ball-bar test, a laser positioning test or a milling job) through
+    /// the controller, drives and error chain; writes run.mcap, run.rrd and ground_truth.json,
+    /// and ballbar_polar.png for ball-bar traces or laser_iso230_2.json for a positioning test.
     Run(RunArgs),
     /// The built-in machine runs the ISO 230-4 XY test (150 mm, 1000 mm/min, CW and CCW);
     /// writes the MCAP, the Rerun recording and the polar plot, diagnoses the traces and prints
-    /// the diagnosis beside the run's ground truth.
-    Demo(RunArgs),
+    /// the diagnosis beside the run's ground truth. Takes no scenario: `vmt run SCENARIO
+    /// --diagnose` does the same for a scenario of yours.
+    Demo(DemoArgs),
     /// Diagnose ball-bar traces (ISO 230-4 figures and the machine errors behind them) or a
     /// laser positioning test (ISO 230-2 figures, trend, compensation table).
     ///
@@ -76,15 +78,18 @@ enum Command {
     #[command(verbatim_doc_comment)]
     Diagnose(DiagnoseArgs),
     /// Simulate N random machines drawn from the scenario's [dataset] distributions: writes
-    /// OUT/runs/<id>/{run.mcap,labels.json,scenario.toml} and OUT/manifest.{csv,parquet};
-    /// continues where an interrupted invocation stopped.
+    /// OUT/dataset.json (seed and scenario hash), OUT/runs/<id>/{run.mcap,labels.json,
+    /// scenario.toml} and OUT/manifest.{csv,parquet}; continues where an interrupted invocation
+    /// stopped, and refuses a folder made with another seed or scenario text.
     ///
     /// Example:
     ///   vmt dataset --scenario scenarios/dataset_xy.toml --count 500 --seed 1 --out ds
     #[command(verbatim_doc_comment)]
     Dataset(DatasetArgs),
     /// Diagnose every run of a dataset and compare with its truth: bias, RMS, 95th percentile,
-    /// worst, share within tolerance and false positives per figure (DIR/accuracy.{md,json}).
+    /// worst, share within tolerance, quiet runs (truth below half the threshold) and the
+    /// false-positive rate among them, per figure (DIR/accuracy.{md,json}); warns when the
+    /// dataset is unfinished (fewer runs than asked for, no manifest).
     Accuracy(AccuracyArgs),
     /// Stability lobes of a milling operation by semi-discretization (Insperger–Stépán) and
     /// the zero-order approximation (Altintas–Budak), side by side: OUT/lobes.csv (critical
@@ -127,8 +132,10 @@ enum ChatterCommand {
     ///
     /// Detectors: `kim` (Kim, Song & Koh 2015: Chebyshev band-pass 6–7 kHz, 50 ms block RMS
     /// against --limit, feed override = limit / RMS) and `better` (share of the short-time
-    /// spectrum in the strongest peak that is not a tooth-passing harmonic; needs no band).
-    /// Prints the decision, the detection time and the chatter frequency.
+    /// spectrum in the strongest peak that is not a tooth-passing harmonic; needs no band, but
+    /// the tooth-passing frequency: for a CSV log give --spindle-rpm and --teeth, which a CSV
+    /// does not carry, or run --detector kim). Prints the decision, the detection time and the
+    /// chatter frequency.
     ///
     /// Examples:
     ///   vmt chatter detect out/run.mcap
@@ -148,7 +155,7 @@ struct DatasetArgs {
     /// Scenario file with a [dataset] section.
     #[arg(long)]
     scenario: PathBuf,
-    /// Number of runs.
+    /// Number of runs (ids 0 to N-1), at least 1.
     #[arg(long)]
     count: u64,
     /// Seed of the dataset; run i's seed is derived from it and i.
@@ -175,16 +182,16 @@ struct AccuracyArgs {
 struct DiagnoseArgs {
     /// A run (MCAP) or a CSV trace file.
     file: PathBuf,
-    /// Nominal radius (bar length) of a CSV trace, mm.
+    /// Nominal radius (bar length) of a CSV trace, mm (1 to 1500).
     #[arg(long)]
     radius_mm: Option<f64>,
-    /// Programmed feed of a CSV trace, mm/min.
+    /// Programmed feed of a CSV trace, mm/min (1 to 120 000).
     #[arg(long)]
     feed_mm_min: Option<f64>,
-    /// Test plane of a CSV trace: XY, ZX or YZ.
+    /// Test plane of a CSV trace: XY, ZX or YZ. These three apply to ball-bar CSVs only.
     #[arg(long)]
     plane: Option<String>,
-    /// Axis name of a positioning test's CSV (for the report).
+    /// Axis name of a laser positioning CSV (for the report; an MCAP run names its axis).
     #[arg(long)]
     axis: Option<String>,
     /// Also write report.txt, report.md, report.json and the polar plots into this folder.
@@ -199,19 +206,36 @@ struct DiagnoseArgs {
 }
 
 fn diagnose_cmd(args: DiagnoseArgs) -> Result<(), CliError> {
-    let csv = match (args.radius_mm, args.feed_mm_min, args.plane.as_deref()) {
-        (Some(radius_mm), Some(feed_mm_min), Some(plane)) => Some(vmt_tools::traces::CsvSetup {
-            plane,
-            radius_mm,
-            feed_mm_min,
-        }),
-        (None, None, None) => None,
-        _ => {
-            return Err(CliError::Argument(
-                "a CSV trace needs all of --radius-mm, --feed-mm-min and --plane".into(),
-            ));
-        }
+    use vmt_tools::diagnose::FileKind;
+    let kind = vmt_tools::diagnose::file_kind(&args.file)?;
+    let what = match kind {
+        FileKind::Mcap => "an MCAP run, which records its own set-up",
+        FileKind::LaserCsv => "a laser positioning CSV",
+        FileKind::BallbarCsv => "a ball-bar CSV",
     };
+    let flags: Vec<&str> = [
+        ("--radius-mm", args.radius_mm.is_some()),
+        ("--feed-mm-min", args.feed_mm_min.is_some()),
+        ("--plane", args.plane.is_some()),
+    ]
+    .into_iter()
+    .filter_map(|(n, given)| given.then_some(n))
+    .collect();
+    if !flags.is_empty() && kind != FileKind::BallbarCsv {
+        return Err(CliError::Argument(format!(
+            "{} is {what}: {} apply to ball-bar CSV traces only",
+            args.file.display(),
+            flags.join(", ")
+        )));
+    }
+    if args.axis.is_some() && kind != FileKind::LaserCsv {
+        return Err(CliError::Argument(format!(
+            "{} is {what}: --axis applies to laser positioning CSVs only",
+            args.file.display()
+        )));
+    }
+    let csv =
+        vmt_tools::diagnose::csv_setup(args.radius_mm, args.feed_mm_min, args.plane.as_deref())?;
     if let Some(p) = vmt_tools::positioning::read(&args.file, args.axis.as_deref())? {
         return positioning_report(&p, args.json, args.out.as_deref());
     }
@@ -221,9 +245,9 @@ fn diagnose_cmd(args: DiagnoseArgs) -> Result<(), CliError> {
     };
     let d = vmt_tools::diagnose::diagnose_file(&args.file, csv, &options)?;
     if args.json {
-        println!("{:#}", vmt_tools::diagnose::json(&d));
+        vmt_tools::outln!("{:#}", vmt_tools::diagnose::json(&d))?;
     } else {
-        print!("{}", vmt_tools::diagnose::text(&d));
+        vmt_tools::out!("{}", vmt_tools::diagnose::text(&d))?;
     }
     if let Some(dir) = &args.out {
         for f in vmt_tools::diagnose::write(&d, dir)? {
@@ -240,9 +264,9 @@ fn positioning_report(
     out: Option<&Path>,
 ) -> Result<(), CliError> {
     if json {
-        println!("{:#}", vmt_tools::positioning::json(p));
+        vmt_tools::outln!("{:#}", vmt_tools::positioning::json(p))?;
     } else {
-        print!("{}", vmt_tools::positioning::text(p));
+        vmt_tools::out!("{}", vmt_tools::positioning::text(p))?;
     }
     if let Some(dir) = out {
         for f in vmt_tools::positioning::write(p, dir)? {
@@ -276,7 +300,7 @@ struct VolumetricArgs {
     /// Map the error over a plane, for forward and backward approach.
     #[arg(long)]
     map: bool,
-    /// Plane of the map: xy, xz or yz.
+    /// Plane of the map: xy, xz (= zx) or yz, any case, or G17, G18, G19.
     #[arg(long, default_value = "xy", requires = "map")]
     plane: Plane,
     /// Coordinate of the axis normal to the plane, mm (within its stroke).
@@ -301,7 +325,12 @@ struct ThermalArgs {
     /// Scenario file (TOML); the built-in default machine when omitted.
     scenario: Option<PathBuf>,
     /// Tool position whose drift is reported, mm, as x,y,z.
-    #[arg(long, value_delimiter = ',', default_values_t = [250.0, 200.0, 200.0], allow_negative_numbers = true)]
+    #[arg(
+        long,
+        value_delimiter = ',',
+        default_value = "250,200,200",
+        allow_negative_numbers = true
+    )]
     probe_mm: Vec<f64>,
     /// Sampling interval of the report, s.
     #[arg(long, default_value_t = 60.0)]
@@ -332,6 +361,19 @@ struct RunArgs {
     diagnose: bool,
 }
 
+#[derive(Args)]
+struct DemoArgs {
+    /// Output folder.
+    #[arg(long, default_value = "out")]
+    out: PathBuf,
+    /// Plant fidelity: reduced or multibody.
+    #[arg(long)]
+    fidelity: Option<String>,
+    /// No progress bar.
+    #[arg(long)]
+    quiet: bool,
+}
+
 fn run_job(args: RunArgs) -> Result<(), CliError> {
     let text = match &args.scenario {
         Some(p) => std::fs::read_to_string(p)
@@ -351,31 +393,30 @@ fn run_job(args: RunArgs) -> Result<(), CliError> {
     };
     let run = vmt_tools::job::execute(&scenario, &text, fidelity, args.quiet)?;
     let written = vmt_tools::job::write(&run, &args.out)?;
-    println!(
+    vmt_tools::outln!(
         "{} ({} plant, seed {})",
-        run.scenario_name, run.fidelity, run.seed
-    );
-    println!("{}", vmt_tools::job::summary_figures(&run));
-    let truth = &run.ground_truth["drives"];
-    for a in ["x", "y", "z"] {
-        println!(
-            "  truth {}: drive backlash {:.2} um, Kv {} 1/s",
-            a.to_uppercase(),
-            truth[a]["backlash_um"].as_f64().unwrap_or(f64::NAN),
-            truth[a]["kv_per_s"]
-        );
+        run.scenario_name,
+        run.fidelity,
+        run.seed
+    )?;
+    let figures = vmt_tools::job::summary_figures(&run);
+    if !figures.is_empty() {
+        vmt_tools::outln!("{figures}")?;
+    }
+    for line in vmt_tools::job::truth_summary(&run.ground_truth) {
+        vmt_tools::outln!("{line}")?;
     }
     for f in &written.files {
-        println!("wrote {}", f.display());
+        vmt_tools::outln!("wrote {}", f.display())?;
     }
     if args.diagnose && !run.ballbar.is_empty() {
         // The diagnosis reads the traces back from the MCAP file, as it would a real log.
         let mcap = args.out.join("run.mcap");
         let d = vmt_tools::diagnose::diagnose_file(&mcap, None, &vmt_ballbar::Options::default())?;
-        println!();
-        print!("{}", vmt_tools::diagnose::text(&d));
+        vmt_tools::outln!()?;
+        vmt_tools::out!("{}", vmt_tools::diagnose::text(&d))?;
         for f in vmt_tools::diagnose::write(&d, &args.out.join("diagnosis"))? {
-            println!("wrote {}", f.display());
+            vmt_tools::outln!("wrote {}", f.display())?;
         }
     }
     Ok(())
@@ -390,8 +431,10 @@ fn main() -> ExitCode {
         Command::Run(args) => run_job(args),
         Command::Demo(args) => run_job(RunArgs {
             scenario: None,
+            out: args.out,
+            fidelity: args.fidelity,
+            quiet: args.quiet,
             diagnose: true,
-            ..args
         }),
         Command::Diagnose(args) => diagnose_cmd(args),
         Command::Dataset(a) => {
@@ -404,10 +447,7 @@ fn main() -> ExitCode {
         Command::Chatter(ChatterCommand::Compensate(a)) => vmt_tools::chatter_bench::compensate(&a),
         Command::Gap(a) => vmt_tools::gap::command(&a),
         Command::GapBench(a) => vmt_tools::gap::bench_command(&a),
-        Command::Topologies => {
-            topologies();
-            Ok(())
-        }
+        Command::Topologies => topologies(),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -448,8 +488,7 @@ fn volumetric(args: VolumetricArgs) -> Result<(), CliError> {
             }
             None => {
                 let mut w = std::io::stdout().lock();
-                points::write(&mut w, &errors, args.json)
-                    .map_err(|e| CliError::output(Path::new("<stdout>"), e))
+                points::write(&mut w, &errors, args.json).map_err(CliError::stdout)
             }
         };
     }
@@ -478,14 +517,16 @@ fn volumetric(args: VolumetricArgs) -> Result<(), CliError> {
         .map_err(|e| CliError::output(&csv_path, e))?;
     let image = dir.join(format!("{stem}.{}", args.format.extension()));
     plot::draw_map(&m, &image, args.format)?;
-    println!(
+    vmt_tools::outln!(
         "{}: volumetric error on the {} plane at {} = {at_mm} mm",
-        scenario.machine.name, args.plane, m.plane.normal
-    );
+        scenario.machine.name,
+        args.plane,
+        m.plane.normal
+    )?;
     for (k, name) in ["X", "Y", "Z"].iter().enumerate() {
-        println!("  max |Δ{name}| = {:8.3} µm", m.max_abs(k) * 1e6);
+        vmt_tools::outln!("  max |Δ{name}| = {:8.3} µm", m.max_abs(k) * 1e6)?;
     }
-    println!("wrote {}\nwrote {}", csv_path.display(), image.display());
+    vmt_tools::outln!("wrote {}\nwrote {}", csv_path.display(), image.display())?;
     Ok(())
 }
 
@@ -538,23 +579,25 @@ fn thermal_run(args: ThermalArgs) -> Result<(), CliError> {
         .iter()
         .map(|t| format!("{:.2}", t / 3600.0))
         .collect();
-    println!(
+    vmt_tools::outln!(
         "{}: thermal run of {:.1} h",
         scenario.machine.name,
         h.times_s.last().copied().unwrap_or(0.0) / 3600.0
-    );
-    println!("  time constants of the network (h): {}", taus.join(", "));
+    )?;
+    vmt_tools::outln!("  time constants of the network (h): {}", taus.join(", "))?;
     let worst = h.drift.iter().map(|d| d.amax()).fold(0.0, f64::max);
-    println!(
+    vmt_tools::outln!(
         "  largest drift of the tool point at the probe: {:.2} µm",
         worst * 1e6
-    );
-    println!("wrote {}\nwrote {}", csv_path.display(), image.display());
+    )?;
+    vmt_tools::outln!("wrote {}\nwrote {}", csv_path.display(), image.display())?;
     Ok(())
 }
 
-fn topologies() {
-    println!("The 24 topologies of a three-axis machine, workpiece (W) to tool (T), G = ground:");
+fn topologies() -> Result<(), CliError> {
+    vmt_tools::outln!(
+        "The 24 topologies of a three-axis machine, workpiece (W) to tool (T), G = ground:"
+    )?;
     for t in Topology::all() {
         let side = |s: Side| {
             let axes: Vec<String> = t
@@ -569,10 +612,11 @@ fn topologies() {
                 axes.join(" ")
             }
         };
-        println!(
+        vmt_tools::outln!(
             "  {t}   workpiece carried by: {:6} tool carried by: {}",
             side(Side::Workpiece),
             side(Side::Tool)
-        );
+        )?;
     }
+    Ok(())
 }

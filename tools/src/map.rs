@@ -22,11 +22,11 @@ pub struct Plane {
 impl FromStr for Plane {
     type Err = String;
     fn from_str(s: &str) -> Result<Self, Self::Err> {
-        let (u, v, normal) = match s.to_ascii_lowercase().as_str() {
-            "xy" => (Axis::X, Axis::Y, Axis::Z),
-            "xz" => (Axis::X, Axis::Z, Axis::Y),
-            "yz" => (Axis::Y, Axis::Z, Axis::X),
-            _ => return Err(format!("`{s}` is not a plane; accepted: xy, xz, yz")),
+        use crate::plane::Plane as Name;
+        let (u, v, normal) = match crate::plane::parse(s)? {
+            Name::Xy => (Axis::X, Axis::Y, Axis::Z),
+            Name::Zx => (Axis::X, Axis::Z, Axis::Y),
+            Name::Yz => (Axis::Y, Axis::Z, Axis::X),
         };
         Ok(Plane { u, v, normal })
     }

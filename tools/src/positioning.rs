@@ -98,19 +98,9 @@ fn read_mcap(
                 axis = m.channel.metadata.get("axis").cloned();
                 let v: Value = serde_json::from_slice(&m.data)
                     .map_err(|e| bad(format!("/laser: a message that is not JSON: {e}")))?;
-                let num = |k: &str| {
-                    v[k].as_f64()
-                        .ok_or_else(|| bad(format!("/laser: a message without a number `{k}`")))
-                };
-                let d = v["direction"].as_str().unwrap_or("");
-                readings.push(Reading {
-                    target_mm: num("target_mm")?,
-                    approach: direction(d).ok_or_else(|| {
-                        bad(format!("/laser: direction `{d}`; forward or backward"))
-                    })?,
-                    run: num("run")? as usize,
-                    deviation_um: num("deviation_um")?,
-                });
+                let n = readings.len() + 1;
+                readings
+                    .push(laser_reading(&v).map_err(|e| bad(format!("/laser message {n}: {e}")))?);
             }
             _ => {}
         }
@@ -121,6 +111,30 @@ fn read_mcap(
     let run = PositioningRun::new(axis.as_deref().unwrap_or("?"), readings)
         .map_err(|e| bad(e.to_string()))?;
     Ok(Some((run, truth.filter(|t| !t.is_null()))))
+}
+
+/// One `/laser` message of an MCAP run as a reading; the run number must be a positive
+/// integer (1.5 is refused, not truncated to run 1), as in a CSV.
+fn laser_reading(v: &Value) -> Result<Reading, String> {
+    let num = |k: &str| {
+        v[k].as_f64()
+            .filter(|x| x.is_finite())
+            .ok_or_else(|| format!("no number `{k}`"))
+    };
+    let d = v["direction"].as_str().unwrap_or("");
+    let run = num("run")?;
+    if !(run >= 1.0 && run.fract() == 0.0 && run <= u32::MAX as f64) {
+        return Err(format!(
+            "run `{}` is not accepted; a positive integer",
+            v["run"]
+        ));
+    }
+    Ok(Reading {
+        target_mm: num("target_mm")?,
+        approach: direction(d).ok_or_else(|| format!("direction `{d}`; forward or backward"))?,
+        run: run as usize,
+        deviation_um: num("deviation_um")?,
+    })
 }
 
 fn read_csv(bytes: &[u8], file: &str, axis: &str) -> Result<Option<PositioningRun>, CliError> {
@@ -371,4 +385,29 @@ fn draw_on<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, e: &Evaluation) ->
         ))?;
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use serde_json::json;
+
+    #[test]
+    fn laser_run_numbers_must_be_positive_integers() {
+        let msg = |run: Value| json!({"target_mm": 10.0, "direction": "forward", "run": run, "deviation_um": 1.0});
+        assert_eq!(laser_reading(&msg(json!(2))).unwrap().run, 2);
+        assert_eq!(laser_reading(&msg(json!(2.0))).unwrap().run, 2);
+        for bad in [json!(1.5), json!(1.7), json!(0), json!(-1), json!("1")] {
+            let e = laser_reading(&msg(bad.clone())).map(|r| r.run).unwrap_err();
+            assert!(
+                e.contains("a positive integer") || e.contains("no number `run`"),
+                "{bad}: {e}"
+            );
+        }
+        assert!(
+            laser_reading(&msg(json!(1.5)))
+                .unwrap_err()
+                .contains("run `1.5`")
+        );
+    }
 }

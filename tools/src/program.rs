@@ -3,7 +3,7 @@
 use crate::CliError;
 use clap::Args;
 use nalgebra::Vector3;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use vmt_sim::nc::ballbar::{CircularTest, TestParameter};
 use vmt_sim::nc::{ArcDirection, Plane};
 
@@ -51,12 +51,12 @@ pub struct BallbarArgs {
 }
 
 fn parse_plane(s: &str) -> Result<Plane, String> {
-    match s.to_ascii_uppercase().as_str() {
-        "XY" | "YX" | "G17" => Ok(Plane::Xy),
-        "ZX" | "XZ" | "G18" => Ok(Plane::Zx),
-        "YZ" | "ZY" | "G19" => Ok(Plane::Yz),
-        _ => Err(format!("`{s}`: the plane is XY, ZX (or XZ) or YZ")),
-    }
+    use crate::plane::Plane as Name;
+    Ok(match crate::plane::parse(s)? {
+        Name::Xy => Plane::Xy,
+        Name::Zx => Plane::Zx,
+        Name::Yz => Plane::Yz,
+    })
 }
 
 fn parse_direction(s: &str) -> Result<ArcDirection, String> {
@@ -132,15 +132,9 @@ pub fn ballbar(args: &BallbarArgs) -> Result<(), CliError> {
                 std::fs::create_dir_all(dir).map_err(|e| CliError::output(dir, e))?;
             }
             std::fs::write(path, text).map_err(|e| CliError::output(path, e))?;
-            println!("wrote {}", path.display());
+            crate::outln!("wrote {}", path.display())?;
         }
-        None => {
-            use std::io::Write;
-            std::io::stdout()
-                .lock()
-                .write_all(text.as_bytes())
-                .map_err(|e| CliError::output(Path::new("<stdout>"), e))?;
-        }
+        None => crate::out!("{text}")?,
     }
     Ok(())
 }

@@ -365,3 +365,50 @@ fn compensate_suppresses_slowly_growing_chatter_by_spindle_speed() {
     assert_eq!(num(&speed[6]), num(&none[6]), "removal rate");
     assert!(num(&speed[8]) < 0.6 * num(&none[8]), "{speed:?} {none:?}");
 }
+
+#[test]
+fn spindle_speed_and_teeth_come_together_and_a_csv_needs_them_for_the_better_detector() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = write_csv(dir.path(), "accel.csv", true);
+    let e = |args: &[&str]| {
+        let mut a = vec!["chatter", "detect", &csv];
+        a.extend(args);
+        let o = vmt(&a);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {}", stderr(&o));
+        stderr(&o)
+    };
+    let said = e(&["--spindle-rpm", "7500"]);
+    assert!(said.contains("--teeth"), "{said}");
+    let said = e(&["--teeth", "4"]);
+    assert!(said.contains("--spindle-rpm"), "{said}");
+    let said = e(&["--spindle-rpm", "7500", "--teeth", "0"]);
+    assert!(said.contains("--teeth 0: from 1 to 100"), "{said}");
+    let said = e(&["--spindle-rpm=-5", "--teeth", "4"]);
+    assert!(
+        said.contains("--spindle-rpm -5: from 1 to 200000 rpm"),
+        "{said}"
+    );
+    assert!(!said.contains("Hz"), "{said}");
+    // No spindle speed in a CSV: not guessed from the spectrum (where it could be the chatter).
+    let said = e(&[]);
+    assert!(
+        said.contains("accel.csv") && said.contains("--spindle-rpm and --teeth"),
+        "{said}"
+    );
+    let o = vmt(&["chatter", "detect", &csv, "--detector", "kim"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+}
+
+#[test]
+fn irregular_sampling_is_reported_in_short_numbers() {
+    // Samples every 5 ms, then 0.0553 - 0.05 = 0.005299999999999999 in binary.
+    let mut body = String::from("time_s,ax\n");
+    for t in [
+        "0", "0.005", "0.01", "0.015", "0.02", "0.025", "0.03", "0.035", "0.04", "0.045",
+    ] {
+        body += &format!("{t},1\n");
+    }
+    let e = error_of(&(body + "0.05,1\n0.0553,1\n"));
+    assert!(e.contains("interval 0.0053 s"), "{e}");
+    assert!(e.contains("mean 0.005027273 s"), "{e}");
+}

@@ -236,3 +236,75 @@ fn times_beyond_the_evaluated_range_are_refused_not_run_forever() {
     ]));
     assert!(e.contains("up to 1 000 000 are accepted"), "{e}");
 }
+
+#[test]
+fn demo_takes_no_scenario() {
+    let o = vmt(&["demo", "/nonexistent.toml"]);
+    assert!(!o.status.success());
+    let e = stderr(&o);
+    assert!(e.contains("unexpected argument '/nonexistent.toml'"), "{e}");
+    let help = String::from_utf8_lossy(&vmt(&["demo", "--help"]).stdout).into_owned();
+    assert!(
+        help.contains("Takes no scenario") && !help.contains("[SCENARIO]"),
+        "{help}"
+    );
+}
+
+#[test]
+fn help_defaults_and_plane_spellings_agree_with_what_is_accepted() {
+    let help = |args: &[&str]| String::from_utf8_lossy(&vmt(args).stdout).into_owned();
+    // The default of --probe-mm is shown in the form that is accepted.
+    let h = help(&["thermal", "--help"]);
+    assert!(h.contains("[default: 250,200,200]"), "{h}");
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().to_str().unwrap();
+    let o = vmt(&["thermal", "--probe-mm", "250,200,200", "--out", out]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    // Not every run draws a polar plot.
+    let h = help(&["run", "--help"]);
+    assert!(h.contains("ballbar_polar.png for ball-bar traces"), "{h}");
+    // One plane parser: zx is the xz map, as diagnose, program and gap accept it.
+    for plane in ["zx", "XZ", "G18"] {
+        let o = vmt(&[
+            "volumetric",
+            "--map",
+            "--plane",
+            plane,
+            "--at-mm",
+            "100",
+            "--grid",
+            "3",
+            "--out",
+            out,
+        ]);
+        assert!(o.status.success(), "--plane {plane}: {}", stderr(&o));
+        assert!(String::from_utf8_lossy(&o.stdout).contains("on the xz plane"));
+    }
+    let e = stderr(&vmt(&[
+        "volumetric",
+        "--map",
+        "--plane",
+        "xx",
+        "--at-mm",
+        "100",
+    ]));
+    assert!(e.contains("the plane is XY, ZX (or XZ) or YZ"), "{e}");
+    let o = vmt(&[
+        "program",
+        "ballbar",
+        "--plane",
+        "xz",
+        "--radius-mm",
+        "100",
+        "--feed-mm-min",
+        "1000",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+}
+
+#[test]
+fn compensate_depth_is_refused_in_mm() {
+    let e = stderr(&vmt(&["chatter", "compensate", "--depth-mm=-0.3"]));
+    assert!(e.contains("--depth-mm -0.3: must be > 0"), "{e}");
+    assert!(!e.contains("0.0003"), "{e}");
+}

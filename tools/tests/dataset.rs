@@ -7,7 +7,7 @@ mod common;
 use common::{stderr, vmt};
 use serde_json::Value;
 use std::path::{Path, PathBuf};
-use std::process::Command;
+use std::process::{Command, Output};
 
 /// scenarios/dataset_xy.toml with a 50 mm circle, `edit` applied (from, to), written into `dir`.
 fn scenario(dir: &Path, edit: Option<(&str, &str)>) -> PathBuf {
@@ -25,17 +25,11 @@ fn scenario(dir: &Path, edit: Option<(&str, &str)>) -> PathBuf {
     path
 }
 
-/// Runs `vmt dataset` on `threads` threads.
-fn dataset(scenario: &Path, out: &Path, count: u32, threads: usize) -> String {
-    let o = Command::new("timeout")
-        .args([
-            "300",
-            env!("CARGO_BIN_EXE_vmt"),
-            "dataset",
-            "--quiet",
-            "--seed",
-            "7",
-        ])
+/// Runs `vmt dataset --seed seed` on `threads` threads.
+fn dataset_run(scenario: &Path, out: &Path, count: u32, seed: u64, threads: usize) -> Output {
+    Command::new("timeout")
+        .args(["300", env!("CARGO_BIN_EXE_vmt"), "dataset", "--quiet"])
+        .args(["--seed", &seed.to_string()])
         .arg("--scenario")
         .arg(scenario)
         .args(["--count", &count.to_string()])
@@ -43,7 +37,12 @@ fn dataset(scenario: &Path, out: &Path, count: u32, threads: usize) -> String {
         .arg(out)
         .env("RAYON_NUM_THREADS", threads.to_string())
         .output()
-        .unwrap();
+        .unwrap()
+}
+
+/// Runs `vmt dataset --seed 7` on `threads` threads.
+fn dataset(scenario: &Path, out: &Path, count: u32, threads: usize) -> String {
+    let o = dataset_run(scenario, out, count, 7, threads);
     assert!(o.status.success(), "vmt dataset failed: {}", stderr(&o));
     String::from_utf8_lossy(&o.stdout).into_owned()
 }
@@ -199,7 +198,82 @@ fn accuracy_compares_the_diagnosis_with_the_truth() {
     assert!(rms > 0.0 && rms < 0.3, "rms {rms}");
     assert!(p95 <= worst && rms <= worst, "{b}");
     assert_eq!(b["within"], 1.0);
-    // Backlash is present in every run, so no run counts towards its false positives.
-    assert_eq!(b["fp_runs"], 0);
+    // Backlash is present in every run, so no run is quiet (eligible for a false positive).
+    assert_eq!(b["quiet_runs"], 0);
     assert_eq!(report["runs"], 3);
+    assert!(!stderr(&o).contains("warning"), "{}", stderr(&o));
+    assert_eq!(report["warnings"].as_array().map(Vec::len), Some(0));
+    // An interrupted dataset: run 2 never finished, the manifest never written.
+    std::fs::remove_dir_all(out.join("runs/000002")).unwrap();
+    std::fs::remove_file(out.join("manifest.csv")).unwrap();
+    let o = vmt(&["accuracy", out.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let e = stderr(&o);
+    for w in [
+        "warning:",
+        "incomplete: 2 of the 3 runs",
+        "manifest.csv is missing",
+    ] {
+        assert!(e.contains(w), "`{w}` not in: {e}");
+    }
+    let md = String::from_utf8(bytes(&out, "accuracy.md")).unwrap();
+    assert!(
+        md.contains("**Warning:**") && md.contains("quiet runs"),
+        "{md}"
+    );
+}
+
+/// The run folders of `out`, by name.
+fn run_names(out: &Path) -> Vec<String> {
+    let mut names: Vec<String> = std::fs::read_dir(out.join("runs"))
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    names
+}
+
+#[test]
+fn a_folder_of_another_seed_scenario_or_larger_count_is_refused() {
+    let tmp = tempfile::tempdir().unwrap();
+    let s = scenario(tmp.path(), None);
+    let out = tmp.path().join("ds");
+    dataset(&s, &out, 2, 2);
+    let identity: Value = serde_json::from_slice(&bytes(&out, "dataset.json")).unwrap();
+    assert_eq!(identity["seed"], 7);
+    assert_eq!(identity["count"], 2);
+    let refused = |o: Output, words: &[&str]| {
+        assert!(
+            !o.status.success(),
+            "accepted: {}",
+            String::from_utf8_lossy(&o.stdout)
+        );
+        let e = stderr(&o);
+        assert!(!e.contains("panicked"), "{e}");
+        for w in words {
+            assert!(e.contains(w), "`{w}` not in: {e}");
+        }
+        assert_eq!(run_names(&out), ["000000", "000001"], "{e}");
+    };
+    let folder = out.display().to_string();
+    refused(
+        dataset_run(&s, &out, 3, 8, 2),
+        &[&folder, "--seed 7", "--seed 8"],
+    );
+    let edited = tmp.path().join("edited");
+    std::fs::create_dir(&edited).unwrap();
+    let e = scenario(&edited, Some(("radius_mm = 50.0", "radius_mm = 60.0")));
+    refused(dataset_run(&e, &out, 3, 7, 2), &[&folder, "scenario text"]);
+    refused(
+        dataset_run(&s, &out, 1, 7, 2),
+        &[&folder, "--count 1", "000001", "--count 2 or more"],
+    );
+    refused(dataset_run(&s, &out, 0, 7, 2), &["--count 0", "at least 1"]);
+    // A folder of runs without its identity is not taken over either.
+    std::fs::remove_file(out.join("dataset.json")).unwrap();
+    refused(dataset_run(&s, &out, 2, 7, 2), &[&folder, "dataset.json"]);
+    let fresh = tmp.path().join("fresh");
+    let o = dataset_run(&s, &fresh, 0, 7, 2);
+    assert!(!o.status.success() && stderr(&o).contains("--count 0"));
+    assert!(!fresh.exists(), "--count 0 wrote {}", fresh.display());
 }

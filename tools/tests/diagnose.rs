@@ -251,3 +251,61 @@ fn a_simulated_run_is_read_back_from_its_mcap_and_compared_with_its_truth() {
         .collect();
     assert!((v[0] - v[1]).abs() < 0.3, "truth against diagnosis: {line}");
 }
+
+#[test]
+fn the_file_kind_decides_which_flags_apply_and_names_a_missing_column() {
+    let dir = tempfile::tempdir().unwrap();
+    let write = |name: &str, text: &str| {
+        let p = dir.path().join(name);
+        std::fs::write(&p, text).unwrap();
+        p.to_str().unwrap().to_string()
+    };
+    let refused = |args: &[&str], words: &[&str]| {
+        let o = vmt(args);
+        let e = stderr(&o);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {e}");
+        for w in words {
+            assert!(e.contains(w), "`{w}` not in: {e}");
+        }
+    };
+    let empty = write("empty.csv", "");
+    refused(
+        &["diagnose", &empty],
+        &["empty.csv:1", "empty", "angle_deg", "target_mm"],
+    );
+    let laser = write("laser.csv", "direction,run,deviation_um\nforward,1,0.5\n");
+    refused(
+        &["diagnose", &laser],
+        &["laser.csv:1", "no `target_mm` column", "laser"],
+    );
+    let with_target = write(
+        "laser2.csv",
+        "target_mm,direction,run,deviation_um\n10,forward,1,0.5\n",
+    );
+    refused(
+        &["diagnose", &with_target, "--plane", "XY"],
+        &[
+            "laser positioning CSV",
+            "--plane apply to ball-bar CSV traces only",
+        ],
+    );
+    let ballbar = write("bb.csv", &rows(10, |_, a| (a, "0".into())));
+    refused(
+        &["diagnose", &ballbar, "--axis", "X"],
+        &["--axis applies to laser"],
+    );
+    // An MCAP run records its own set-up: the CSV flags are refused, all three or some.
+    let mcap = dir.path().join("run.mcap");
+    std::fs::write(&mcap, b"\x89MCAP0\r\n").unwrap();
+    let m = mcap.to_str().unwrap();
+    refused(
+        &["diagnose", m, "--radius-mm", "150"],
+        &["MCAP run", "--radius-mm apply to ball-bar CSV traces only"],
+    );
+    let mut all = vec!["diagnose", m];
+    all.extend(SETUP);
+    refused(
+        &all,
+        &["MCAP run", "--radius-mm, --feed-mm-min, --plane apply"],
+    );
+}

@@ -26,7 +26,9 @@ fn scenario(dir: &Path, depth_mm: f64) -> PathBuf {
     p
 }
 
-fn run(dir: &Path, depth_mm: f64) -> (serde_json::Value, String) {
+/// Runs the slot at `depth_mm`: (ground truth, `vmt run`'s summary, `vmt chatter detect`'s
+/// report).
+fn run(dir: &Path, depth_mm: f64) -> (serde_json::Value, String, String) {
     let s = scenario(dir, depth_mm);
     let out = dir.join("out");
     let o = vmt(&[
@@ -37,6 +39,11 @@ fn run(dir: &Path, depth_mm: f64) -> (serde_json::Value, String) {
         "--quiet",
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
+    let summary = String::from_utf8_lossy(&o.stdout).into_owned();
+    assert!(
+        !summary.contains("NaN") && !summary.contains("null") && !summary.contains("backlash"),
+        "{summary}"
+    );
     let truth = std::fs::read_to_string(out.join("ground_truth.json")).unwrap();
     let d = vmt(&[
         "chatter",
@@ -48,6 +55,7 @@ fn run(dir: &Path, depth_mm: f64) -> (serde_json::Value, String) {
     assert!(d.status.success(), "{}", stderr(&d));
     (
         serde_json::from_str(&truth).unwrap(),
+        summary,
         String::from_utf8_lossy(&d.stdout).into_owned(),
     )
 }
@@ -55,8 +63,23 @@ fn run(dir: &Path, depth_mm: f64) -> (serde_json::Value, String) {
 #[test]
 fn a_slot_beyond_the_limit_chatters_near_the_mode_and_is_detected() {
     let dir = tempfile::tempdir().unwrap();
-    let (truth, detect) = run(dir.path(), 0.5);
+    let (truth, summary, detect) = run(dir.path(), 0.5);
     let m = &truth["milling"];
+    // The summary prints the milling truth: chatter onset and frequency, the surface.
+    let said = format!(
+        "truth: chatter from {:.3} s at {:.1} Hz (15000 rpm, 2 teeth: tooth passing 500.0 Hz)",
+        m["chatter_onset_s"].as_f64().unwrap(),
+        m["chatter_frequency_hz"].as_f64().unwrap()
+    );
+    assert!(summary.contains(&said), "`{said}` not in {summary}");
+    let ra = format!(
+        "truth: surface Ra {:.3} um, Rz ",
+        m["ra_um"].as_f64().unwrap()
+    );
+    assert!(
+        summary.contains(&ra) && summary.contains("SLE mean"),
+        "{summary}"
+    );
     assert_eq!(m["chatter"], true, "{m:#}");
     // Regenerative chatter just above the 922 Hz mode, away from the 500 Hz tooth passing.
     let f = m["chatter_frequency_hz"].as_f64().unwrap();
@@ -72,7 +95,11 @@ fn a_slot_beyond_the_limit_chatters_near_the_mode_and_is_detected() {
 #[test]
 fn a_slot_below_the_limit_is_stable_and_not_flagged() {
     let dir = tempfile::tempdir().unwrap();
-    let (truth, detect) = run(dir.path(), 0.2);
+    let (truth, summary, detect) = run(dir.path(), 0.2);
     assert_eq!(truth["milling"]["chatter"], false, "{truth:#}");
+    assert!(
+        summary.contains("truth: no chatter (15000 rpm"),
+        "{summary}"
+    );
     assert!(!detect.contains("CHATTER"), "{detect}");
 }

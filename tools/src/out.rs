@@ -1,0 +1,34 @@
+//! Standard output of every command. `println!` panics ("failed printing to stdout: Broken
+//! pipe", exit 101) when stdout is closed, e.g. piped into `head -1`; the macros here write the
+//! same text but return the failure as [`CliError`] naming `<stdout>`, which the command passes
+//! up with `?` like any other output error.
+
+use crate::error::CliError;
+use std::io::Write;
+
+/// Writes `args` to stdout and flushes; a failure (a closed pipe) is an error naming `<stdout>`.
+pub fn print(args: std::fmt::Arguments) -> Result<(), CliError> {
+    let mut w = std::io::stdout().lock();
+    w.write_fmt(args)
+        .and_then(|_| w.flush())
+        .map_err(CliError::stdout)
+}
+
+/// `print!` that returns `Result<(), CliError>` instead of panicking on a closed stdout.
+#[macro_export]
+macro_rules! out {
+    ($($arg:tt)*) => {
+        $crate::out::print(format_args!($($arg)*))
+    };
+}
+
+/// `println!` that returns `Result<(), CliError>` instead of panicking on a closed stdout.
+#[macro_export]
+macro_rules! outln {
+    () => {
+        $crate::out::print(format_args!("\n"))
+    };
+    ($($arg:tt)*) => {
+        $crate::out::print(format_args!("{}\n", format_args!($($arg)*)))
+    };
+}

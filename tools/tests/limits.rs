@@ -1,0 +1,125 @@
+//! Options that size an allocation are bounded at the command line: a value beyond the range
+//! is refused in the unit typed, naming the option and the accepted range, before anything is
+//! allocated (no abort on allocation, no unbounded growth).
+
+mod common;
+
+use common::{stderr, vmt};
+
+/// Runs `vmt args`, expects a clean refusal (exit 2, no panic or abort) containing `words`.
+fn refused(args: &[&str], words: &[&str]) {
+    let o = vmt(args);
+    let e = stderr(&o);
+    assert_eq!(o.status.code(), Some(2), "vmt {args:?}: {e}");
+    assert!(
+        !e.contains("panicked") && !e.contains("memory allocation"),
+        "{e}"
+    );
+    for w in words {
+        assert!(e.contains(w), "vmt {args:?}: `{w}` not in: {e}");
+    }
+}
+
+#[test]
+fn ball_bar_radius_and_feed_of_a_csv_trace_are_bounded() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = dir.path().join("t.csv");
+    let mut text = String::from("angle_deg,deviation_um,direction\n");
+    for i in 0..=720 {
+        text += &format!("{},0,ccw\n", i as f64 * 0.5);
+    }
+    std::fs::write(&csv, text).unwrap();
+    let f = csv.to_str().unwrap();
+    let setup = |r: &'static str, v: &'static str| {
+        let mut a = vec![
+            "--radius-mm",
+            "150",
+            "--feed-mm-min",
+            "1000",
+            "--plane",
+            "XY",
+        ];
+        let i = a.iter().position(|x| *x == r).unwrap();
+        a[i + 1] = v;
+        a
+    };
+    for (option, value) in [
+        ("--radius-mm", "1e7"),
+        ("--radius-mm", "1e9"),
+        ("--radius-mm", "0"),
+    ] {
+        let mut args = vec!["diagnose", f];
+        args.extend(setup(option, value));
+        refused(
+            &args,
+            &[option, "from 1 to 1500 mm is accepted", "ball bars"],
+        );
+    }
+    let mut args = vec!["diagnose", f];
+    args.extend(setup("--feed-mm-min", "1e-300"));
+    refused(&args, &["--feed-mm-min", "mm/min is accepted"]);
+    let mut args = vec!["gap", "--model", "x.toml", "--real", f];
+    args.extend(setup("--radius-mm", "1e7"));
+    refused(&args, &["--radius-mm", "1500 mm"]);
+    // The largest bar is diagnosed.
+    let mut args = vec!["diagnose", f];
+    args.extend(setup("--radius-mm", "1500"));
+    let o = vmt(&args);
+    assert!(o.status.success(), "{}", stderr(&o));
+}
+
+#[test]
+fn chatter_compensate_and_bench_are_bounded() {
+    refused(
+        &["chatter", "compensate", "--spindle-rpm", "1e9"],
+        &["--spindle-rpm 1000000000", "from 100 to 60000 rpm"],
+    );
+    refused(
+        &["chatter", "compensate", "--duration-s", "1000"],
+        &["--duration-s 1000", "from 0.1 to 20 s"],
+    );
+    refused(
+        &[
+            "chatter",
+            "bench",
+            "--speeds",
+            "100",
+            "--depths",
+            "100",
+            "--duration-s",
+            "1",
+        ],
+        &[
+            "--speeds 100 x --depths 100",
+            "10000 s of cut",
+            "at most 2000 s",
+        ],
+    );
+    refused(
+        &["chatter", "bench", "--duration-s", "1e6"],
+        &["--duration-s"],
+    );
+}
+
+#[test]
+fn lobes_grids_are_bounded_and_named() {
+    refused(
+        &["lobes", "--speeds", "100000000"],
+        &["--speeds 100000000", "from 2 to 5000"],
+    );
+    refused(
+        &["lobes", "--depths", "1"],
+        &["--depths 1", "from 2 to 2000"],
+    );
+    refused(&["lobes", "--sd-steps", "100000"], &["--sd-steps 100000"]);
+    refused(
+        &[
+            "lobes",
+            "--speed-min-rpm",
+            "9000",
+            "--speed-max-rpm",
+            "8000",
+        ],
+        &["--speed-min-rpm 9000 must be below --speed-max-rpm 8000"],
+    );
+}
