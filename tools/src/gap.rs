@@ -140,12 +140,20 @@ fn localisation_text(out: &mut String, l: &Localisation) {
     }
 }
 
+/// The significance level of the whiteness verdict: a residual is called white unless
+/// Ljung–Box rejects it at 1 % (a report reads many series; 5 % would flag one in twenty
+/// white ones).
+const WHITENESS_LEVEL: f64 = 0.01;
+
 /// The report's line on a whiteness test; `over` says what the series run over.
 pub(crate) fn whiteness_line(w: &vmt_gap::whiteness::Whiteness, over: &str) -> String {
-    let verdict = if w.is_white(0.01) {
-        "white".to_string()
+    let verdict = if w.is_white(WHITENESS_LEVEL) {
+        format!("white at the {} % level", WHITENESS_LEVEL * 100.0)
     } else {
-        format!("not white: structure is left{over}")
+        format!(
+            "not white at the {} % level: structure is left{over}",
+            WHITENESS_LEVEL * 100.0
+        )
     };
     format!(
         "  whiteness (Ljung-Box, {} dof): Q = {:.1}, p = {:.3} -> {verdict}",

@@ -550,6 +550,12 @@ fn map_temperatures(scenario: &Scenario, time_h: Option<f64>) -> Result<Vec<f64>
             "--time-h needs a scenario with a thermal model and [thermal_run]".into(),
         ));
     };
+    let hours = run.schedule.duration_s() / 3600.0;
+    if h > hours {
+        return Err(CliError::Argument(format!(
+            "--time-h {h}: the scenario's thermal run lasts {hours} h; a time within it is accepted (extend [thermal_run] to look later)"
+        )));
+    }
     let temps = temperatures_at(&t.network, &run.schedule, run.step_s, &[h * 3600.0])
         .map_err(|e| CliError::Model(e.to_string()))?;
     Ok(temps.into_iter().next().unwrap_or_default())
@@ -585,10 +591,12 @@ fn thermal_run(args: ThermalArgs) -> Result<(), CliError> {
         h.times_s.last().copied().unwrap_or(0.0) / 3600.0
     )?;
     vmt_tools::outln!("  time constants of the network (h): {}", taus.join(", "))?;
-    let worst = h.drift.iter().map(|d| d.amax()).fold(0.0, f64::max);
+    let (worst, at) = h.largest_drift;
     vmt_tools::outln!(
-        "  largest drift of the tool point at the probe: {:.2} µm",
-        worst * 1e6
+        "  largest drift of the tool point at the probe: {:.2} µm (at {:.2} h; over every {} s step of the run)",
+        worst * 1e6,
+        at / 3600.0,
+        scenario.thermal_run.as_ref().map_or(0.0, |r| r.step_s)
     )?;
     vmt_tools::outln!("wrote {}\nwrote {}", csv_path.display(), image.display())?;
     Ok(())

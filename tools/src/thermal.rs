@@ -26,6 +26,9 @@ pub struct ThermalHistory {
     pub drift: Vec<Vector3<f64>>,
     /// Time constants of the network, s.
     pub time_constants_s: Vec<f64>,
+    /// The largest component of the drift over every step of the run (not only the samples),
+    /// m, and when, s.
+    pub largest_drift: (f64, f64),
 }
 
 /// Runs the thermal run of `scenario`, sampling every `every_s` seconds, with the drift of the
@@ -75,14 +78,35 @@ pub fn run(
         temps_c: Vec::new(),
         drift: Vec::new(),
         time_constants_s: thermal.network.time_constants_s().map_err(model)?,
+        largest_drift: (0.0, 0.0),
     };
+    let drift_at = |run: &ThermalRun| {
+        machine
+            .volumetric_error(&state, run.temperatures_c())
+            .map_err(|e| CliError::Model(e.to_string()))
+    };
+    let mut before = 0.0;
     for i in 0..=samples {
         let t = (i as f64 * every_s).min(duration);
+        // The run's own steps between samples, so that the largest drift does not depend on
+        // how often the history is sampled.
+        let mut between = before + spec.step_s;
+        while between < t {
+            run.advance_to(between).map_err(model)?;
+            let d = (drift_at(&run)? - reference).amax();
+            if d > h.largest_drift.0 {
+                h.largest_drift = (d, between);
+            }
+            between += spec.step_s;
+        }
         run.advance_to(t).map_err(model)?;
+        before = t;
         let temps = run.temperatures_c().to_vec();
-        let e = machine
-            .volumetric_error(&state, &temps)
-            .map_err(|e| CliError::Model(e.to_string()))?;
+        let e = drift_at(&run)?;
+        let d = (e - reference).amax();
+        if d > h.largest_drift.0 {
+            h.largest_drift = (d, t);
+        }
         h.times_s.push(t);
         h.ambient_c.push(thermal.network.ambient().celsius_at(t));
         h.temps_c.push(temps);

@@ -308,3 +308,51 @@ fn compensate_depth_is_refused_in_mm() {
     assert!(e.contains("--depth-mm -0.3: must be > 0"), "{e}");
     assert!(!e.contains("0.0003"), "{e}");
 }
+
+/// The largest thermal drift is taken over every step of the run, so it does not depend on how
+/// often the history is sampled (it read 21.61 µm at 60 s and 20.77 µm at 7200 s).
+#[test]
+fn the_largest_thermal_drift_does_not_depend_on_the_sampling() {
+    let dir = tempfile::tempdir().unwrap();
+    let largest = |every: &str| {
+        let out = dir.path().join(every);
+        let o = vmt(&[
+            "thermal",
+            "--every-s",
+            every,
+            "--format",
+            "svg",
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let text = String::from_utf8_lossy(&o.stdout).to_string();
+        let line = text
+            .lines()
+            .find(|l| l.contains("largest drift"))
+            .unwrap_or_else(|| panic!("{text}"))
+            .to_string();
+        line
+    };
+    let (fine, coarse) = (largest("60"), largest("7200"));
+    assert_eq!(fine, coarse);
+    assert!(fine.contains("µm (at "), "{fine}");
+}
+
+#[test]
+fn a_time_beyond_the_thermal_run_is_refused() {
+    let e = stderr(&vmt(&[
+        "volumetric",
+        "--map",
+        "--plane",
+        "xy",
+        "--at-mm",
+        "200",
+        "--time-h",
+        "100",
+    ]));
+    assert!(
+        e.contains("--time-h 100: the scenario's thermal run lasts 8 h"),
+        "{e}"
+    );
+}
