@@ -157,7 +157,8 @@ fn read_csv(bytes: &[u8], file: &str, axis: &str) -> Result<Option<PositioningRu
     };
     let (dir_col, run_col) = (need("direction")?, need("run")?);
     let value = match (find("deviation_um"), find("reading_mm")) {
-        (Some(k), _) => Measured::Deviation(k),
+        (Some(k), Some(r)) => Measured::Both(k, r),
+        (Some(k), None) => Measured::Deviation(k),
         (None, Some(k)) => Measured::Reading(k),
         (None, None) => Measured::Deviation(need("deviation_um")?),
     };
@@ -184,7 +185,24 @@ fn read_csv(bytes: &[u8], file: &str, axis: &str) -> Result<Option<PositioningRu
         let deviation_um = match value {
             Measured::Deviation(k) => number(k, "deviation_um")?,
             Measured::Reading(k) => (number(k, "reading_mm")? - target_mm) * 1e3,
+            Measured::Both(k, r) => {
+                let (d, from_reading) = (
+                    number(k, "deviation_um")?,
+                    (number(r, "reading_mm")? - target_mm) * 1e3,
+                );
+                if (d - from_reading).abs() > BOTH_COLUMNS_UM {
+                    return Err(at(format!(
+                        "deviation_um = {d} but reading_mm − target_mm = {from_reading:.4} µm; the two columns must agree within {BOTH_COLUMNS_UM} µm (their rounding)"
+                    )));
+                }
+                d
+            }
         };
+        if deviation_um.abs() > MAX_DEVIATION_UM {
+            return Err(at(format!(
+                "a deviation of {deviation_um} µm from target {target_mm} mm is not accepted; a positioning error within ±{MAX_DEVIATION_UM} µm (check the units: µm, mm)"
+            )));
+        }
         readings.push(Reading {
             target_mm,
             approach,
@@ -211,7 +229,16 @@ fn read_csv(bytes: &[u8], file: &str, axis: &str) -> Result<Option<PositioningRu
 enum Measured {
     Deviation(usize),
     Reading(usize),
+    /// Both columns: the deviation, checked against the reading.
+    Both(usize, usize),
 }
+
+/// How far `deviation_um` and `reading_mm − target_mm` may differ when both are given, µm
+/// (an export rounds each to its own digits).
+const BOTH_COLUMNS_UM: f64 = 0.1;
+/// The largest positioning deviation accepted, µm: beyond it a unit is wrong (mm as µm) or the
+/// log is broken; an uncompensated machine is off by tens of µm, a large one by some hundreds.
+const MAX_DEVIATION_UM: f64 = 10_000.0;
 
 /// The figures of the noise-free truth against the measured ones.
 fn truth_rows(p: &Positioning) -> Vec<(&'static str, f64, f64)> {

@@ -104,6 +104,29 @@ fn bad_laser_csvs_are_refused_naming_line_and_value() {
             laser_csv().replacen("2,forward,0,", "1,forward,0,", 1),
             "laser.csv:12: reading 10: run 1 at target 0 mm, forward, appears twice",
         ),
+        (
+            laser_csv().replacen("2,forward,100,100.002400", "2,forward,100,1e300", 1),
+            "a positioning error within ±10000 µm",
+        ),
+        (
+            // Both columns, with the deviation of the first reading 0.5 µm off its reading.
+            laser_csv()
+                .replacen("comment\n", "comment,deviation_um\n", 1)
+                .lines()
+                .enumerate()
+                .map(|(i, l)| match i {
+                    0 => l.to_string(),
+                    1 => format!("{l},-0.9"),
+                    _ => {
+                        let c: Vec<&str> = l.split(',').collect();
+                        let (t, r): (f64, f64) = (c[2].parse().unwrap(), c[3].parse().unwrap());
+                        format!("{l},{}", (r - t) * 1e3)
+                    }
+                })
+                .collect::<Vec<_>>()
+                .join("\n"),
+            "laser.csv:2: deviation_um = -0.9 but reading_mm − target_mm = -0.4000 µm",
+        ),
     ];
     for (text, expected) in cases {
         let o = diagnose(dir.path(), &text, &[]);
