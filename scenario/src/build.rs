@@ -192,7 +192,7 @@ fn execution(
     let job_kind = job;
     let job = dynamics::job(job, &raw.instruments, tool, base_dir)?;
     check_test_rates(&job, job_kind, &controller)?;
-    check_generated_travel(&machine, &controller, &job, job_kind)?;
+    check_generated_travel(machine, &controller, &job, job_kind)?;
     Ok(Some(Execution {
         axes,
         controller,

@@ -327,12 +327,10 @@ fn the_largest_thermal_drift_does_not_depend_on_the_sampling() {
         ]);
         assert!(o.status.success(), "{}", stderr(&o));
         let text = String::from_utf8_lossy(&o.stdout).to_string();
-        let line = text
-            .lines()
+        text.lines()
             .find(|l| l.contains("largest drift"))
             .unwrap_or_else(|| panic!("{text}"))
-            .to_string();
-        line
+            .to_string()
     };
     let (fine, coarse) = (largest("60"), largest("7200"));
     assert_eq!(fine, coarse);
