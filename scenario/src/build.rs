@@ -229,6 +229,29 @@ fn check_test_rates(
             return Err(Invalid::new(feed_key.clone(), msg).into());
         }
     }
+    // On its circle the interpolator also slows a test down to what the plane's axes allow
+    // (velocity, and the centripetal acceleration v²/r).
+    for b in &job.ballbar {
+        let plane = match b.plane {
+            vmt_sim::nc::Plane::Xy => [0, 1],
+            vmt_sim::nc::Plane::Zx => [2, 0],
+            vmt_sim::nc::Plane::Yz => [1, 2],
+        };
+        let radius = b.tool_circle().1;
+        let limit = vmt_sim::interpolator::feed_limits::circle_speed_limit(
+            &controller.limits,
+            plane,
+            radius,
+        );
+        let (mm_min, limit_mm_min) = (user(b.feed_m_s * 60_000.0), user(limit * 60_000.0));
+        if mm_min > limit_mm_min {
+            let msg = format!(
+                "a test feed of {mm_min} mm/min is not accepted on a circle of {} mm: the controller runs it at most at {limit_mm_min:.1} mm/min (the plane axes' velocity and acceleration limits, controller.axis_accel_m_s2, with v²/r at 90 % of it)",
+                user(radius * 1e3)
+            );
+            return Err(Invalid::new(feed_key.clone(), msg).into());
+        }
+    }
     let servo_hz = user(1.0 / controller.servo_period_s);
     for b in &job.ballbar {
         if b.spec.sample_rate_hz > servo_hz {
@@ -259,10 +282,28 @@ fn check_generated_travel(
         JobToml::KwonSevenStep { .. } => ("pivot_mm", "move the pivot"),
         JobToml::Iso230_2(_) => ("axis", "bring the targets and overrun within the stroke"),
     };
-    vmt_sim::simulate::check_travel(machine, controller, job).map_err(|e| {
-        let msg = format!("the test program generated from [job] leaves a stroke ({e}): {fix}");
-        Invalid::new(KeyPath::of(&["job", key]), msg).into()
-    })
+    use vmt_sim::simulate::{SimError, check_travel, travel_extent};
+    let invalid = |key: KeyPath, msg: String| -> BuildError { Invalid::new(key, msg).into() };
+    match check_travel(machine, controller, job) {
+        Ok(()) => Ok(()),
+        Err(SimError::Stroke {
+            axis,
+            min_mm,
+            max_mm,
+            ..
+        }) => {
+            let (lo, hi) = travel_extent(machine, controller, job)
+                .map_err(|e| invalid(KeyPath::of(&["job"]), e.to_string()))?;
+            let i = axis.index();
+            let msg = format!(
+                "the test takes the {axis} axis from {:.3} to {:.3} mm, beyond its stroke {min_mm} to {max_mm} mm: {fix}",
+                lo[i] * 1e3,
+                hi[i] * 1e3
+            );
+            Err(invalid(KeyPath::of(&["job", key]), msg))
+        }
+        Err(e) => Err(invalid(KeyPath::of(&["job"]), e.to_string())),
+    }
 }
 
 fn machine(m: &MachineToml, base_dir: Option<&Path>) -> Result<Machine> {

@@ -262,10 +262,11 @@ fn a_test_circle_beyond_a_stroke_is_refused_at_the_job() {
     let e = error_of(&text);
     assert_eq!(e.key.as_deref(), Some("job.center_mm"), "{e}");
     assert!(
-        e.message
-            .contains("the Y axis would reach 413.193 mm, beyond its stroke 0 to 400 mm")
-            && e.message
-                .contains("move the centre or shorten job.radius_mm"),
+        e.message.contains(
+            "the test takes the Y axis from -100.000 to 500.000 mm, beyond its stroke 0 to 400 mm"
+        ) && e
+            .message
+            .contains("move the centre or shorten job.radius_mm"),
         "{e}"
     );
 }
@@ -306,4 +307,19 @@ fn an_empty_program_is_refused_naming_its_file() {
     let e = load(&path).expect_err("refused");
     assert!(e.file.ends_with("empty.nc"), "{e}");
     assert!(e.message.contains("no blocks to run"), "{e}");
+}
+
+/// A test feed the controller would slow down on the circle (v²/r at 90 % of the plane axes'
+/// acceleration) is refused at load: 0.05 m/s² on 150 mm allows √(0.9 · 0.05 · 0.15) m/s,
+/// 4929.5 mm/min.
+#[test]
+fn a_test_feed_beyond_the_circles_acceleration_limit_is_refused() {
+    let text = with(
+        "axis_accel_m_s2 = [5.0, 5.0, 5.0]",
+        "axis_accel_m_s2 = [0.05, 0.05, 5.0]",
+    )
+    .replacen("feed_mm_min = 1000.0", "feed_mm_min = 5000.0", 1);
+    let e = error_of(&text);
+    assert_eq!(e.key.as_deref(), Some("job.feed_mm_min"), "{e}");
+    assert!(e.message.contains("at most at 4929.5 mm/min"), "{e}");
 }

@@ -321,6 +321,18 @@ pub fn check_travel(
     check_strokes(machine, &interpolator, &job.program, &tcp)
 }
 
+/// The extent of `job`'s path in machine coordinates (the tool point less the tool offset),
+/// lowest and highest per axis, m.
+pub fn travel_extent(
+    machine: &Machine,
+    ipo: &InterpolatorConfig,
+    job: &Job,
+) -> Result<(Vector3<f64>, Vector3<f64>), SimError> {
+    let (lo, hi) = Interpolator::new(&job.program, ipo)?.bounds();
+    let tcp = machine.volumetric.kinematics.tool_offset;
+    Ok((lo - tcp, hi - tcp))
+}
+
 pub(crate) fn check_strokes(
     machine: &Machine,
     ipo: &Interpolator,

@@ -384,7 +384,7 @@ pub fn write(s: &Study, dir: &Path) -> Result<(), CliError> {
 pub fn command(dir: &Path) -> Result<(), CliError> {
     let s = study(dir)?;
     for w in &s.warnings {
-        eprintln!("warning: {w}");
+        crate::errln!("warning: {w}");
     }
     crate::out!("{}", markdown(&s))?;
     write(&s, dir)?;

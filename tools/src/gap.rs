@@ -417,7 +417,7 @@ pub fn command(a: &GapArgs) -> Result<(), CliError> {
     }
     if let Some(dir) = &a.out {
         for f in write(&report, dir)? {
-            eprintln!("wrote {}", f.display());
+            crate::errln!("wrote {}", f.display());
         }
     }
     Ok(())
@@ -438,7 +438,7 @@ fn vibration_command(a: &GapArgs) -> Result<(), CliError> {
     }
     if let Some(dir) = &a.out {
         for f in vg::write(&model, &a.real, &g, dir)? {
-            eprintln!("wrote {}", f.display());
+            crate::errln!("wrote {}", f.display());
         }
     }
     Ok(())

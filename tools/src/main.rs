@@ -251,7 +251,7 @@ fn diagnose_cmd(args: DiagnoseArgs) -> Result<(), CliError> {
     }
     if let Some(dir) = &args.out {
         for f in vmt_tools::diagnose::write(&d, dir)? {
-            eprintln!("wrote {}", f.display());
+            vmt_tools::errln!("wrote {}", f.display());
         }
     }
     Ok(())
@@ -270,7 +270,7 @@ fn positioning_report(
     }
     if let Some(dir) = out {
         for f in vmt_tools::positioning::write(p, dir)? {
-            eprintln!("wrote {}", f.display());
+            vmt_tools::errln!("wrote {}", f.display());
         }
     }
     Ok(())
@@ -452,7 +452,7 @@ fn main() -> ExitCode {
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("error: {e}");
+            vmt_tools::errln!("error: {e}");
             ExitCode::from(2)
         }
     }

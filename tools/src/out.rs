@@ -32,3 +32,18 @@ macro_rules! outln {
         $crate::out::print(format_args!("{}\n", format_args!($($arg)*)))
     };
 }
+
+/// Writes `args` to stderr, ignoring a failure: with stderr closed too there is nowhere left
+/// to report anything, and `eprintln!` would panic.
+pub fn print_err(args: std::fmt::Arguments) {
+    let mut w = std::io::stderr().lock();
+    let _ = w.write_fmt(args).and_then(|_| w.flush());
+}
+
+/// `eprintln!` that does not panic on a closed stderr.
+#[macro_export]
+macro_rules! errln {
+    ($($arg:tt)*) => {
+        $crate::out::print_err(format_args!("{}\n", format_args!($($arg)*)))
+    };
+}

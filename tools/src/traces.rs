@@ -198,7 +198,8 @@ fn columns(header: &csv::StringRecord, file: &str) -> Result<Columns, CliError> 
 /// Samples of one direction while reading.
 struct Run {
     direction: String,
-    first_line: usize,
+    /// The file's line of each sample.
+    lines: Vec<usize>,
     time: Vec<f64>,
     angle: Vec<f64>,
     deviation: Vec<f64>,
@@ -241,7 +242,8 @@ pub(crate) fn finite_cell(
 /// A trace's refusal as an error of the CSV file: at the line of the sample at fault (the
 /// header is line 1), or at the first line of the direction's rows; the set-up values as the
 /// command-line options they came from.
-fn csv_trace_error(e: TraceError, file: &str, first_line: usize, direction: &str) -> CliError {
+fn csv_trace_error(e: TraceError, file: &str, lines: &[usize], direction: &str) -> CliError {
+    let first_line = lines[0];
     if let TraceError::Setup {
         what,
         value,
@@ -253,7 +255,7 @@ fn csv_trace_error(e: TraceError, file: &str, first_line: usize, direction: &str
         return CliError::Argument(format!("{option} {value}: {accepted}"));
     }
     match e.sample() {
-        Some(i) => CliError::input(file, Some(first_line + i), e.to_string()),
+        Some(i) => CliError::input(file, lines.get(i).copied(), e.to_string()),
         None => CliError::input(
             file,
             Some(first_line),
@@ -267,8 +269,12 @@ fn read_csv(bytes: &[u8], file: &str, setup: CsvSetup) -> Result<Vec<Trace>, Cli
     let cols = columns(&header, file)?;
     let mut runs: Vec<Run> = Vec::new();
     for (i, record) in reader.records().enumerate() {
-        let line = i + 2;
-        let rec = record.map_err(|e| CliError::input(file, Some(line), e.to_string()))?;
+        let rec = record.map_err(|e| {
+            let line = e.position().map_or(i + 2, |p| p.line() as usize);
+            CliError::input(file, Some(line), e.to_string())
+        })?;
+        // The reader's own line count: blank lines are skipped, quoted cells may span lines.
+        let line = rec.position().map_or(i + 2, |p| p.line() as usize);
         let number = |k: usize, name: &str| finite_cell(&rec, k, name, file, line);
         let direction = rec.get(cols.direction).unwrap_or("").to_ascii_lowercase();
         if direction != "cw" && direction != "ccw" {
@@ -290,7 +296,7 @@ fn read_csv(bytes: &[u8], file: &str, setup: CsvSetup) -> Result<Vec<Trace>, Cli
             }
             runs.push(Run {
                 direction: direction.clone(),
-                first_line: line,
+                lines: Vec::new(),
                 time: Vec::new(),
                 angle: Vec::new(),
                 deviation: Vec::new(),
@@ -303,6 +309,7 @@ fn read_csv(bytes: &[u8], file: &str, setup: CsvSetup) -> Result<Vec<Trace>, Cli
             angle += 360.0 * ((last - angle) / 360.0).round();
         }
         run.angle.push(angle);
+        run.lines.push(line);
         run.deviation.push(number(cols.deviation, "deviation_um")?);
         if let Some(k) = cols.time {
             run.time.push(number(k, "time_s")?);
@@ -324,7 +331,7 @@ fn read_csv(bytes: &[u8], file: &str, setup: CsvSetup) -> Result<Vec<Trace>, Cli
                 r.deviation,
                 cols.time.map(|_| r.time),
             )
-            .map_err(|e| csv_trace_error(e, file, r.first_line, &r.direction))
+            .map_err(|e| csv_trace_error(e, file, &r.lines, &r.direction))
         })
         .collect()
 }

@@ -165,7 +165,7 @@ fn an_arc_under_90_degrees_is_refused() {
     let (ok, e) = diagnose_text(&rows(100, |_, a| (a, "0.1".into())));
     assert!(!ok);
     assert!(
-        e.contains("sweeps 49.50 deg") && e.contains("at least 90 deg"),
+        e.contains("sweeps 49.50 deg") && e.contains("data arc of at least 90 deg"),
         "{e}"
     );
 }
@@ -180,6 +180,18 @@ fn a_nan_is_refused_with_its_line() {
         e.contains("bad.csv:12") && e.contains("deviation_um `NaN` is not accepted"),
         "{e}"
     );
+}
+
+/// A blank line (skipped by the reader) does not shift the line named.
+#[test]
+fn a_nan_after_a_blank_line_is_refused_at_its_own_line() {
+    let text = rows(720, |i, a| {
+        (a, if i == 10 { "NaN".into() } else { "0.1".into() })
+    })
+    .replacen("\n", "\n\n", 1);
+    let (ok, e) = diagnose_text(&text);
+    assert!(!ok);
+    assert!(e.contains("bad.csv:13"), "{e}");
 }
 
 /// Less than 300° where full circles are needed: the report says which figures it could not

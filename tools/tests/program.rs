@@ -146,7 +146,7 @@ fn bad_arguments_are_refused_with_exit_code_2() {
         (
             "--arc-deg",
             "400",
-            "data arc 400 deg: the data arc must be more than 0 and at most 360 deg (--arc-deg)",
+            "data arc 400 deg: the data arc must be from 90 to 360 deg (a shorter arc cannot tell the circle's centre from its radius) (--arc-deg)",
         ),
         ("--directions", "cw,up", "a direction is cw or ccw"),
         ("--plane", "XW", "the plane is XY, ZX (or XZ) or YZ"),

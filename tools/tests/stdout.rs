@@ -22,7 +22,7 @@ fn with_closed_stdout(args: &[&str]) -> (Option<i32>, String) {
 }
 
 #[test]
-fn a_closed_stdout_is_an_error_not_a_panic_for_every_command() {
+fn a_closed_stdout_is_an_error_not_a_panic_for_the_report_commands() {
     let dir = tempfile::tempdir().unwrap();
     let d = |name: &str| dir.path().join(name).to_str().unwrap().to_string();
     let mut csv = String::from("angle_deg,deviation_um,direction\n");
@@ -75,5 +75,29 @@ fn a_closed_stdout_is_an_error_not_a_panic_for_every_command() {
         assert!(!e.contains("panicked"), "vmt {args:?} panicked: {e}");
         assert_eq!(code, Some(2), "vmt {args:?}: {e}");
         assert!(e.contains("cannot write <stdout>"), "vmt {args:?}: {e}");
+    }
+}
+
+/// With stderr closed as well (`vmt ... 2>&1 | head -1`), the error cannot be printed, but the
+/// exit code still says so, without a panic (exit 101).
+#[test]
+fn closed_stdout_and_stderr_still_give_the_error_code() {
+    for args in [vec!["topologies"], vec!["thermal", "--every-s", "3600"]] {
+        let dir = tempfile::tempdir().unwrap();
+        let (r1, w1) = std::io::pipe().unwrap();
+        let (r2, w2) = std::io::pipe().unwrap();
+        drop((r1, r2));
+        let out = dir.path().join("th");
+        let mut all = args.clone();
+        if args[0] == "thermal" {
+            all.extend(["--out", out.to_str().unwrap()]);
+        }
+        let status = Command::new(env!("CARGO_BIN_EXE_vmt"))
+            .args(&all)
+            .stdout(w1)
+            .stderr(w2)
+            .status()
+            .unwrap();
+        assert_eq!(status.code(), Some(2), "vmt {args:?}");
     }
 }

@@ -215,7 +215,7 @@ pub enum TraceError {
     },
     /// Too short an arc for a circular test.
     #[error(
-        "{label}: the trace sweeps {sweep:.2} deg; a circular test needs an arc of at least {min} deg (below it the centre and radius of the circle cannot be told apart)"
+        "{label}: the trace sweeps {sweep:.2} deg; a circular test needs a data arc of at least 90 deg, {min} deg of samples (below it the centre and radius of the circle cannot be told apart)"
     )]
     ShortArc {
         /// Trace label.
@@ -303,10 +303,11 @@ pub const MAX_GAP_DEG: f64 = 2.0;
 pub const MAX_BACKWARD_DEG: f64 = 0.05;
 /// The fewest samples a trace may have.
 pub const MIN_SAMPLES: usize = 16;
-/// The shortest arc accepted, deg: the shortest on which the diagnosis fits scale and
-/// squareness (see [`crate::model::Terms`]); on less, the circle's centre and radius are
-/// nearly collinear unknowns (a 10° arc put the centre 3.5 mm off).
-pub const MIN_SWEEP_DEG: f64 = 90.0;
+/// The shortest arc of samples accepted, deg: a 90° data arc, the shortest on which the
+/// diagnosis fits scale and squareness (see [`crate::model::Terms`]) and the shortest a test
+/// program may have, less up to a gap between samples at its ends; on less, the circle's
+/// centre and radius are nearly collinear unknowns (a 10° arc put the centre 3.5 mm off).
+pub const MIN_SWEEP_DEG: f64 = 90.0 - MAX_GAP_DEG;
 /// The largest deviation accepted, µm: a ball bar's transducer travels about ±1 mm, so a larger
 /// value is a unit slip (mm as µm) or a broken log.
 pub const MAX_DEVIATION_UM: f64 = 2000.0;
@@ -603,16 +604,16 @@ mod tests {
     }
 
     #[test]
-    fn an_arc_under_90_degrees_is_refused_and_90_accepted() {
-        let e = trace((0..=890).map(|i| i as f64 * 0.1).collect())
+    fn an_arc_under_88_degrees_is_refused_and_88_accepted() {
+        let e = trace((0..=870).map(|i| i as f64 * 0.1).collect())
             .validate()
             .unwrap_err();
         assert!(
-            matches!(e, TraceError::ShortArc { sweep, .. } if (sweep - 89.0).abs() < 1e-9),
+            matches!(e, TraceError::ShortArc { sweep, .. } if (sweep - 87.0).abs() < 1e-9),
             "{e}"
         );
         assert!(
-            trace((0..=900).map(|i| i as f64 * 0.1).collect())
+            trace((0..=880).map(|i| i as f64 * 0.1).collect())
                 .validate()
                 .is_ok()
         );

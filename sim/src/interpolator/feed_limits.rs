@@ -45,6 +45,19 @@ pub(crate) fn commanded_speed(kind: MoveKind, limits: &Limits) -> f64 {
 }
 
 /// The limits of one segment.
+/// The fastest a circle of radius `radius_m` in the plane of axes `plane` can be run, m/s:
+/// what [`segment_limits`] grants a helix without rise (`q = 1`, `κ = 1/r`), the slower plane
+/// axis' velocity and `√(c a r)` for its acceleration `a`, with the path feed's own maximum.
+pub fn circle_speed_limit(limits: &Limits, plane: [usize; 2], radius_m: f64) -> f64 {
+    let [iu, iv] = plane;
+    let a_plane = limits.axis_accel_m_s2[iu].min(limits.axis_accel_m_s2[iv]);
+    let v_plane = limits.axis_velocity_m_s[iu].min(limits.axis_velocity_m_s[iv]);
+    limits
+        .max_feed_m_s
+        .min(v_plane)
+        .min((CENTRIPETAL_SHARE * a_plane * radius_m).sqrt())
+}
+
 pub(crate) fn segment_limits(segment: &Segment, limits: &Limits) -> FeedLimits {
     let commanded = commanded_speed(segment.kind, limits);
     match &segment.geometry {

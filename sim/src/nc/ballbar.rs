@@ -32,7 +32,7 @@
 //! 5. feed-out: a G1 move along the radius to `feed_in_m` outside the circle.
 //!
 //! The program starts with a G0 to the first run's feed-in start (where the ball bar is fitted),
-//! preceded, when [`CircularTest::approach_from_above_m`] is set, by a G0 in Z alone up to that
+//! preceded, when [`CircularTest::approach_from_above_m`] is set, by a G0 in Z alone to that
 //! height above it, a G0 over the start at that height and the G0 down onto it, and ends with M30 at the last run's feed-out end. Runs in opposite directions join up: each
 //! starts where the previous one ended. Between two runs in the same direction the machine
 //! returns over the arc it has just travelled, at the feed-in radius. A data arc of 360° is one
@@ -54,6 +54,8 @@ pub const BALLBAR_MAX_RADIUS_M: f64 = 0.6;
 pub const DEFAULT_FEED_IN_M: f64 = 1.5e-3;
 /// Largest accepted feed-in distance, m (10 mm; a ball bar's travel is a few mm).
 pub const MAX_FEED_IN_M: f64 = 10e-3;
+/// Shortest data arc, deg: the shortest the diagnosis fits (scale and squareness need 90°).
+pub const MIN_ARC_DEG: f64 = 90.0;
 /// Largest accepted approach from above, m (10 mm: a lift clear of the bar's seat, not a move).
 pub const MAX_APPROACH_M: f64 = 10e-3;
 /// Run-in and run-out overshoot of [`CircularTest::iso230_4`], degrees.
@@ -254,11 +256,11 @@ impl CircularTest {
                 "the feed must be a finite number > 0",
             ));
         }
-        if !(self.arc_deg > 0.0 && self.arc_deg <= 360.0) {
+        if !(self.arc_deg >= MIN_ARC_DEG && self.arc_deg <= 360.0) {
             return Err(invalid(
                 P::Arc,
                 format!("{} deg", num(self.arc_deg)),
-                "the data arc must be more than 0 and at most 360 deg",
+                "the data arc must be from 90 to 360 deg (a shorter arc cannot tell the circle's centre from its radius)",
             ));
         }
         if !self.start_deg.is_finite() {
@@ -1290,7 +1292,7 @@ mod tests {
             assert!(e.to_string().contains(text), "{e}");
         }
         // The bounds themselves are accepted.
-        for (r, arc, ov) in [(50.0, 360.0, 180.0), (600.0, 1e-3, 359.999)] {
+        for (r, arc, ov) in [(50.0, 360.0, 180.0), (600.0, MIN_ARC_DEG, 315.0)] {
             let t = CircularTest {
                 radius_m: r * MM,
                 arc_deg: arc,
