@@ -140,16 +140,25 @@ pub fn read_identity(dir: &Path) -> Result<Option<Identity>, CliError> {
 }
 
 /// Checks that `out` is a new folder or the same dataset (seed and scenario text) as `want`,
-/// and that no complete run has an id of `want.count` or more; then records `want`.
-fn claim(out: &Path, want: &Identity) -> Result<(), CliError> {
+/// and that no complete run has an id of `want.count` or more; then records `want` (keeping
+/// the scenario path the dataset was started with). A folder of runs without `dataset.json`
+/// (written before it existed) is adopted when `same_run` finds every run to be the one this
+/// dataset would draw.
+fn claim(
+    out: &Path,
+    want: &Identity,
+    same_run: &dyn Fn(&Path) -> Result<bool, CliError>,
+) -> Result<(), CliError> {
     let dir = out.display();
     let done = if out.join("runs").is_dir() {
         complete_runs(out)?
     } else {
         Vec::new()
     };
+    let mut record = want.clone();
     match read_identity(out)? {
         Some(have) => {
+            record.scenario = have.scenario.clone();
             let mut differs = Vec::new();
             if have.seed != want.seed {
                 differs.push(format!(
@@ -171,14 +180,18 @@ fn claim(out: &Path, want: &Identity) -> Result<(), CliError> {
                 )));
             }
         }
-        None if !done.is_empty() => {
-            return Err(CliError::Argument(format!(
-                "{dir} holds {} runs but no {IDENTITY_FILE}, so their seed and scenario are \
-                 unknown: give a new --out folder",
-                done.len()
-            )));
+        None => {
+            for run in &done {
+                if !same_run(run)? {
+                    return Err(CliError::Argument(format!(
+                        "{dir} holds runs but no {IDENTITY_FILE}, and run {} is not the one \
+                         this --seed and scenario draw: continue it with the seed and scenario \
+                         it was made with, or give a new --out folder",
+                        name_of(run)
+                    )));
+                }
+            }
         }
-        None => {}
     }
     let beyond: Vec<String> = done
         .iter()
@@ -200,7 +213,7 @@ fn claim(out: &Path, want: &Identity) -> Result<(), CliError> {
     std::fs::create_dir_all(out).map_err(|e| CliError::output(out, e))?;
     let path = out.join(IDENTITY_FILE);
     let tmp = out.join(format!("{TMP_PREFIX}{IDENTITY_FILE}"));
-    write_file(&tmp, &want.json())?;
+    write_file(&tmp, &record.json())?;
     std::fs::rename(&tmp, &path).map_err(|e| CliError::output(&path, e))
 }
 
@@ -224,6 +237,16 @@ pub fn build(req: &Request) -> Result<Outcome, CliError> {
     })?;
     // The template itself must load, so a scenario error is reported once, not per run.
     vmt_scenario::parse(&text, &file, Some(base))?;
+    // A run is this dataset's when its sampled scenario is the one this seed draws for its id.
+    let same_run = |dir: &Path| -> Result<bool, CliError> {
+        let Ok(i) = name_of(dir).parse::<u64>() else {
+            return Ok(false);
+        };
+        let path = dir.join("scenario.toml");
+        let have = std::fs::read_to_string(&path)
+            .map_err(|e| CliError::input(&path.display().to_string(), None, e.to_string()))?;
+        Ok(have == ds.sample(run_seed(req.seed, i)).text)
+    };
     claim(
         req.out,
         &Identity {
@@ -232,6 +255,7 @@ pub fn build(req: &Request) -> Result<Outcome, CliError> {
             scenario_fnv1a64: fnv1a64(&text),
             count: req.count,
         },
+        &same_run,
     )?;
     let runs = req.out.join("runs");
     std::fs::create_dir_all(&runs).map_err(|e| CliError::output(&runs, e))?;
@@ -413,9 +437,15 @@ fn read_labels(path: &Path) -> Result<Value, CliError> {
 /// Rebuilds `manifest.csv` and `manifest.parquet` from the labels; returns the number of rows.
 pub fn write_manifest(dir: &Path) -> Result<usize, CliError> {
     let m = manifest(dir)?;
-    write_csv(&m, &dir.join("manifest.csv"))?;
+    // Written aside and renamed in, so that a kill leaves the previous manifest, not half of one.
+    let csv_tmp = dir.join(format!("{TMP_PREFIX}manifest.csv"));
+    write_csv(&m, &csv_tmp)?;
+    let csv_path = dir.join("manifest.csv");
+    std::fs::rename(&csv_tmp, &csv_path).map_err(|e| CliError::output(&csv_path, e))?;
     let path = dir.join("manifest.parquet");
-    write_parquet(&m, &path).map_err(|e| CliError::output(&path, e))?;
+    let tmp = dir.join(format!("{TMP_PREFIX}manifest.parquet"));
+    write_parquet(&m, &tmp).map_err(|e| CliError::output(&path, e))?;
+    std::fs::rename(&tmp, &path).map_err(|e| CliError::output(&path, e))?;
     Ok(m.rows.len())
 }
 

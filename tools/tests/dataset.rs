@@ -234,7 +234,7 @@ fn run_names(out: &Path) -> Vec<String> {
 }
 
 #[test]
-fn a_folder_of_another_seed_scenario_or_larger_count_is_refused() {
+fn a_folder_of_another_seed_scenario_or_smaller_count_is_refused() {
     let tmp = tempfile::tempdir().unwrap();
     let s = scenario(tmp.path(), None);
     let out = tmp.path().join("ds");
@@ -269,9 +269,17 @@ fn a_folder_of_another_seed_scenario_or_larger_count_is_refused() {
         &[&folder, "--count 1", "000001", "--count 2 or more"],
     );
     refused(dataset_run(&s, &out, 0, 7, 2), &["--count 0", "at least 1"]);
-    // A folder of runs without its identity is not taken over either.
+    // A folder of runs without its identity (made before dataset.json existed) is taken over
+    // only by the seed and scenario that drew its runs.
     std::fs::remove_file(out.join("dataset.json")).unwrap();
-    refused(dataset_run(&s, &out, 2, 7, 2), &[&folder, "dataset.json"]);
+    refused(
+        dataset_run(&s, &out, 2, 8, 2),
+        &[&folder, "dataset.json", "run 000000"],
+    );
+    let o = dataset_run(&s, &out, 2, 7, 2);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let identity: Value = serde_json::from_slice(&bytes(&out, "dataset.json")).unwrap();
+    assert_eq!(identity["seed"], 7);
     let fresh = tmp.path().join("fresh");
     let o = dataset_run(&s, &fresh, 0, 7, 2);
     assert!(!o.status.success() && stderr(&o).contains("--count 0"));
