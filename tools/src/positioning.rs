@@ -190,9 +190,12 @@ fn read_csv(bytes: &[u8], file: &str, axis: &str) -> Result<Option<PositioningRu
                     number(k, "deviation_um")?,
                     (number(r, "reading_mm")? - target_mm) * 1e3,
                 );
-                if (d - from_reading).abs() > BOTH_COLUMNS_UM {
+                // Each cell is rounded to its last digit: they agree within the two halves.
+                let cell = |k: usize| rec.get(k).unwrap_or("");
+                let tolerance = half_last_digit(cell(k)) + half_last_digit(cell(r)) * 1e3 + 1e-6;
+                if (d - from_reading).abs() > tolerance {
                     return Err(at(format!(
-                        "deviation_um = {d} but reading_mm − target_mm = {from_reading:.4} µm; the two columns must agree within {BOTH_COLUMNS_UM} µm (their rounding)"
+                        "deviation_um = {d} but reading_mm − target_mm = {from_reading:.4} µm; the two columns must agree within {tolerance:.4} µm (the rounding of their last digits)"
                     )));
                 }
                 d
@@ -233,9 +236,16 @@ enum Measured {
     Both(usize, usize),
 }
 
-/// How far `deviation_um` and `reading_mm − target_mm` may differ when both are given, µm
-/// (an export rounds each to its own digits).
-const BOTH_COLUMNS_UM: f64 = 0.1;
+/// Half a unit of the last digit written in a number cell (`0.0005` for `1.234`, 0.5 for `12`,
+/// 0 for an exponent form, which gives no count of digits).
+fn half_last_digit(cell: &str) -> f64 {
+    let cell = cell.trim();
+    if cell.contains(['e', 'E']) {
+        return 0.0;
+    }
+    let decimals = cell.split_once('.').map_or(0, |(_, f)| f.len());
+    0.5 * 10f64.powi(-(decimals as i32))
+}
 /// The largest positioning deviation accepted, µm: beyond it a unit is wrong (mm as µm) or the
 /// log is broken; an uncompensated machine is off by tens of µm, a large one by some hundreds.
 const MAX_DEVIATION_UM: f64 = 10_000.0;
@@ -418,6 +428,38 @@ fn draw_on<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, e: &Evaluation) ->
 mod tests {
     use super::*;
     use serde_json::json;
+
+    #[test]
+    fn half_the_last_digit_of_a_cell() {
+        for (cell, half) in [
+            ("1.234", 5e-4),
+            ("12", 0.5),
+            (" 100.003 ", 5e-4),
+            ("1e-3", 0.0),
+        ] {
+            assert!((half_last_digit(cell) - half).abs() < 1e-15, "{cell}");
+        }
+    }
+
+    /// A reading to the µm (3 decimals in mm) and a deviation to 0.1 µm may differ by up to
+    /// 0.55 µm and still be the same measurement.
+    #[test]
+    fn both_columns_agree_within_their_rounding() {
+        let csv = |dev: &str| {
+            let mut s = String::from("run,direction,target_mm,reading_mm,deviation_um\n");
+            for run in 1..=2 {
+                for d in ["forward", "backward"] {
+                    for t in [0, 100, 200, 300, 400] {
+                        s += &format!("{run},{d},{t},{t}.003,{dev}\n");
+                    }
+                }
+            }
+            s
+        };
+        assert!(read_csv(csv("2.6").as_bytes(), "l.csv", "X").is_ok());
+        let e = read_csv(csv("2.4").as_bytes(), "l.csv", "X").unwrap_err();
+        assert!(e.to_string().contains("within 0.5500 µm"), "{e}");
+    }
 
     #[test]
     fn laser_run_numbers_must_be_positive_integers() {
