@@ -282,7 +282,14 @@ pub struct Report {
     pub kim: Option<(KimResult, f64)>,
     /// The spectral detector, and where its tooth-passing frequency came from.
     pub spectral: Option<(SpectralResult, &'static str)>,
+    /// Why the spectral detector was not run though asked for with Kim's (`--detector both`).
+    pub spectral_skipped: Option<&'static str>,
 }
+
+/// Why the `better` detector cannot run on a log without spindle speed and teeth.
+const NO_TOOTH_PASSING: &str = "the log gives no spindle speed and teeth: the `better` detector \
+     needs --spindle-rpm and --teeth (its tooth-passing frequency is not guessed from the \
+     spectrum, whose strongest peak may be the chatter itself)";
 
 /// Spindle speeds accepted by --spindle-rpm.
 pub const SPINDLE_RPM: (f64, f64) = (1.0, 200_000.0);
@@ -360,14 +367,19 @@ pub fn detect(log: &Log, file: &str, args: &DetectArgs) -> Result<Report, CliErr
                 };
                 (Some(tooth_passing_hz(n, z)), source)
             }
+            _ if args.detector == Which::Both => {
+                // Kim's verdict stands on its own; say why the other is missing.
+                return Ok(Report {
+                    kim,
+                    spectral: None,
+                    spectral_skipped: Some(NO_TOOTH_PASSING),
+                });
+            }
             _ => {
                 return Err(CliError::input(
                     file,
                     None,
-                    "the log gives no spindle speed and teeth: the `better` detector needs \
-                     --spindle-rpm and --teeth (its tooth-passing frequency is not guessed from \
-                     the spectrum, whose strongest peak may be the chatter itself), or run \
-                     --detector kim",
+                    format!("{NO_TOOTH_PASSING}, or run --detector kim"),
                 ));
             }
         };
@@ -379,7 +391,11 @@ pub fn detect(log: &Log, file: &str, args: &DetectArgs) -> Result<Report, CliErr
     } else {
         None
     };
-    Ok(Report { kim, spectral })
+    Ok(Report {
+        kim,
+        spectral,
+        spectral_skipped: None,
+    })
 }
 
 /// 3 × the largest block RMS within the first 0.2 s.
@@ -442,6 +458,9 @@ pub fn text(log: &Log, r: &Report) -> String {
             s.tooth_passing_hz,
             s.frame_len
         );
+    }
+    if let Some(why) = r.spectral_skipped {
+        out += &format!("better:   not run: {why}\n");
     }
     out
 }

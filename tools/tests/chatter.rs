@@ -390,10 +390,20 @@ fn spindle_speed_and_teeth_come_together_and_a_csv_needs_them_for_the_better_det
     );
     assert!(!said.contains("Hz"), "{said}");
     // No spindle speed in a CSV: not guessed from the spectrum (where it could be the chatter).
-    let said = e(&[]);
+    // Asked for alone, the better detector is refused; with Kim's (the default, both), Kim's
+    // verdict is given and the better one's absence explained.
+    let said = e(&["--detector", "better"]);
     assert!(
         said.contains("accel.csv") && said.contains("--spindle-rpm and --teeth"),
         "{said}"
+    );
+    let o = vmt(&["chatter", "detect", &csv]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(text.contains("kim:"), "{text}");
+    assert!(
+        text.contains("better:   not run:") && text.contains("--spindle-rpm and --teeth"),
+        "{text}"
     );
     let o = vmt(&["chatter", "detect", &csv, "--detector", "kim"]);
     assert!(o.status.success(), "{}", stderr(&o));
