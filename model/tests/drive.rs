@@ -170,7 +170,7 @@ fn lugre_without_stribeck_force_is_viscous_alone() {
         assert!((f - expected).abs() < 1e-9, "v {v}: {f} N vs {expected} N");
         assert_eq!(c.z_m, 0.0, "v {v}");
     }
-    // At rest a load-free contact keeps its deflection and exerts no force.
+    // At rest a load-free contact stays unloaded: z = 0 and no force (0 · ∞ read as no slip).
     let mut c = LuGre::default();
     assert_eq!(c.step(&viscous, 0.0, 1e-4), 0.0);
     assert_eq!(c.z_m, 0.0);

@@ -86,7 +86,7 @@ fn lost_motion(t: &BallbarTrace) -> (f64, f64) {
 /// the ball bar sees there, b + 2F/k (the gap and the screw's stretch under the guideway
 /// friction F), and at the Y reversals (90°, 270°) by Y's 2F/k alone, without a gap.
 #[test]
-fn x_backlash_steps_at_0_and_180_degrees_only() {
+fn x_backlash_shows_the_gap_plus_friction_and_y_its_friction_alone() {
     let b = 4e-6;
     let axes = [
         common::axis(250.0, b, 33.0),

@@ -636,6 +636,18 @@ mod tests {
         let duration = 150.0 * 359.9_f64.to_radians() / 1000.0 * 60.0;
         t.time_s = Some((0..3600).map(|i| i as f64 * duration / 3599.0).collect());
         assert!(t.validate().is_ok(), "{:?}", t.validate());
+        // The edges: under 91 % of the feed refused, an inclined bar's 2.5 times accepted,
+        // over 10 times refused.
+        for (ratio, ok) in [
+            (0.90, false),
+            (0.92, true),
+            (2.5, true),
+            (9.99, true),
+            (10.01, false),
+        ] {
+            t.feed_mm_min = 1000.0 / ratio;
+            assert_eq!(t.validate().is_ok(), ok, "{ratio}: {:?}", t.validate());
+        }
         t.feed_mm_min = 10.0;
         let e = t.validate().unwrap_err();
         assert!(
