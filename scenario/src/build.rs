@@ -246,7 +246,7 @@ fn check_test_rates(
         let (mm_min, limit_mm_min) = (user(b.feed_m_s * 60_000.0), user(limit * 60_000.0));
         if mm_min > limit_mm_min {
             let msg = format!(
-                "a test feed of {mm_min} mm/min is not accepted on a circle of {} mm: the controller runs it at most at {limit_mm_min:.1} mm/min (the plane axes' velocity and acceleration limits, controller.axis_accel_m_s2, with v²/r at 90 % of it)",
+                "a test feed of {mm_min} mm/min is not accepted on a circle of {} mm: the controller runs it at most at {limit_mm_min:.1} mm/min (the plane axes' velocity, controller.rapid_mm_min, and acceleration, controller.axis_accel_m_s2, with v²/r at 90 % of it)",
                 user(radius * 1e3)
             );
             return Err(Invalid::new(feed_key.clone(), msg).into());

@@ -328,8 +328,17 @@ pub fn travel_extent(
     ipo: &InterpolatorConfig,
     job: &Job,
 ) -> Result<(Vector3<f64>, Vector3<f64>), SimError> {
-    let (lo, hi) = Interpolator::new(&job.program, ipo)?.bounds();
+    // From the setpoints, not the segments' bounding boxes (a half circle's is the circle's).
+    let interpolator = Interpolator::new(&job.program, ipo)?;
     let tcp = machine.volumetric.kinematics.tool_offset;
+    let none = (
+        Vector3::repeat(f64::INFINITY),
+        Vector3::repeat(f64::NEG_INFINITY),
+    );
+    let (lo, hi) = interpolator
+        .iter()
+        .map(|sp| sp.position)
+        .fold(none, |(lo, hi), p| (lo.inf(&p), hi.sup(&p)));
     Ok((lo - tcp, hi - tcp))
 }
 

@@ -135,10 +135,14 @@ fn read_csv(bytes: &[u8], file: &str) -> Result<Log, CliError> {
     let mut values = vec![Vec::new(); axes.len()];
     for rec in r.records() {
         let rec = rec.map_err(|e| {
-            let line = e.position().map(|p| p.line() as usize);
-            CliError::input(file, line, format!("unreadable row: {e}"))
+            let line = crate::traces::record_line(bytes, e.position(), 0);
+            CliError::input(
+                file,
+                Some(line).filter(|&l| l > 0),
+                format!("unreadable row: {e}"),
+            )
         })?;
-        let line = rec.position().map(|p| p.line() as usize);
+        let line = Some(crate::traces::record_line(bytes, rec.position(), 0)).filter(|&l| l > 0);
         let num = |col: usize, name: &str| -> Result<f64, CliError> {
             let cell = rec.get(col).unwrap_or("");
             cell.parse::<f64>()

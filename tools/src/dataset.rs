@@ -303,6 +303,15 @@ fn progress(len: u64, quiet: bool) -> ProgressBar {
 
 /// Removes the temporary folders of runs an interrupted invocation did not finish.
 fn remove_leftovers(runs: &Path) -> Result<(), CliError> {
+    // A manifest half-written when the previous invocation was killed.
+    if let Some(dir) = runs.parent() {
+        for name in ["manifest.csv", "manifest.parquet"] {
+            let tmp = dir.join(format!("{TMP_PREFIX}{name}"));
+            if tmp.exists() {
+                std::fs::remove_file(&tmp).map_err(|e| CliError::output(&tmp, e))?;
+            }
+        }
+    }
     for entry in std::fs::read_dir(runs).map_err(|e| CliError::output(runs, e))? {
         let path = entry.map_err(|e| CliError::output(runs, e))?.path();
         if name_of(&path).starts_with(TMP_PREFIX) {

@@ -51,10 +51,11 @@ const DIRECTION: [&str; 3] = ["direction_x", "direction_y", "direction_z"];
 /// Reads the points at `path` for `machine` (strokes and thermal node names are checked).
 pub fn read(path: &Path, machine: &Machine) -> Result<Points, CliError> {
     let file = path.display().to_string();
+    let bytes = std::fs::read(path)
+        .map_err(|e| CliError::input(&file, None, format!("cannot read: {e}")))?;
     let mut reader = csv::ReaderBuilder::new()
         .trim(csv::Trim::All)
-        .from_path(path)
-        .map_err(|e| CliError::input(&file, None, format!("cannot read: {e}")))?;
+        .from_reader(bytes.as_slice());
     let header: Vec<String> = reader
         .headers()
         .map_err(|e| CliError::input(&file, Some(1), format!("cannot read the header: {e}")))?
@@ -69,7 +70,7 @@ pub fn read(path: &Path, machine: &Machine) -> Result<Points, CliError> {
     for record in reader.records() {
         let record =
             record.map_err(|e| CliError::input(&file, None, format!("malformed row: {e}")))?;
-        let line = record.position().map_or(0, |p| p.line() as usize);
+        let line = crate::traces::record_line(&bytes, record.position(), 0);
         let cell = |c: usize| -> Result<f64, CliError> { number(&record, c, &header, &file, line) };
         let mut position = Vector3::zeros();
         for (i, c) in layout.position.iter().enumerate() {

@@ -165,8 +165,11 @@ fn read_csv(bytes: &[u8], file: &str, axis: &str) -> Result<Option<PositioningRu
     let mut readings = Vec::new();
     let mut lines = Vec::new();
     for (i, record) in reader.records().enumerate() {
-        let line = i + 2;
-        let rec = record.map_err(|e| CliError::input(file, Some(line), e.to_string()))?;
+        let rec = record.map_err(|e| {
+            let line = crate::traces::record_line(bytes, e.position(), i + 2);
+            CliError::input(file, Some(line), e.to_string())
+        })?;
+        let line = crate::traces::record_line(bytes, rec.position(), i + 2);
         let at = |msg: String| CliError::input(file, Some(line), msg);
         let number = |k: usize, name: &str| finite_cell(&rec, k, name, file, line);
         let d = rec.get(dir_col).unwrap_or("");
@@ -192,6 +195,7 @@ fn read_csv(bytes: &[u8], file: &str, axis: &str) -> Result<Option<PositioningRu
                 );
                 // Each cell is rounded to its last digit: they agree within the two halves.
                 let cell = |k: usize| rec.get(k).unwrap_or("");
+                // The target is the nominal position, exact as written.
                 let tolerance = half_last_digit(cell(k)) + half_last_digit(cell(r)) * 1e3 + 1e-6;
                 if (d - from_reading).abs() > tolerance {
                     return Err(at(format!(
@@ -236,15 +240,16 @@ enum Measured {
     Both(usize, usize),
 }
 
-/// Half a unit of the last digit written in a number cell (`0.0005` for `1.234`, 0.5 for `12`,
-/// 0 for an exponent form, which gives no count of digits).
+/// Half a unit of the last digit written in a number cell: `0.0005` for `1.234`, 0.5 for `12`,
+/// `5e-7` for `1.5e-5` (the mantissa's decimals less the exponent).
 fn half_last_digit(cell: &str) -> f64 {
     let cell = cell.trim();
-    if cell.contains(['e', 'E']) {
-        return 0.0;
-    }
-    let decimals = cell.split_once('.').map_or(0, |(_, f)| f.len());
-    0.5 * 10f64.powi(-(decimals as i32))
+    let (mantissa, exponent) = match cell.split_once(['e', 'E']) {
+        Some((m, e)) => (m, e.parse::<i32>().unwrap_or(0)),
+        None => (cell, 0),
+    };
+    let decimals = mantissa.split_once('.').map_or(0, |(_, f)| f.len()) as i32;
+    0.5 * 10f64.powi(exponent - decimals)
 }
 /// The largest positioning deviation accepted, µm: beyond it a unit is wrong (mm as µm) or the
 /// log is broken; an uncompensated machine is off by tens of µm, a large one by some hundreds.
@@ -435,7 +440,8 @@ mod tests {
             ("1.234", 5e-4),
             ("12", 0.5),
             (" 100.003 ", 5e-4),
-            ("1e-3", 0.0),
+            ("1.5e-5", 5e-7),
+            ("2E3", 500.0),
         ] {
             assert!((half_last_digit(cell) - half).abs() < 1e-15, "{cell}");
         }

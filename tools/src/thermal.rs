@@ -88,25 +88,22 @@ pub fn run(
     let mut before = 0.0;
     for i in 0..=samples {
         let t = (i as f64 * every_s).min(duration);
-        // The run's own steps between samples, so that the largest drift does not depend on
-        // how often the history is sampled.
-        let mut between = before + spec.step_s;
-        while between < t {
+        // The run's own step grid between samples, so that the largest drift does not depend
+        // on how often the history is sampled.
+        let mut k = (before / spec.step_s).floor() + 1.0;
+        while k * spec.step_s <= t {
+            let between = k * spec.step_s;
             run.advance_to(between).map_err(model)?;
             let d = (drift_at(&run)? - reference).amax();
             if d > h.largest_drift.0 {
                 h.largest_drift = (d, between);
             }
-            between += spec.step_s;
+            k += 1.0;
         }
         run.advance_to(t).map_err(model)?;
         before = t;
         let temps = run.temperatures_c().to_vec();
         let e = drift_at(&run)?;
-        let d = (e - reference).amax();
-        if d > h.largest_drift.0 {
-            h.largest_drift = (d, t);
-        }
         h.times_s.push(t);
         h.ambient_c.push(thermal.network.ambient().celsius_at(t));
         h.temps_c.push(temps);

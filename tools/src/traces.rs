@@ -205,6 +205,28 @@ struct Run {
     deviation: Vec<f64>,
 }
 
+/// The 1-based line of the record the csv reader placed at `pos` in `bytes`: the reader
+/// records a row's position before it skips the blank lines in front of it, so those are
+/// counted here. `None` (no position) gives `fallback`.
+pub(crate) fn record_line(bytes: &[u8], pos: Option<&csv::Position>, fallback: usize) -> usize {
+    let Some(pos) = pos else {
+        return fallback;
+    };
+    let (mut line, mut b) = (pos.line() as usize, pos.byte() as usize);
+    loop {
+        let rest = bytes.get(b..).unwrap_or_default();
+        let skip = if rest.starts_with(b"\r\n") {
+            2
+        } else if rest.starts_with(b"\n") || rest.starts_with(b"\r") {
+            1
+        } else {
+            return line;
+        };
+        b += skip;
+        line += 1;
+    }
+}
+
 /// A CSV reader over `bytes` (cells trimmed) and the header of `file`.
 pub(crate) fn csv_with_header<'a>(
     bytes: &'a [u8],
@@ -270,11 +292,11 @@ fn read_csv(bytes: &[u8], file: &str, setup: CsvSetup) -> Result<Vec<Trace>, Cli
     let mut runs: Vec<Run> = Vec::new();
     for (i, record) in reader.records().enumerate() {
         let rec = record.map_err(|e| {
-            let line = e.position().map_or(i + 2, |p| p.line() as usize);
+            let line = record_line(bytes, e.position(), i + 2);
             CliError::input(file, Some(line), e.to_string())
         })?;
         // The reader's own line count: blank lines are skipped, quoted cells may span lines.
-        let line = rec.position().map_or(i + 2, |p| p.line() as usize);
+        let line = record_line(bytes, rec.position(), i + 2);
         let number = |k: usize, name: &str| finite_cell(&rec, k, name, file, line);
         let direction = rec.get(cols.direction).unwrap_or("").to_ascii_lowercase();
         if direction != "cw" && direction != "ccw" {

@@ -182,15 +182,21 @@ fn a_nan_is_refused_with_its_line() {
     );
 }
 
-/// A blank line (skipped by the reader) does not shift the line named.
+/// A blank line (skipped by the reader) does not shift the line named, right after it either.
 #[test]
 fn a_nan_after_a_blank_line_is_refused_at_its_own_line() {
     let text = rows(720, |i, a| {
         (a, if i == 10 { "NaN".into() } else { "0.1".into() })
     })
-    .replacen("\n", "\n\n", 1);
+    .replacen("\n5,NaN", "\n\n5,NaN", 1);
     let (ok, e) = diagnose_text(&text);
     assert!(!ok);
+    assert!(e.contains("bad.csv:13"), "{e}");
+    let text = rows(720, |i, a| {
+        (a, if i == 10 { "NaN".into() } else { "0.1".into() })
+    })
+    .replacen("\n", "\r\n\r\n", 1);
+    let (_, e) = diagnose_text(&text);
     assert!(e.contains("bad.csv:13"), "{e}");
 }
 

@@ -232,11 +232,14 @@ impl Terms {
         add(Term::RadialDrift, full, NEEDS_FULL);
         add(Term::PivotDrift(0), full, NEEDS_FULL);
         add(Term::PivotDrift(1), full, NEEDS_FULL);
+        // A 90° data arc's samples span a little less: the traces' own least sweep.
         const NEEDS_90: &str = "needs an arc of at least 90 deg";
-        add(Term::ScaleMismatch, sweep >= 90.0, NEEDS_90);
-        add(Term::Squareness, sweep >= 90.0, NEEDS_90);
+        let quarter = sweep >= crate::trace::MIN_SWEEP_DEG;
+        add(Term::ScaleMismatch, quarter, NEEDS_90);
+        add(Term::Squareness, quarter, NEEDS_90);
         const NEEDS_BOTH: &str = "needs both a CW and a CCW run of the same circle";
-        add(Term::ServoMismatch, both && sweep >= 90.0, NEEDS_BOTH);
+        let why = if both { NEEDS_90 } else { NEEDS_BOTH };
+        add(Term::ServoMismatch, both && quarter, why);
         // An axis that does not reverse inside the arc still travels one way in the CW run and
         // the other way in the CCW run: its lost motion is the same law, a shift of the run by
         // ±b/2 along the axis (sign v constant over the arc).
@@ -486,6 +489,42 @@ mod tests {
         Term::Straightness(0),
         Term::Straightness(1),
     ];
+
+    /// A 90° data arc, the shortest a test may have, records a little less (89.9° at 1 kHz):
+    /// its CW and CCW runs still give scale, squareness and servo mismatch; 87° does not.
+    #[test]
+    fn a_quarter_circle_run_both_ways_fits_scale_squareness_and_servo_mismatch() {
+        let run = |sense: Sense, sweep: f64| {
+            let n = 900;
+            let s = sense.sign();
+            Trace {
+                label: "q".into(),
+                plane: Plane::Xy,
+                sense,
+                radius_mm: 50.0,
+                feed_mm_min: 3000.0,
+                angle_deg: (0..n)
+                    .map(|i| s * sweep * i as f64 / (n - 1) as f64)
+                    .collect(),
+                deviation_um: vec![0.0; n],
+                time_s: None,
+            }
+        };
+        for (sweep, fitted) in [(89.9, true), (87.0, false)] {
+            let (ccw, cw) = (run(Sense::Ccw, sweep), run(Sense::Cw, sweep));
+            let terms = Terms::for_test(&[&ccw, &cw]);
+            for t in [Term::ScaleMismatch, Term::Squareness, Term::ServoMismatch] {
+                assert_eq!(terms.terms.contains(&t), fitted, "{sweep}: {t:?}");
+            }
+            if !fitted {
+                let why = terms
+                    .left_out
+                    .iter()
+                    .find(|(t, _)| *t == Term::ServoMismatch);
+                assert_eq!(why.map(|w| w.1), Some("needs an arc of at least 90 deg"));
+            }
+        }
+    }
 
     proptest! {
         /// The compiled model's residual and the sum of the terms' signatures agree at every

@@ -44,7 +44,6 @@ pub(crate) fn commanded_speed(kind: MoveKind, limits: &Limits) -> f64 {
     }
 }
 
-/// The limits of one segment.
 /// The fastest a circle of radius `radius_m` in the plane of axes `plane` can be run, m/s:
 /// what [`segment_limits`] grants a helix without rise (`q = 1`, `κ = 1/r`), the slower plane
 /// axis' velocity and `√(c a r)` for its acceleration `a`, with the path feed's own maximum.
@@ -58,6 +57,7 @@ pub fn circle_speed_limit(limits: &Limits, plane: [usize; 2], radius_m: f64) -> 
         .min((CENTRIPETAL_SHARE * a_plane * radius_m).sqrt())
 }
 
+/// The limits of one segment.
 pub(crate) fn segment_limits(segment: &Segment, limits: &Limits) -> FeedLimits {
     let commanded = commanded_speed(segment.kind, limits);
     match &segment.geometry {
