@@ -340,7 +340,8 @@ fn read_csv(bytes: &[u8], file: &str, setup: CsvSetup) -> Result<Vec<Trace>, Cli
     if runs.is_empty() {
         return Err(CliError::input(file, None, "no samples after the header"));
     }
-    runs.into_iter()
+    let traces = runs
+        .into_iter()
         .map(|r| {
             let label = format!("{file} {}", r.direction.to_uppercase());
             Trace::new(
@@ -355,5 +356,30 @@ fn read_csv(bytes: &[u8], file: &str, setup: CsvSetup) -> Result<Vec<Trace>, Cli
             )
             .map_err(|e| csv_trace_error(e, file, &r.lines, &r.direction))
         })
-        .collect()
+        .collect::<Result<Vec<_>, _>>()?;
+    for t in &traces {
+        check_flat_feed(t, setup)?;
+    }
+    Ok(traces)
+}
+
+/// A CSV trace's times against `--feed-mm-min` within [`vmt_ballbar::trace::FEED_TOLERANCE`]
+/// both ways: its set-up is a bar in the plane of its circle (the trace's own check allows an
+/// inclined bar's faster angular pace, which a CSV cannot state), so a feed typed 2 to 10
+/// times too low is refused too.
+fn check_flat_feed(t: &Trace, setup: CsvSetup) -> Result<(), CliError> {
+    let Some(speed) = t.timed_speed_mm_min() else {
+        return Ok(());
+    };
+    let tolerance = vmt_ballbar::trace::FEED_TOLERANCE;
+    if (speed / setup.feed_mm_min - 1.0).abs() > tolerance {
+        return Err(CliError::Argument(format!(
+            "--feed-mm-min {}: the times of {} give {speed:.1} mm/min along the {} mm circle (within {} % is accepted); check the feed, --radius-mm and the unit of time_s (s)",
+            setup.feed_mm_min,
+            t.label,
+            setup.radius_mm,
+            tolerance * 100.0
+        )));
+    }
+    Ok(())
 }

@@ -327,3 +327,36 @@ fn the_file_kind_decides_which_flags_apply_and_names_a_missing_column() {
         &["MCAP run", "--radius-mm, --feed-mm-min, --plane apply"],
     );
 }
+
+/// A CSV's times must give its feed within 10 % (a flat bar): at 1000 mm/min on 150 mm they
+/// pass; the same times stated as 250 mm/min (4x too low, which the trace alone would take for
+/// an inclined bar) are refused, naming the option.
+#[test]
+fn csv_times_must_give_the_stated_feed() {
+    let step_s = 150.0 * 0.5_f64.to_radians() / 1000.0 * 60.0;
+    let mut text = String::from("time_s,angle_deg,deviation_um,direction\n");
+    for i in 0..=720 {
+        text += &format!("{},{},0.1,ccw\n", i as f64 * step_s, i as f64 * 0.5);
+    }
+    let (ok, e) = diagnose_text(&text);
+    assert!(ok, "{e}");
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("slow.csv");
+    std::fs::write(&p, &text).unwrap();
+    let o = vmt(&[
+        "diagnose",
+        p.to_str().unwrap(),
+        "--radius-mm",
+        "150",
+        "--feed-mm-min",
+        "250",
+        "--plane",
+        "XY",
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+    let e = stderr(&o);
+    assert!(
+        e.contains("--feed-mm-min 250: the times of") && e.contains("give 1000.0 mm/min"),
+        "{e}"
+    );
+}

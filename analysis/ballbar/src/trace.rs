@@ -363,6 +363,14 @@ impl Trace {
         }
     }
 
+    /// With times, the speed along a circle of the bar's length, mm/min: radius × angle swept
+    /// over the time taken (the feed, for a bar in the plane of its circle).
+    pub fn timed_speed_mm_min(&self) -> Option<f64> {
+        let t = self.time_s.as_ref()?;
+        let duration_min = (t[t.len() - 1] - t[0]) / 60.0;
+        Some(self.radius_mm * self.sweep_deg().to_radians() / duration_min)
+    }
+
     /// Feed as µm per ms (the unit in which a lag in ms gives µm).
     pub fn feed_um_per_ms(&self) -> f64 {
         self.feed_mm_min / 60.0
@@ -511,11 +519,9 @@ impl Trace {
     /// is the stated feed: not below it by more than [`FEED_TOLERANCE`], and not above it by
     /// more than [`MAX_INCLINED_RATIO`] (an inclined bar's circle is smaller than its length).
     fn check_feed(&self) -> Result<(), TraceError> {
-        let Some(t) = &self.time_s else {
+        let Some(implied) = self.timed_speed_mm_min() else {
             return Ok(());
         };
-        let duration_min = (t[t.len() - 1] - t[0]) / 60.0;
-        let implied = self.radius_mm * self.sweep_deg().to_radians() / duration_min;
         let ratio = implied / self.feed_mm_min;
         if !(1.0 / (1.0 + FEED_TOLERANCE)..=MAX_INCLINED_RATIO).contains(&ratio) {
             return Err(TraceError::FeedMismatch {
