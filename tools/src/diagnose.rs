@@ -84,17 +84,31 @@ pub enum FileKind {
     LaserCsv,
 }
 
+/// How much of a file [`file_kind`] reads: the MCAP magic, or a CSV header line.
+const HEAD_BYTES: u64 = 1 << 16;
+
 /// Columns of a ball-bar CSV, for messages.
 const BALLBAR_COLUMNS: &str = "angle_deg, deviation_um, direction (cw/ccw) and optionally time_s";
 /// Columns of a laser CSV, for messages.
 const LASER_COLUMNS: &str =
     "target_mm, direction (forward/backward), run, and deviation_um or reading_mm";
 
-/// Tells the kind of `path` from its first bytes (MCAP) or its CSV header; an empty file, or a
-/// header of neither kind, is refused naming what is missing.
+/// Tells the kind of `path` from its first bytes (MCAP) or its CSV header, reading only its
+/// first [`HEAD_BYTES`] (a run's MCAP may hold a gigabyte); an empty file, or a header of
+/// neither kind, is refused naming what is missing.
 pub fn file_kind(path: &Path) -> Result<FileKind, CliError> {
+    use std::io::Read;
     let file = path.display().to_string();
-    let bytes = std::fs::read(path).map_err(|e| CliError::input(&file, None, e.to_string()))?;
+    let mut bytes = Vec::new();
+    std::fs::File::open(path)
+        .and_then(|f| f.take(HEAD_BYTES).read_to_end(&mut bytes))
+        .map_err(|e| CliError::input(&file, None, e.to_string()))?;
+    // The header alone: a partial last row must not be parsed as one.
+    if !bytes.starts_with(mcap::MAGIC)
+        && let Some(end) = bytes.iter().position(|&b| b == b'\n')
+    {
+        bytes.truncate(end + 1);
+    }
     if bytes.starts_with(mcap::MAGIC) {
         return Ok(FileKind::Mcap);
     }
