@@ -39,6 +39,11 @@ pub fn execute(
     if let Some(f) = fidelity {
         settings.fidelity = f;
     }
+    if let Some(file) = &exec.program_file {
+        for note in clamped_feeds(&exec.job.program, exec.controller.limits.max_feed_m_s, file) {
+            crate::errln!("note: {note}");
+        }
+    }
     let bar = if quiet {
         ProgressBar::hidden()
     } else {
@@ -82,6 +87,30 @@ pub fn execute(
     })?;
     bar.finish_and_clear();
     Ok(run)
+}
+
+/// The feeds of a program file above the controller's largest, which it clamps to it as a
+/// controller does (a ball-bar or positioning test is refused instead, at load): one note per
+/// line, naming the file and line.
+pub fn clamped_feeds(program: &vmt_sim::nc::Program, max_feed_m_s: f64, file: &str) -> Vec<String> {
+    use vmt_sim::nc::Motion;
+    let max = (max_feed_m_s * 60_000.0 * 1e6).round() / 1e6;
+    let mut notes: Vec<String> = program
+        .blocks
+        .iter()
+        .filter_map(|b| match b.motion {
+            Motion::Linear { feed, .. } | Motion::Arc { feed, .. } if feed * 60_000.0 > max * (1.0 + 1e-9) => {
+                Some(format!(
+                    "{file}:{}: F{} mm/min is above controller.max_feed_mm_min = {max} mm/min; the controller runs it at {max}",
+                    b.span.line,
+                    (feed * 60_000.0 * 1e6).round() / 1e6
+                ))
+            }
+            _ => None,
+        })
+        .collect();
+    notes.dedup();
+    notes
 }
 
 /// Writes the run's files into `dir`.

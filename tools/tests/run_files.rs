@@ -126,3 +126,17 @@ fn the_same_scenario_and_seed_give_byte_identical_mcap_files() {
     let c = quarter(dir.path(), 2, "c");
     assert!(a != c, "seeds 1 and 2 give the same file");
 }
+
+/// A program feed above the controller's largest runs at that largest, as on a controller, and
+/// the run says so, naming the line.
+#[test]
+fn a_feed_above_the_controllers_largest_is_noted_at_its_line() {
+    let (code, e, written) = run_program(&format!("{MOVE}G1 X300 F50000\nG1 X200 F500\n"), &[]);
+    assert_eq!(code, Some(0), "{e}");
+    assert!(written);
+    assert!(
+        e.contains("bad.nc:2: F50000 mm/min is above controller.max_feed_mm_min = 10000 mm/min; the controller runs it at 10000"),
+        "{e}"
+    );
+    assert!(!e.contains("bad.nc:3:"), "{e}");
+}
