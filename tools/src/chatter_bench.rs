@@ -75,6 +75,35 @@ fn check_bench(a: &BenchArgs) -> Result<(), CliError> {
         "s",
         "seconds of cut per run; Kim's blocks are 50 ms",
     )?;
+    // The better detector's tuning: a share of the frame's power, a power ratio and a
+    // look-back within the cut.
+    if let Some(s) = a.developed_share {
+        check_range(
+            "--developed-share",
+            s,
+            (0.0, 1.0),
+            "",
+            "a share of the frame's power",
+        )?;
+    }
+    if let Some(g) = a.growth {
+        check_range(
+            "--growth",
+            g,
+            (1.0, 1e6),
+            "×",
+            "a growth of the peak's power",
+        )?;
+    }
+    if let Some(w) = a.growth_window_s {
+        check_range(
+            "--growth-window-s",
+            w,
+            (0.0, a.duration_s),
+            "s",
+            "a look-back within the cut's --duration-s",
+        )?;
+    }
     let total = (a.speeds * a.depths) as f64 * a.duration_s;
     if total > BENCH_TOTAL_S {
         return Err(CliError::Argument(format!(

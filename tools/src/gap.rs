@@ -483,6 +483,32 @@ pub struct BenchArgs {
 }
 
 impl BenchArgs {
+    /// The bench's own settings within what they mean and what a run of it can hold (the
+    /// test's radius and feed are checked by the scenario they are written into).
+    fn check(&self) -> Result<(), CliError> {
+        use crate::error::{check_count, check_range};
+        check_range(
+            "--nuisance",
+            self.nuisance,
+            (0.0, 1.0),
+            "× typical",
+            "a fraction of each other parameter's typical size",
+        )?;
+        check_count(
+            "--nulls",
+            self.nulls,
+            (0, 1000),
+            "each is a fit over the library",
+        )?;
+        check_count(
+            "--repeats",
+            self.repeats,
+            (1, 100),
+            "each draws the whole list of cases again",
+        )?;
+        Ok(())
+    }
+
     /// The folder of the model's file, where its tables and program are.
     fn model_dir(&self) -> Option<PathBuf> {
         self.model
@@ -515,6 +541,7 @@ impl BenchArgs {
 /// Runs `vmt gap-bench`.
 pub fn bench_command(a: &BenchArgs) -> Result<(), CliError> {
     use vmt_gap::bench;
+    a.check()?;
     let (text, file) = match &a.model {
         Some(p) => (
             std::fs::read_to_string(p)

@@ -123,3 +123,35 @@ fn lobes_grids_are_bounded_and_named() {
         &["--speed-min-rpm 9000 must be below --speed-max-rpm 8000"],
     );
 }
+
+#[test]
+fn gap_bench_settings_are_bounded() {
+    refused(
+        &["gap-bench", "--nuisance=-0.1", "--quiet"],
+        &["--nuisance -0.1: from 0 to 1"],
+    );
+    refused(
+        &["gap-bench", "--repeats", "0", "--quiet"],
+        &["--repeats 0: from 1 to 100"],
+    );
+    refused(
+        &["gap-bench", "--nulls", "100000", "--quiet"],
+        &["--nulls 100000: from 0 to 1000"],
+    );
+}
+
+#[test]
+fn the_better_detectors_tuning_in_chatter_bench_is_bounded() {
+    refused(
+        &["chatter", "bench", "--developed-share", "2"],
+        &["--developed-share 2: from 0 to 1"],
+    );
+    refused(
+        &["chatter", "bench", "--growth", "0.5"],
+        &["--growth 0.5: from 1 to 1000000"],
+    );
+    refused(
+        &["chatter", "bench", "--growth-window-s", "5"],
+        &["--growth-window-s 5: from 0 to 0.4 s"],
+    );
+}
