@@ -82,7 +82,7 @@ fn check_bench(a: &BenchArgs) -> Result<(), CliError> {
             "--developed-share",
             s,
             (0.0, 1.0),
-            "",
+            "(fraction)",
             "a share of the frame's power",
         )?;
     }
