@@ -232,15 +232,11 @@ fn check_test_rates(
     // On its circle the interpolator also slows a test down to what the plane's axes allow
     // (velocity, and the centripetal acceleration v²/r).
     for b in &job.ballbar {
-        let plane = match b.plane {
-            vmt_sim::nc::Plane::Xy => [0, 1],
-            vmt_sim::nc::Plane::Zx => [2, 0],
-            vmt_sim::nc::Plane::Yz => [1, 2],
-        };
+        let (p, q) = b.plane.axes();
         let radius = b.tool_circle().1;
         let limit = vmt_sim::interpolator::feed_limits::circle_speed_limit(
             &controller.limits,
-            plane,
+            [p.index(), q.index()],
             radius,
         );
         let (mm_min, limit_mm_min) = (user(b.feed_m_s * 60_000.0), user(limit * 60_000.0));

@@ -250,15 +250,6 @@ fn laser_truth(setup: &crate::laser::LaserSetup, run: &LaserRun, truth: &LaserTr
     })
 }
 
-/// The plane's axes (p, q), in the order of its angle.
-fn plane_axes(plane: Plane) -> (Axis, Axis) {
-    match plane {
-        Plane::Xy => (Axis::X, Axis::Y),
-        Plane::Zx => (Axis::Z, Axis::X),
-        Plane::Yz => (Axis::Y, Axis::Z),
-    }
-}
-
 /// Servo lag of an axis at constant velocity, `(1 - k_vff)/K_v`, s.
 fn lag_s(d: &AxisDynamics) -> f64 {
     (1.0 - d.servo.velocity_ff) / d.servo.kv_per_s
@@ -297,7 +288,7 @@ pub fn test_figures(
     b: &BallbarSetup,
     chain: &VolumetricEvaluator,
 ) -> serde_json::Map<String, Value> {
-    let (pa, qa) = plane_axes(b.plane);
+    let (pa, qa) = b.plane.axes();
     let (ep, eq) = (unit(pa), unit(qa));
     let r_um = b.radius_m * 1e6;
     let (centre, radius) = b.tool_circle();
@@ -480,7 +471,7 @@ fn arc_sweep(job: &Job, ends: &[Vector3<f64>], b: &BallbarSetup, k: usize) -> f6
 /// The angle of point `p` (m) on test `b`'s circle, rad, from the plane's first axis towards
 /// its second.
 fn circle_angle(b: &BallbarSetup, p: Vector3<f64>) -> f64 {
-    let (pa, qa) = plane_axes(b.plane);
+    let (pa, qa) = b.plane.axes();
     let v = p - b.tool_circle().0;
     v[qa.index()].atan2(v[pa.index()])
 }
@@ -528,7 +519,7 @@ fn mean_error(
     th: f64,
     base: [Direction; 3],
 ) -> Vector3<f64> {
-    let (pa, qa) = plane_axes(b.plane);
+    let (pa, qa) = b.plane.axes();
     let (centre, radius) = b.tool_circle();
     let tool = centre + (unit(pa) * th.cos() + unit(qa) * th.sin()) * radius;
     let dirs = [Direction::Forward, Direction::Backward];
@@ -558,7 +549,7 @@ fn reversal_change(
     arcs: &[(f64, f64)],
     base: [Direction; 3],
 ) -> (f64, f64) {
-    let (pa, qa) = plane_axes(b.plane);
+    let (pa, qa) = b.plane.axes();
     let (centre, radius) = b.tool_circle();
     let full = [(0.0, TAU)];
     let arcs = if arcs.is_empty() { &full[..] } else { arcs };

@@ -5,6 +5,7 @@
 //! column of the G-code it came from, so later stages (stroke checks, the controller) can name it.
 
 use nalgebra::Vector3;
+use vmt_model::Axis;
 
 /// Where a block came from in its source file (1-based).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
@@ -34,6 +35,15 @@ impl Plane {
             Plane::Xy => Vector3::z(),
             Plane::Zx => Vector3::y(),
             Plane::Yz => Vector3::x(),
+        }
+    }
+
+    /// The plane's axes (p, q), in the order of its angle (from p towards q).
+    pub fn axes(self) -> (Axis, Axis) {
+        match self {
+            Plane::Xy => (Axis::X, Axis::Y),
+            Plane::Zx => (Axis::Z, Axis::X),
+            Plane::Yz => (Axis::Y, Axis::Z),
         }
     }
 }
