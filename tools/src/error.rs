@@ -68,42 +68,50 @@ impl CliError {
     }
 }
 
-/// Checks option `name`'s `value`, in the unit the user typed (`unit`), against `lo..=hi`; the
-/// error names the option and value, the accepted range and `why` it is bounded.
+/// Checks option `name`'s `value` against `lo..=hi`; the error names the option and value, the
+/// accepted range (followed by `unit`, the unit the user typed, when there is one) and `why` it
+/// is bounded. A NaN is outside every range.
+fn check_within<T: PartialOrd + Copy + std::fmt::Display>(
+    name: &str,
+    value: T,
+    (lo, hi): (T, T),
+    unit: &str,
+    why: &str,
+) -> Result<T, CliError> {
+    if (lo..=hi).contains(&value) {
+        return Ok(value);
+    }
+    let unit = if unit.is_empty() {
+        String::new()
+    } else {
+        format!(" {unit}")
+    };
+    Err(CliError::option(
+        name,
+        value,
+        format!("from {lo} to {hi}{unit} is accepted ({why})"),
+    ))
+}
+
+/// [`check_within`] for a quantity in `unit`.
 pub fn check_range(
     name: &str,
     value: f64,
-    (lo, hi): (f64, f64),
+    range: (f64, f64),
     unit: &str,
     why: &str,
 ) -> Result<f64, CliError> {
-    if (lo..=hi).contains(&value) {
-        Ok(value)
-    } else {
-        Err(CliError::option(
-            name,
-            value,
-            format!("from {lo} to {hi} {unit} is accepted ({why})"),
-        ))
-    }
+    check_within(name, value, range, unit, why)
 }
 
-/// Checks a count option `name` against `lo..=hi`, saying `why` it is bounded.
+/// [`check_within`] for a count.
 pub fn check_count(
     name: &str,
     value: usize,
-    (lo, hi): (usize, usize),
+    range: (usize, usize),
     why: &str,
 ) -> Result<usize, CliError> {
-    if (lo..=hi).contains(&value) {
-        Ok(value)
-    } else {
-        Err(CliError::option(
-            name,
-            value,
-            format!("from {lo} to {hi} is accepted ({why})"),
-        ))
-    }
+    check_within(name, value, range, "", why)
 }
 
 /// Checks that option `name`'s `value` is a finite number above 0 and at most `hi` `unit`.
