@@ -211,9 +211,18 @@ fn claim(
         )));
     }
     std::fs::create_dir_all(out).map_err(|e| CliError::output(out, e))?;
-    let path = out.join(IDENTITY_FILE);
-    let tmp = out.join(format!("{TMP_PREFIX}{IDENTITY_FILE}"));
-    write_file(&tmp, &record.json())?;
+    write_aside(out, IDENTITY_FILE, |tmp| write_file(tmp, &record.json()))
+}
+
+/// Writes `dir/name` with `write` into `dir/.tmp-name` and renames it in, so that a kill
+/// leaves the previous file whole rather than half of a new one.
+fn write_aside(
+    dir: &Path,
+    name: &str,
+    write: impl FnOnce(&Path) -> Result<(), CliError>,
+) -> Result<(), CliError> {
+    let (tmp, path) = (dir.join(format!("{TMP_PREFIX}{name}")), dir.join(name));
+    write(&tmp)?;
     std::fs::rename(&tmp, &path).map_err(|e| CliError::output(&path, e))
 }
 
@@ -446,15 +455,10 @@ fn read_labels(path: &Path) -> Result<Value, CliError> {
 /// Rebuilds `manifest.csv` and `manifest.parquet` from the labels; returns the number of rows.
 pub fn write_manifest(dir: &Path) -> Result<usize, CliError> {
     let m = manifest(dir)?;
-    // Written aside and renamed in, so that a kill leaves the previous manifest, not half of one.
-    let csv_tmp = dir.join(format!("{TMP_PREFIX}manifest.csv"));
-    write_csv(&m, &csv_tmp)?;
-    let csv_path = dir.join("manifest.csv");
-    std::fs::rename(&csv_tmp, &csv_path).map_err(|e| CliError::output(&csv_path, e))?;
-    let path = dir.join("manifest.parquet");
-    let tmp = dir.join(format!("{TMP_PREFIX}manifest.parquet"));
-    write_parquet(&m, &tmp).map_err(|e| CliError::output(&path, e))?;
-    std::fs::rename(&tmp, &path).map_err(|e| CliError::output(&path, e))?;
+    write_aside(dir, "manifest.csv", |tmp| write_csv(&m, tmp))?;
+    write_aside(dir, "manifest.parquet", |tmp| {
+        write_parquet(&m, tmp).map_err(|e| CliError::output(&dir.join("manifest.parquet"), e))
+    })?;
     Ok(m.rows.len())
 }
 
