@@ -4,17 +4,23 @@
 
 use std::process::Command;
 
-/// Runs `vmt args` with stdout a pipe whose reading end is already closed; returns the exit
-/// code and stderr.
-fn with_closed_stdout(args: &[&str]) -> (Option<i32>, String) {
+/// A pipe whose reading end is already closed: writing to it fails with a broken pipe.
+fn closed_pipe() -> std::io::PipeWriter {
     let (reader, writer) = std::io::pipe().unwrap();
     drop(reader);
-    let o = Command::new("timeout")
-        .args(["300", env!("CARGO_BIN_EXE_vmt")])
-        .args(args)
-        .stdout(writer)
-        .output()
-        .unwrap();
+    writer
+}
+
+/// `vmt args` under coreutils `timeout`, as the other CLI tests run it.
+fn vmt_command(args: &[&str]) -> Command {
+    let mut c = Command::new("timeout");
+    c.args(["300", env!("CARGO_BIN_EXE_vmt")]).args(args);
+    c
+}
+
+/// Runs `vmt args` with stdout a closed pipe; returns the exit code and stderr.
+fn with_closed_stdout(args: &[&str]) -> (Option<i32>, String) {
+    let o = vmt_command(args).stdout(closed_pipe()).output().unwrap();
     (
         o.status.code(),
         String::from_utf8_lossy(&o.stderr).into_owned(),
@@ -82,20 +88,19 @@ fn a_closed_stdout_is_an_error_not_a_panic_for_the_report_commands() {
 /// exit code still says so, without a panic (exit 101).
 #[test]
 fn closed_stdout_and_stderr_still_give_the_error_code() {
-    for args in [vec!["topologies"], vec!["thermal", "--every-s", "3600"]] {
-        let dir = tempfile::tempdir().unwrap();
-        let (r1, w1) = std::io::pipe().unwrap();
-        let (r2, w2) = std::io::pipe().unwrap();
-        drop((r1, r2));
-        let out = dir.path().join("th");
-        let mut all = args.clone();
-        if args[0] == "thermal" {
-            all.extend(["--out", out.to_str().unwrap()]);
-        }
-        let status = Command::new(env!("CARGO_BIN_EXE_vmt"))
-            .args(&all)
-            .stdout(w1)
-            .stderr(w2)
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("th");
+    let thermal = [
+        "thermal",
+        "--every-s",
+        "3600",
+        "--out",
+        out.to_str().unwrap(),
+    ];
+    for args in [&["topologies"][..], &thermal] {
+        let status = vmt_command(args)
+            .stdout(closed_pipe())
+            .stderr(closed_pipe())
             .status()
             .unwrap();
         assert_eq!(status.code(), Some(2), "vmt {args:?}");
