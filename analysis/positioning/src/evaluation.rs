@@ -18,6 +18,8 @@ use vmt_model::iso230_2::{Deviation, Iso230_2};
 const STANDARD_RUNS: usize = 5;
 const STANDARD_TARGETS: usize = 5;
 const STANDARD_TARGETS_PER_M: f64 = 5.0;
+/// Beyond this travel (m) the standard has another procedure (ISO 230-2:2014, 6.2).
+const LONG_AXIS_M: f64 = 2.0;
 
 /// Least-squares line through the mean bidirectional deviations.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
@@ -139,6 +141,13 @@ fn notes(run: &PositioningRun, runs: usize, most: usize) -> Vec<String> {
     }
     let n = run.targets_mm.len();
     let travel_m = (run.targets_mm[n - 1] - run.targets_mm[0]) * 1e-3;
+    if travel_m > LONG_AXIS_M {
+        notes.push(format!(
+            "the tested travel is {:.0} mm: ISO 230-2 (6.2) evaluates axes over 2000 mm from one approach per target and direction and defines neither repeatability nor the accuracy A for them; the figures here apply the procedure for axes up to 2000 mm to the whole travel",
+            travel_m * 1e3
+        ));
+        return notes;
+    }
     let wanted = STANDARD_TARGETS.max((STANDARD_TARGETS_PER_M * travel_m).ceil() as usize);
     if n < wanted {
         notes.push(format!(

@@ -2,7 +2,8 @@
 //!
 //! ISO 230-2 evaluates deviations `x_ij = P_ij − P_i` at targets `P_i`, each approached from
 //! both directions in every run `j`. The standard asks for five runs and at least five targets
-//! (per metre of travel, and five for axes up to 2 m); the figures are defined from two runs on
+//! per metre of travel (five at least) on axes up to 2 m, and has a single-approach procedure
+//! for longer axes (6.2), which the report notes; the figures are defined from two runs on
 //! (a standard deviation needs two values). So fewer than two runs at a target and direction is
 //! an error here, fewer than five a note in the report.
 

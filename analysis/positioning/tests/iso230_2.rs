@@ -135,6 +135,32 @@ fn fewer_runs_and_targets_than_the_standard_are_noted() {
     assert!(e.notes[1].contains("this test has 3"));
 }
 
+/// Five targets per metre hold up to 2000 mm of travel; beyond it the standard's procedure for
+/// long axes (ISO 230-2, 6.2) applies, which the report says instead of asking for targets.
+#[test]
+fn long_axes_are_noted_as_such() {
+    let every = |step: f64, travel: f64| -> Vec<f64> {
+        (0..=(travel / step) as usize)
+            .map(|i| step * i as f64)
+            .collect()
+    };
+    let at_limit = readings(&every(200.0, 2000.0), 5, |_, _, j| j as f64);
+    let e = evaluate(&PositioningRun::new("X", at_limit).unwrap());
+    assert!(e.notes.is_empty(), "{:?}", e.notes);
+    let sparse = readings(&every(250.0, 2000.0), 5, |_, _, j| j as f64);
+    let e = evaluate(&PositioningRun::new("X", sparse).unwrap());
+    assert_eq!(e.notes.len(), 1, "{:?}", e.notes);
+    assert!(e.notes[0].contains("(10 over 2000 mm); this test has 9"));
+    let long = readings(&every(250.0, 3000.0), 5, |_, _, j| j as f64);
+    let e = evaluate(&PositioningRun::new("X", long).unwrap());
+    assert_eq!(e.notes.len(), 1, "{:?}", e.notes);
+    assert!(
+        e.notes[0].contains("tested travel is 3000 mm"),
+        "{}",
+        e.notes[0]
+    );
+}
+
 #[test]
 fn unusable_readings_are_refused_with_the_reason() {
     assert_eq!(
