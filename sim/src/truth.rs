@@ -40,7 +40,10 @@ pub struct TruthInputs<'a> {
 ///   nut stays on one flank.
 /// - `servo_mismatch_ms`: `τ_a − τ_b` for the plane's axes (a, b) in ms, with the servo lag
 ///   `τ = (1 − k_vff)/K_v` at constant velocity; a ball bar sees `±(F Δτ / 2) sin 2θ` from it.
-/// - `squareness_um_per_m`: the ISO squareness of the plane, µm/m.
+/// - `squareness.<ISO name>_urad` (`EC0Y_urad`, `EB0Z_urad`, `EA0Z_urad`): the injected
+///   squareness errors, µrad, as `[reference axis direction][rotated axis direction]` (forward,
+///   backward); the µm/m figure a ball bar reports in its plane is each test's
+///   `figures.squareness_<plane>`.
 ///
 /// `drives.<axis>.backlash_seen_um` is taken at the job's test feed ([`Job::test_feed_m_s`]);
 /// each circular test of `ballbar.tests` has its own at its feed, and a `figures` object with
@@ -86,7 +89,8 @@ pub fn ground_truth(
     let mut squareness = serde_json::Map::new();
     for s in SquarenessError::ALL {
         let v = machine.volumetric.errors.squareness(s).values;
-        squareness.insert(format!("{}_urad", s.iso_name()), json!(v));
+        let urad = v.map(|row| row.map(|rad| rad * 1e6));
+        squareness.insert(format!("{}_urad", s.iso_name()), json!(urad));
     }
     let ballbar = job.ballbar.first().map(|b| {
         let mut closing = closing_um.iter();

@@ -193,3 +193,41 @@ fn velocity_feed_forward_scale_mismatch_is_the_truth() {
         );
     }
 }
+
+/// The built-in machine's squareness errors (scenarios/vmc500.toml: EC0Y 12, EB0Z −8, EA0Z
+/// 6 forward and 9 backward, µrad) come out in the unit of their keys.
+#[test]
+fn injected_squareness_is_written_in_urad() {
+    let scenario = vmt_scenario::builtin().unwrap();
+    let exec = scenario.execution.unwrap();
+    let inputs = vmt_sim::truth::TruthInputs {
+        machine: &scenario.machine,
+        axes: &exec.axes,
+        job: &exec.job,
+        at_tests: &[],
+    };
+    let truth = vmt_sim::truth::ground_truth(&inputs, &[], None);
+    let values = |key: &str| -> Vec<f64> {
+        let rows = truth["squareness"][key].as_array().unwrap();
+        rows.iter()
+            .flat_map(|r| r.as_array().unwrap().iter().map(|v| v.as_f64().unwrap()))
+            .collect()
+    };
+    let close = |got: Vec<f64>, want: &[f64]| {
+        got.len() == want.len() && got.iter().zip(want).all(|(g, w)| (g - w).abs() < 1e-9)
+    };
+    assert!(
+        close(values("EC0Y_urad"), &[12.0; 4]),
+        "{}",
+        truth["squareness"]
+    );
+    assert!(
+        close(values("EB0Z_urad"), &[-8.0; 4]),
+        "{}",
+        truth["squareness"]
+    );
+    let mut ea = values("EA0Z_urad");
+    ea.sort_by(f64::total_cmp);
+    ea.dedup();
+    assert!(close(ea, &[6.0, 9.0]), "{}", truth["squareness"]);
+}
