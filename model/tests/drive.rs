@@ -3,8 +3,10 @@
 
 use proptest::prelude::*;
 use vmt_model::drive::axis::symplectic_euler_limit;
+use vmt_model::drive::servo::sampled_loop_radius;
 use vmt_model::drive::{
-    AxisCommand, DriveParams, Feedback, LuGre, LuGreParams, ReducedAxis, ScrewParams, ServoParams,
+    AxisCommand, DriveParams, Feedback, LuGre, LuGreParams, ReducedAxis, ScrewParams,
+    ServoController, ServoParams,
 };
 
 const SERVO: f64 = 125e-6;
@@ -290,4 +292,82 @@ fn backlash_shifts_the_carriage_by_the_gap_at_a_reversal() {
         (bwd - b / 2.0 - compression).abs() < 0.02e-6,
         "backward offset {bwd:e}"
     );
+}
+
+/// A servo with velocity bandwidth `hz` on a rigid mass `m` (Kp = M·2π·bw, as the scenario
+/// sets it) and the table drive's other settings.
+fn servo_of_bandwidth(hz: f64, m: f64) -> ServoParams {
+    ServoParams {
+        velocity_kp_n_s_per_m: m * std::f64::consts::TAU * hz,
+        force_limit_n: f64::INFINITY,
+        ..table_drive(0.0).1
+    }
+}
+
+/// The growth of a disturbance per servo period when `ServoController::update` runs a rigid
+/// mass `m` through the current lag, the motion between samples integrated in closed form
+/// (`F = F_ref + (F0 − F_ref) e^(−t/Tc)`): the ratio of the largest |x| in two windows 300
+/// periods apart, to the power 1/300.
+fn growth_per_period(s: &ServoParams, m: f64) -> f64 {
+    let (t, tc) = (SERVO, s.current_time_constant_s);
+    let decay = (-t / tc).exp();
+    let (mut x, mut v, mut f) = (1e-6, 0.0, 0.0);
+    let mut ctrl = ServoController::default();
+    let mut peaks = Vec::new();
+    for n in 0..700 {
+        let r = ctrl.update(s, &AxisCommand::default(), x, x, m, t);
+        let df = f - r;
+        x += v * t + (r * t * t / 2.0 + df * tc * (t - tc * (1.0 - decay))) / m;
+        v += (r * t + df * tc * (1.0 - decay)) / m;
+        f = r + df * decay;
+        if (380..400).contains(&n) || n >= 680 {
+            peaks.push(x.abs());
+        }
+    }
+    let (early, late) = peaks.split_at(20);
+    let max = |w: &[f64]| w.iter().copied().fold(0.0, f64::max);
+    (max(late) / max(early)).powf(1.0 / 300.0)
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(32))]
+
+    /// Velocity loop alone (no lag, no integral, the position loop too weak to matter):
+    /// `z² − (1 − K/2) z + K/2 = 0`, `K = Kp·T/M`, whose complex roots have modulus √(K/2):
+    /// stable below K = 2, growing by √(K/2) per period above.
+    #[test]
+    fn sampled_velocity_loop_is_stable_below_k_of_two(k in 0.3..8.0f64) {
+        let m = 300.0;
+        let s = ServoParams {
+            kv_per_s: 1e-3,
+            velocity_kp_n_s_per_m: k * m / SERVO,
+            velocity_ti_s: 1e9,
+            current_time_constant_s: 1e-6 * SERVO,
+            ..servo_of_bandwidth(1.0, m)
+        };
+        let rho = sampled_loop_radius(&s, m, SERVO);
+        if k < 1.95 {
+            prop_assert!(rho < 1.0, "K {k}: {rho}");
+        } else if k > 2.05 {
+            prop_assert!((rho - (k / 2.0).sqrt()).abs() < 1e-4, "K {k}: {rho}");
+        }
+    }
+}
+
+/// The spectral radius of the linearised loops is the growth (or decay) per period of the
+/// controller itself run in time, with the current lag and the integral: the table's 60 Hz
+/// velocity loop decays, 2.5 kHz at 125 µs grows.
+#[test]
+fn sampled_loop_radius_is_the_growth_of_the_running_controller() {
+    let m = 320.0;
+    for (hz, stable) in [(60.0, true), (2500.0, false)] {
+        let s = servo_of_bandwidth(hz, m);
+        let rho = sampled_loop_radius(&s, m, SERVO);
+        let seen = growth_per_period(&s, m);
+        assert_eq!(rho < 1.0, stable, "{hz} Hz: radius {rho}");
+        assert!(
+            (seen - rho).abs() < 2e-3,
+            "{hz} Hz: radius {rho}, seen {seen}"
+        );
+    }
 }

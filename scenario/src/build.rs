@@ -170,6 +170,17 @@ fn execution(
             e.to_string(),
         )
     })?;
+    vmt_sim::simulate::check_servo(&axes, controller.servo_period_s).map_err(|e| {
+        let axis = match &e {
+            vmt_sim::simulate::SimError::ServoUnstable { axis, .. } => axis.to_string(),
+            _ => "x".into(),
+        };
+        let servo = ["machine", "axes", &axis.to_lowercase(), "servo"];
+        Invalid::new(
+            KeyPath::of(&servo).key("velocity_bandwidth_hz"),
+            e.to_string(),
+        )
+    })?;
     let tool = machine.volumetric.kinematics.tool_offset;
     let program_file = match (job, base_dir) {
         (dynamics::JobToml::Program { program }, Some(dir)) => {

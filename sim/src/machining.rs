@@ -30,7 +30,8 @@ use crate::milling::{
 use crate::nc::{Motion, Spindle};
 use crate::run::{Channel, Run, Stream};
 use crate::simulate::{
-    AxisDynamics, Job, SimError, SimSettings, build_plant, check_step, check_strokes, summary,
+    AxisDynamics, Job, SimError, SimSettings, build_plant, check_servo, check_step, check_strokes,
+    summary,
 };
 use nalgebra::Vector3;
 use serde_json::json;
@@ -224,6 +225,7 @@ pub fn simulate_machining(
     let period = ipo.servo_period_s();
     let substeps = settings.plant_substeps.max(1);
     check_step(axes, period, substeps)?;
+    check_servo(axes, period)?;
     let plan = cut_plan(job, &ipo)?;
     let teeth = milling.setup.tool.teeth.max(1) as f64;
     let setup = MillingSetup {

@@ -10,7 +10,8 @@
 //! feedback, and the plant is advanced by `n` substeps of `h = T_s / n` (semi-implicit Euler for
 //! the drives and the carriages; the multibody plant has rapier advance its links every macro
 //! step of about 1 ms, see `plant::multibody`). The step is checked against the stiffest
-//! drive mode before the run ([`SimError::StepTooCoarse`]). The actual carriage positions and
+//! drive mode before the run ([`SimError::StepTooCoarse`]), and the servo period against the
+//! sampled position and velocity loops ([`SimError::ServoUnstable`]). The actual carriage positions and
 //! their direction states go through the geometric and thermal error chain of the model crate to
 //! give the tool point relative to the workpiece; the thermal network is advanced every second
 //! with the heat of the spindle and of the axes' motion. Instruments sample the tool point on the
@@ -27,6 +28,7 @@ use crate::truth::TruthInputs;
 use nalgebra::Vector3;
 use std::ops::Range;
 use thiserror::Error;
+use vmt_model::drive::servo::sampled_loop_radius;
 use vmt_model::drive::{AxisCommand, Drive, DriveParams, ServoParams};
 use vmt_model::kinematics::{AxisState, VolumetricEvaluator};
 use vmt_model::machine::Machine;
@@ -132,6 +134,22 @@ pub enum SimError {
         /// Stroke, mm.
         max_mm: f64,
     },
+    /// The sampled servo loops of an axis are unstable.
+    #[error(
+        "the {axis} axis' velocity loop of {bandwidth_hz:.1} Hz is unstable at the servo period of {period_us:.1} µs (a disturbance grows {radius:.3}-fold per period, with its Kv, integral time and current loop; rigid drive, linearised): {stable}"
+    )]
+    ServoUnstable {
+        /// The axis.
+        axis: Axis,
+        /// Its velocity loop bandwidth, Hz.
+        bandwidth_hz: f64,
+        /// The servo period, µs.
+        period_us: f64,
+        /// Spectral radius of the loops over one period.
+        radius: f64,
+        /// Which bandwidths are stable.
+        stable: String,
+    },
     /// The plant step is beyond the stability limit of a drive mode.
     #[error(
         "a plant step of {step_us:.2} µs is too coarse for the {mode} of the {axis} drive: the largest stable step is {limit_us:.2} µs; raise plant_substeps (scenario key controller.plant_substeps) to {substeps_needed} or more"
@@ -205,6 +223,7 @@ pub fn simulate_with_replay(
     let substeps = settings.plant_substeps.max(1);
     let h = period / substeps as f64;
     check_step(axes, period, substeps)?;
+    check_servo(axes, period)?;
     if !(settings.log_rate_hz > 0.0 && settings.log_rate_hz <= 1.0 / period) {
         return Err(SimError::Settings(format!(
             "log rate {} Hz: from 0 to the servo rate {} Hz is accepted",
@@ -418,6 +437,69 @@ pub fn check_step(
     Ok(())
 }
 
+/// Checks the sampled position and velocity loops of every axis at the servo period `period_s`
+/// ([`sampled_loop_radius`]), naming the stable velocity bandwidths when they are not.
+pub fn check_servo(axes: &[AxisDynamics; 3], period_s: f64) -> Result<(), SimError> {
+    for (a, d) in Axis::ALL.into_iter().zip(axes) {
+        let mass = d.drive.total_mass_kg();
+        let radius = sampled_loop_radius(&d.servo, mass, period_s);
+        if radius < 1.0 {
+            continue;
+        }
+        let per_hz = mass * std::f64::consts::TAU;
+        let stable = |hz: f64| {
+            let s = ServoParams {
+                velocity_kp_n_s_per_m: per_hz * hz,
+                ..d.servo
+            };
+            sampled_loop_radius(&s, mass, period_s) < 1.0
+        };
+        return Err(SimError::ServoUnstable {
+            axis: a,
+            bandwidth_hz: d.servo.velocity_kp_n_s_per_m / per_hz,
+            period_us: period_s * 1e6,
+            radius,
+            stable: stable_bandwidths(stable, 1.0 / period_s),
+        });
+    }
+    Ok(())
+}
+
+/// The stable velocity bandwidths below `top_hz` as words: the interval found on a log grid
+/// from 0.01 Hz, its ends refined by bisection.
+fn stable_bandwidths(stable: impl Fn(f64) -> bool, top_hz: f64) -> String {
+    const STEPS: usize = 400;
+    let grid: Vec<f64> = (0..=STEPS)
+        .map(|i| 0.01 * (top_hz / 0.01).powf(i as f64 / STEPS as f64))
+        .collect();
+    let Some(first) = grid.iter().position(|&hz| stable(hz)) else {
+        return "no velocity bandwidth is stable with these Kv, integral time and current loop at this period; lower kv_per_s or the servo period".into();
+    };
+    let last = grid.iter().rposition(|&hz| stable(hz)).unwrap_or(first);
+    let edge = |(mut inside, mut outside): (f64, f64)| {
+        for _ in 0..40 {
+            let mid = (inside * outside).sqrt();
+            if stable(mid) {
+                inside = mid;
+            } else {
+                outside = mid;
+            }
+        }
+        inside
+    };
+    let lo = if first == 0 {
+        grid[0]
+    } else {
+        edge((grid[first], grid[first - 1]))
+    };
+    let hi = if last == STEPS {
+        grid[STEPS]
+    } else {
+        edge((grid[last], grid[last + 1]))
+    };
+    format!("stable from {lo:.1} to {hi:.1} Hz (scenario key servo.velocity_bandwidth_hz)")
+}
+
 pub(crate) fn build_plant(
     machine: &Machine,
     axes: &[AxisDynamics; 3],
@@ -445,7 +527,7 @@ struct HeatTracker {
     elapsed_s: f64,
     time_s: f64,
     distance_m: [f64; 3],
-    spindle_rev: f64,
+    spindle_rpm_s: f64,
     deformation: vmt_model::thermal_deformation::ThermalDeformation,
 }
 
@@ -471,7 +553,7 @@ impl HeatTracker {
             elapsed_s: 0.0,
             time_s: 0.0,
             distance_m: [0.0; 3],
-            spindle_rev: 0.0,
+            spindle_rpm_s: 0.0,
             deformation,
         })
     }
@@ -492,7 +574,7 @@ impl HeatTracker {
         for (d, v) in self.distance_m.iter_mut().zip(v) {
             *d += v.abs() * dt;
         }
-        self.spindle_rev += match sp.spindle {
+        self.spindle_rpm_s += match sp.spindle {
             Spindle::Clockwise(n) | Spindle::CounterClockwise(n) => n * dt,
             Spindle::Stopped => 0.0,
         };
@@ -500,7 +582,7 @@ impl HeatTracker {
             return Ok(false);
         }
         let op = Operating {
-            spindle_rpm: self.spindle_rev / self.elapsed_s,
+            spindle_rpm: self.spindle_rpm_s / self.elapsed_s,
             axis_speed_m_s: self.distance_m.map(|d| d / self.elapsed_s),
         };
         let heat = thermal.network.heat_input_w(&op);
@@ -512,7 +594,7 @@ impl HeatTracker {
         self.time_s += self.elapsed_s;
         self.elapsed_s = 0.0;
         self.distance_m = [0.0; 3];
-        self.spindle_rev = 0.0;
+        self.spindle_rpm_s = 0.0;
         self.deformation = machine
             .thermal_deformation(&self.temps_c)
             .map_err(|e| SimError::Thermal(e.to_string()))?;

@@ -6,7 +6,7 @@ use nalgebra::Vector3;
 use vmt_sim::interpolator::{InterpolatorConfig, Limits};
 use vmt_sim::nc::parse;
 use vmt_sim::plant::Fidelity;
-use vmt_sim::simulate::{AxisDynamics, Job, SimError, SimSettings, simulate};
+use vmt_sim::simulate::{AxisDynamics, Job, SimError, SimSettings, check_servo, simulate};
 
 fn axes() -> [AxisDynamics; 3] {
     [
@@ -91,6 +91,48 @@ fn a_step_too_coarse_for_the_stiffest_mode_is_refused_stating_the_largest_stable
     assert!(simulate(&machine, &a, &ipo, &job, &settings, "", &mut |_| {}).is_ok());
 }
 
+/// A velocity loop too fast for the servo period (2 kHz at 125 µs behind a 0.5 ms current loop)
+/// is refused before the run, stating the stable bandwidths; the upper end it states is the
+/// limit: 1 % below it is accepted, 1 % above refused.
+#[test]
+fn a_servo_loop_unstable_at_the_servo_period_is_refused_stating_the_stable_bandwidths() {
+    let mut a = axes();
+    let per_hz = a[1].drive.total_mass_kg() * std::f64::consts::TAU;
+    a[1].servo.velocity_kp_n_s_per_m = per_hz * 2000.0;
+    let (e, started) = refuse(&a, "G1 X101 F1000\n", 2);
+    assert!(!started, "refused before the run");
+    let msg = e.to_string();
+    assert!(
+        msg.starts_with(
+            "the Y axis' velocity loop of 2000.0 Hz is unstable at the servo period of 125.0 µs"
+        ),
+        "{msg}"
+    );
+    let range = msg.split("stable from ").nth(1).expect(&msg);
+    let ends: Vec<f64> = range
+        .split(" Hz")
+        .next()
+        .unwrap()
+        .split(" to ")
+        .map(|v| v.parse().unwrap())
+        .collect();
+    // The tests' 60 Hz (377 rad/s) loops lie inside.
+    assert!(
+        ends[0] < 60.0 && 60.0 < ends[1] && ends[1] < 2000.0,
+        "{msg}"
+    );
+    let period = 125e-6;
+    for (factor, ok) in [(0.99, true), (1.01, false)] {
+        a[1].servo.velocity_kp_n_s_per_m = per_hz * ends[1] * factor;
+        assert_eq!(
+            check_servo(&a, period).is_ok(),
+            ok,
+            "{factor} × {} Hz",
+            ends[1]
+        );
+    }
+}
+
 /// A scenario file whose plant step is too coarse is refused when it loads, the error naming
 /// the file, the line and the key `controller.plant_substeps` besides the largest stable step.
 #[test]
@@ -118,6 +160,39 @@ fn a_scenario_with_a_step_too_coarse_names_the_file_and_the_substeps_key() {
     );
     assert!(
         e.contains("; raise plant_substeps (scenario key controller.plant_substeps) to "),
+        "{e}"
+    );
+}
+
+/// A scenario whose velocity loop is unstable at its servo period is refused when it loads,
+/// naming the file, the line and the axis' `velocity_bandwidth_hz`.
+#[test]
+fn a_scenario_with_an_unstable_servo_names_the_bandwidth_key() {
+    let x_servo = vmt_scenario::BUILTIN_DEFAULT
+        .find("[machine.axes.x.servo]")
+        .unwrap();
+    let (head, tail) = vmt_scenario::BUILTIN_DEFAULT.split_at(x_servo);
+    let text = format!(
+        "{head}{}",
+        tail.replacen(
+            "velocity_bandwidth_hz = 60.0",
+            "velocity_bandwidth_hz = 2000.0",
+            1
+        )
+    );
+    let line = 1 + text
+        .lines()
+        .position(|l| l.starts_with("velocity_bandwidth_hz = 2000.0"))
+        .unwrap();
+    let column = "velocity_bandwidth_hz = ".len() + 1;
+    let e = match vmt_scenario::parse(&text, "fast.toml", None) {
+        Err(e) => e.to_string(),
+        Ok(_) => panic!("an unstable servo was accepted"),
+    };
+    assert!(
+        e.starts_with(&format!(
+            "fast.toml:{line}:{column}: key `machine.axes.x.servo.velocity_bandwidth_hz`: the X axis' velocity loop of 2000.0 Hz is unstable"
+        )),
         "{e}"
     );
 }

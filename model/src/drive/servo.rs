@@ -18,6 +18,17 @@
 //! current loop is a first-order lag of time constant `Tc` (s) between `F_ref` and the motor
 //! force, integrated exactly by the plant. At constant velocity the integral removes the velocity
 //! error, so the following error is `e = (1 - k_vff)·v / Kv`.
+//!
+//! Sampling limits the gains ([`sampled_loop_radius`]): linearised about rest on a rigid drive
+//! of mass `M` (no friction, saturation or quantisation), one period maps the state
+//! `s = [x, v, F, I, x_prev]` by a constant matrix, the controller above with the plant
+//! `ẋ = v, M v̇ = F, Tc Ḟ = F_ref − F` integrated exactly under the held `F_ref` (zero-order
+//! hold). The loops are stable when every eigenvalue of that matrix lies inside the unit
+//! circle. Without the current lag and the integral the velocity loop alone reads
+//! `v[n+1] = v[n] − (K/2)(v[n] + v[n−1])`, `K = Kp·T/M`, stable for `K < 2` (the backward
+//! difference averages the velocity over the last period).
+
+use nalgebra::{Matrix4, Matrix5, RowVector5, Vector3};
 
 /// Controller settings of one axis, SI units.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -92,4 +103,42 @@ impl ServoController {
         self.force_reference_n = force;
         force
     }
+}
+
+/// The spectral radius of the sampled position and velocity loops of `p` run every `period_s`
+/// on a rigid drive of total mass `mass_kg`, linearised about rest (module docs): below 1 the
+/// loops are stable, and a disturbance decays by this factor per period.
+pub fn sampled_loop_radius(p: &ServoParams, mass_kg: f64, period_s: f64) -> f64 {
+    let (t, tc) = (period_s, p.current_time_constant_s);
+    // Plant over one period with F_ref held: exp of the augmented matrix [[A, B], [0, 0]] · T
+    // gives Φ (top left) and Γ (top of the last column).
+    #[rustfmt::skip]
+    let augmented = Matrix4::new(
+        0.0, 1.0, 0.0, 0.0,
+        0.0, 0.0, 1.0 / mass_kg, 0.0,
+        0.0, 0.0, -1.0 / tc, 1.0 / tc,
+        0.0, 0.0, 0.0, 0.0,
+    ) * t;
+    let e = augmented.exp();
+    let phi = e.fixed_view::<3, 3>(0, 0);
+    let gamma: Vector3<f64> = e.fixed_view::<3, 1>(0, 3).into();
+    // The controller as rows on s = [x, v, F, I, x_prev]: the velocity error (regulating to
+    // rest), the force reference, the integral.
+    let ev = RowVector5::new(-p.kv_per_s - 1.0 / t, 0.0, 0.0, 0.0, 1.0 / t);
+    let kp = p.velocity_kp_n_s_per_m;
+    let f_ref = ev * (kp * (1.0 + t / p.velocity_ti_s))
+        + RowVector5::new(0.0, 0.0, 0.0, kp / p.velocity_ti_s, 0.0);
+    let mut a = Matrix5::zeros();
+    for i in 0..3 {
+        for j in 0..3 {
+            a[(i, j)] = phi[(i, j)];
+        }
+        a.set_row(i, &(a.row(i) + f_ref * gamma[i]));
+    }
+    a.set_row(3, &(RowVector5::new(0.0, 0.0, 0.0, 1.0, 0.0) + ev * t));
+    a[(4, 0)] = 1.0;
+    a.complex_eigenvalues()
+        .iter()
+        .map(|z| z.norm())
+        .fold(0.0, f64::max)
 }
