@@ -11,7 +11,7 @@
 //!    step from the model as given, the effects being near-linear at the micrometre level), and
 //!    scored on the held-out residual the linear model predicts;
 //! 2. the candidate with the smallest predicted held-out residual among those that lower the
-//!    calibration BIC `n ln(RSS/n) + k ln n` is simulated with its fitted values (the
+//!    calibration BIC `n ln(RSS/n) + k ln n` by at least [`Options::min_bic_drop`] is simulated with its fitted values (the
 //!    nonlinear check) and accepted when the simulated BIC drops by at least
 //!    [`Options::min_bic_drop`] and the held-out mean square shrinks by at least
 //!    [`Options::min_held_out_shrink`] of what is left;

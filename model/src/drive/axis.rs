@@ -1,6 +1,7 @@
 //! One feed drive: servo motor, ball screw with backlash, carriage, friction on both sides.
 //!
-//! A two-mass model in the linear coordinates of the axis (m, m/s, N):
+//! A two-mass model in the linear coordinates of the axis (m, m/s, N), as in Altintas, Verl,
+//! Brecher, Uriarte & Pritschow, "Machine tool feed drives", CIRP Annals 60(2), 2011:
 //!
 //! ```text
 //! M_m dv_m/dt = F_mot - F_screw - F_fm(v_m)        motor side: rotor, coupling and screw

@@ -3,15 +3,15 @@
 //! The contact is a brush of elastic bristles with mean deflection `z` (m):
 //!
 //! ```text
-//! dz/dt = v - σ0 |v| z / g(v)
-//! g(v)  = (Fc + (Fs - Fc) exp(-(v/vs)^δ)) / σ0        (Stribeck curve, N / (N/m))
+//! dz/dt = v - |v| z / g(v)
+//! g(v)  = (Fc + (Fs - Fc) exp(-(|v|/vs)^δ)) / σ0      (Stribeck curve as a deflection, m)
 //! F     = σ0 z + σ1 dz/dt + σ2 v                        (friction force opposing motion, N)
 //! ```
 //!
 //! with σ0 the bristle stiffness (N/m), σ1 the bristle damping (N·s/m), σ2 the viscous
 //! coefficient (N·s/m), Fc the Coulomb and Fs the static (breakaway) force (N), vs the Stribeck
 //! velocity (m/s) and δ its exponent (2 is usual). In steady sliding `z = g(v) sign(v)` and
-//! `F = Fc + (Fs - Fc) exp(-(v/vs)^δ) + σ2 v` (times sign v): the Stribeck curve, whose falling
+//! `F = Fc + (Fs - Fc) exp(-(|v|/vs)^δ) + σ2 |v|` (times sign v): the Stribeck curve, whose falling
 //! part gives stick-slip against a compliant drive; at a reversal the bristles must deflect
 //! through `2 g` before sliding again, which delays the friction reversal (pre-sliding).
 //!

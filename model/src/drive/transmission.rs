@@ -12,7 +12,9 @@
 //!
 //! `F` pushes the carriage towards +x and the motor towards -x (N). `k` is the series axial
 //! stiffness of screw, nut and thrust bearings (N/m), `c` its damping (N·s/m), `b` the total
-//! gap between the nut's flanks (m). With `b = 0` this is a plain spring-damper.
+//! gap between the nut's flanks (m). With `b = 0` this is a plain spring-damper. The dead zone
+//! is the usual backlash model of a compliant transmission (Nordin & Gutman, "Controlling
+//! mechanical systems with backlash — a survey", Automatica 38(10), 2002).
 //!
 //! The screw's periodic lead error (ISO 230-2 calls its trace the periodic or cyclic
 //! positioning error; ISO 3408-3 grades ball screws by it, `v_2π`: the deviation within one

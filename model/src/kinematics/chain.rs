@@ -18,7 +18,7 @@
 //!   workpiece (ISO 230-1, Ahn & Cho's sign rules), so this form holds on both sides of the
 //!   ground. The thermal rotation `ε_j` is a physical rotation of the carriage: on the tool side
 //!   it turns what the carriage carries, `J·R(ε_j)`; on the workpiece side the carriage is the
-//!   inverse of its motion in Min & Chung's chain, `(R(ε_j)·Trans(-q))⁻¹ = R(-ε_j)·Trans(q)`, so
+//!   inverse of its motion in Min & Chung's chain, `(Trans(-q)·R(ε_j))⁻¹ = R(-ε_j)·Trans(q)`, so
 //!   it turns the carriage's own travel as well, `R(-ε_j)·J`.
 //! - `Lk = S_k` on the tool side and `S_k⁻¹` on the workpiece side, where
 //!   `S_k = Trans(Δ(T)) · Trans(p_k) · R(ε_s(T)) · Trans(-p_k)` is the physical deformation of the

@@ -2,8 +2,8 @@
 //!
 //! Lines (unit direction `d`): `v ≤ min(F, V_i / |d_i|)`, `a_t ≤ min(a_max, A_i / |d_i|)`.
 //!
-//! Arcs and helices (in-plane tangent share `q = r̄|φ|/L`, axial share `w = |h|/L`, curvature
-//! `κ = (r_max φ² + 2|Δr φ|) / L²`): `v ≤ min(F, V_in-plane / q, V_normal / w, √(c·A_plane / κ))`,
+//! Arcs and helices (in-plane tangent share `q = r_max|φ|/L`, an upper bound on a spiral, axial
+//! share `w = |h|/L`, curvature `κ = (r_max φ² + 2|Δr φ|) / L²`): `v ≤ min(F, V_in-plane / q, V_normal / w, √(c·A_plane / κ))`,
 //! where `A_plane` is the smaller acceleration limit of the two in-plane axes and
 //! `c` = [`CENTRIPETAL_SHARE`] the part of it granted to the centripetal acceleration `v²κ`. The
 //! tangential acceleration on the arc takes what is left: the acceleration of an in-plane axis is

@@ -3,11 +3,13 @@
 //! Housing acceleration: each mode k of the tool point moves the housing by a fraction κ_k of
 //! its modal acceleration, a_h = Σ_k κ_k·q̈_k per direction (the participation of the housing
 //! in the mode shape relative to the tool point; the tool and holder carry the rest). Default
-//! κ = [`DEFAULT_PARTICIPATION`] for every mode. Z: the optional axial mode driven by the axial
+//! κ = [`DEFAULT_PARTICIPATION`] for every mode: an assumed value, not from a source; κ is a
+//! property of the machine's mode shapes, found by tapping the tool tip with the sensor on the
+//! housing (the ratio of the two frequency response functions at the mode). Z: the optional axial mode driven by the axial
 //! force, same rule; without it the Z sensor reads noise only.
 //!
 //! Signal chain, per cut step h then per output sample:
-//! 1. Mounted resonance: a 2nd-order low-pass ÿ + 2ζω·ẏ + ω²·y = ω²·a_h (default 30 kHz,
+//! 1. Mounted resonance (the stud-mounted sensor's contact resonance, ISO 5348): a 2nd-order low-pass ÿ + 2ζω·ẏ + ω²·y = ω²·a_h (default 30 kHz,
 //!    ζ = 0.05), integrated exactly with the input held over the step (as the modes).
 //! 2. Anti-alias: a 4th-order Butterworth low-pass (two bilinear biquads, pre-warped, at the
 //!    cut step rate), default corner 0.45 of the output rate; skipped when the step equals the

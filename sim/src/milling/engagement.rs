@@ -1,5 +1,8 @@
 //! The surface memory of one axial disk: the radial coordinate of the machined surface as a
-//! function of the angle in the workpiece frame.
+//! function of the angle in the workpiece frame: the regeneration of the time-domain milling
+//! simulation, in which each tooth cuts what the earlier teeth left instead of a nominal chip
+//! (Smith & Tlusty, "An overview of modeling and simulation of the milling process", ASME J.
+//! Eng. Ind. 113(2), 1991).
 //!
 //! The angle 0…2π is cut into [`BINS`] bins (0.35°) at θ_i = i·2π/BINS, with sin θ_i and
 //! cos θ_i precomputed. A bin holds `cur`, the surface the teeth left there, and `prev`, its

@@ -2,7 +2,9 @@
 //! simulated tool motion (never from the sensors).
 //!
 //! Onset: the tool point is sampled once per tooth period (each time the spindle turns by one
-//! pitch; a Poincaré section). A stable cut settles to the periodic forced response, so
+//! pitch; a Poincaré section, after the once-per-revolution sampling of Schmitz, Medicus &
+//! Dutterer, "Exploring once-per-revolution audio signal variance as a chatter indicator",
+//! Machining Science and Technology 6(2), 2002). A stable cut settles to the periodic forced response, so
 //! successive samples converge; regenerative chatter is at a frequency incommensurate with the
 //! tooth passing, so they keep moving. The deviation d_n = |u_n - u_{n-1}| (|u_n - u_{n-N}|,
 //! one revolution back, when the tool has run-out, whose forced response repeats once per

@@ -13,7 +13,13 @@
 //!
 //! with a the axial depth (m), x = (x, y) the tool displacement (m), K_r = K_rc/K_tc the radial
 //! coefficient ratio and g the screen function (1 while φ_st ≤ φ_j mod 2π ≤ φ_ex, else 0).
-//! Edge coefficients, helix and run-out do not enter the linear stability problem.
+//! Edge coefficients do not enter the linear stability problem (they add a constant force, no
+//! regeneration). Helix and run-out do, and both methods neglect them: the helix spreads each
+//! tooth's entry and exit over the axial depth, which smooths D(t) and moves the flip
+//! (period-doubling) lobes and the unstable islands of low radial immersion (Zatarain, Muñoa,
+//! Peigné & Insperger, CIRP Annals 55(1), 2006); run-out makes the teeth cut unequal chips. The
+//! time-domain simulator (`vmt_sim::milling`) models both, so its cuts near a lobe's edge may
+//! disagree with these lobes, most at low immersion.
 
 pub mod sd;
 pub mod zoa;
