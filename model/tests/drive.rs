@@ -142,9 +142,45 @@ proptest! {
         for _ in 0..n {
             f = c.step(&p, v, settle_s / n as f64);
         }
-        let expected = p.steady_state_force(v);
+        // The law written out, not through the crate: Fc + (Fs - Fc) exp(-(v/vs)²) + σ2 v.
+        let expected = v.signum()
+            * (p.coulomb_n + (p.static_n - p.coulomb_n) * (-(v / p.stribeck_m_s).powi(2)).exp())
+            + p.sigma2_n_s_per_m * v;
         prop_assert!((f - expected).abs() < 1e-6 * expected.abs().max(1.0), "{f} vs {expected}");
+        prop_assert!((p.steady_state_force(v) - expected).abs() < 1e-9 * expected.abs());
     }
+}
+
+/// The Stribeck curve at hand-computed points of the guideway contact (Fc 50 N, Fs 65 N,
+/// vs 1 mm/s, σ2 200 N·s/m), and with exponent δ = 1 (the general power): at vs the rise has
+/// fallen to 1/e, at vs/2 to e^(-1/4) (δ = 2) or e^(-1/2) (δ = 1), far above vs it is gone.
+#[test]
+fn stribeck_curve_at_hand_computed_points() {
+    let p = guide_friction();
+    let e = std::f64::consts::E;
+    for (v, expected) in [
+        (1e-3, 50.0 + 15.0 / e + 0.2),
+        (-1e-3, -(50.0 + 15.0 / e + 0.2)),
+        (0.5e-3, 50.0 + 15.0 * e.powf(-0.25) + 0.1),
+        (0.2, 50.0 + 40.0),
+    ] {
+        let f = p.steady_state_force(v);
+        assert!(
+            (f - expected).abs() < 1e-9,
+            "{v} m/s: {f} N against {expected} N"
+        );
+    }
+    let linear = LuGreParams {
+        stribeck_exponent: 1.0,
+        ..p
+    };
+    let f = linear.steady_state_force(0.5e-3);
+    let expected = 50.0 + 15.0 * e.powf(-0.5) + 0.1;
+    assert!(
+        (f - expected).abs() < 1e-9,
+        "δ = 1: {f} N against {expected} N"
+    );
+    assert!((f - 59.198).abs() < 1e-3);
 }
 
 /// Where the Stribeck force is zero the bristles carry no load (g = 0, a = |v|/g infinite), so

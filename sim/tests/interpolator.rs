@@ -578,17 +578,21 @@ fn same_program_gives_the_same_bytes() {
         .unwrap()
         .iter()
         .collect();
-    assert!(a.iter().zip(&b).all(|(x, y)| {
-        x.position
-            .iter()
-            .chain(x.velocity.iter())
-            .map(|v| v.to_bits())
-            .eq(y
-                .position
-                .iter()
-                .chain(y.velocity.iter())
-                .map(|v| v.to_bits()))
-    }));
+    // Every field of every setpoint, the floats by their bits.
+    let bits = |p: &Setpoint| -> Vec<u64> {
+        std::iter::once(p.time_s)
+            .chain(p.position.iter().copied())
+            .chain(p.velocity.iter().copied())
+            .chain(p.acceleration.iter().copied())
+            .map(f64::to_bits)
+            .collect()
+    };
+    assert!(a.len() > 1000, "{} setpoints", a.len());
+    assert_eq!(a.len(), b.len());
+    for (x, y) in a.iter().zip(&b) {
+        assert_eq!(bits(x), bits(y));
+        assert_eq!((x.block, x.spindle), (y.block, y.spindle));
+    }
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -185,6 +185,9 @@ fn machine_report_agrees_with_the_truth() {
         if !report.figures.iter().any(|f| f.key == key) {
             failures.push(format!("{key}: not in the report"));
         }
+        if !truth.figures.iter().any(|f| f.key == key) {
+            failures.push(format!("{key}: not in the truth"));
+        }
     }
     assert!(failures.is_empty(), "{failures:#?}");
 }

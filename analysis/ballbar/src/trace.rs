@@ -632,6 +632,14 @@ mod tests {
         let e = t.validate().unwrap_err();
         assert!(matches!(e, TraceError::Deviation { index: 7, .. }), "{e}");
         assert_eq!(e.sample(), Some(7));
+        // The edge is ±2 mm in µm: 2000 µm either way passes, a nanometre more does not.
+        t.deviation_um[7] = -2000.0;
+        t.deviation_um[8] = 2000.0;
+        assert!(t.validate().is_ok(), "{:?}", t.validate());
+        t.deviation_um[8] = 2000.001;
+        let e = t.validate().unwrap_err();
+        assert!(matches!(e, TraceError::Deviation { index: 8, .. }), "{e}");
+        assert!(e.to_string().contains("within ±2000 µm"), "{e}");
     }
 
     /// 150 mm at 1000 mm/min sweeps 360° in 56.55 s: times at that pace pass, the same times
