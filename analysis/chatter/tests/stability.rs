@@ -124,6 +124,43 @@ fn zoa_slotting_minimum_is_the_closed_form_of_the_benchmark() {
     assert!((closed * 1e3 - 0.298).abs() < 0.0015, "{closed}");
 }
 
+/// Where the slotting lobes sit, not only how deep: on a single mode the ZOA's minimum is where
+/// Re Φ is most negative, r² = 1 + 2ζ (f_c = 922·√1.022 = 932.1 Hz). There the receptance
+/// Φ = 1/(k(1 − r² + 2jζr)) has the phase θ = −π + atan r (both parts negative), the
+/// modulation's phase is ε = 3π + 2θ = 4.723 rad, and lobe k runs at
+/// n = 60·f_c/(N(k + ε/2π)): lobe 1 at 15 963 rpm with N = 2. A receptance with its imaginary
+/// part flipped, or ε taken from the principal arctangent (π − 2·atan r = 1.56 rad), puts it
+/// at 22 400 rpm.
+#[test]
+fn zoa_slotting_lobe_1_bottoms_out_at_the_closed_form_speed_and_frequency() {
+    let sys = benchmark_1dof(1.0, MillingDirection::Down);
+    let zeta: f64 = 0.011;
+    let r = (1.0 + 2.0 * zeta).sqrt();
+    let f_c = 922.0 * r;
+    let theta = -std::f64::consts::PI + r.atan();
+    let eps = 3.0 * std::f64::consts::PI + 2.0 * theta;
+    let rpm = 60.0 * f_c / (2.0 * (1.0 + eps / std::f64::consts::TAU));
+    assert!((rpm - 15_963.0).abs() < 1.0, "{rpm}");
+    let l = lobes(&sys, &ZoaSettings::default()).unwrap();
+    let bottom = l
+        .curves
+        .iter()
+        .flatten()
+        .filter(|p| p.lobe == 1)
+        .min_by(|a, b| a.depth_m.total_cmp(&b.depth_m))
+        .expect("lobe 1");
+    assert!(
+        (bottom.speed_rpm - rpm).abs() < 100.0,
+        "lobe 1 bottoms out at {} rpm, closed form {rpm}",
+        bottom.speed_rpm
+    );
+    assert!(
+        (bottom.chatter_hz - f_c).abs() < 1.0,
+        "{} Hz against {f_c}",
+        bottom.chatter_hz
+    );
+}
+
 #[test]
 fn zoa_lobes_touch_their_closed_form_minimum_at_every_immersion() {
     for immersion in [1.0, 0.5, 0.1, 0.05] {
