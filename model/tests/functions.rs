@@ -151,17 +151,31 @@ mod joint_evaluation {
             q in -0.05..0.6f64,
         ) {
             let mut axis = AxisErrors::zero();
+            // The backward functions are the forward ones on the coefficients negated, so that
+            // an evaluation that ignored the direction would be caught.
+            let negated: Vec<f64> = c.iter().map(|v| -v).collect();
             for (k, comp) in Component::ALL.into_iter().enumerate() {
                 // With `same`, every function shares kind and domain; otherwise they mix.
                 let kind = if same { kinds[0] } else { kinds[k] };
-                let f = function(kind, &c, if same { 0.0 } else { 0.01 * k as f64 });
-                axis.set(comp, Directional { forward: f.clone(), backward: f });
+                let shift = if same { 0.0 } else { 0.01 * k as f64 };
+                let forward = function(kind, &c, shift);
+                let backward = function(kind, &negated, shift);
+                axis.set(comp, Directional { forward, backward });
             }
-            let m = axis.motion(q, Direction::Backward);
-            for (k, comp) in Component::ALL.into_iter().enumerate() {
-                let direct = axis.get(comp).backward.eval(q);
-                let joint = if k < 3 { m.translation[k] } else { m.rotation[k - 3] };
-                prop_assert!((joint - direct).abs() <= 1e-20 + 1e-12 * direct.abs());
+            for direction in [Direction::Forward, Direction::Backward] {
+                let m = axis.motion(q, direction);
+                for (k, comp) in Component::ALL.into_iter().enumerate() {
+                    let f = axis.get(comp);
+                    let direct = match direction {
+                        Direction::Forward => f.forward.eval(q),
+                        Direction::Backward => f.backward.eval(q),
+                    };
+                    // Negated coefficients negate the function (Legendre series and tables
+                    // alike are linear in their values).
+                    prop_assert!((f.backward.eval(q) + f.forward.eval(q)).abs() <= 1e-20);
+                    let joint = if k < 3 { m.translation[k] } else { m.rotation[k - 3] };
+                    prop_assert!((joint - direct).abs() <= 1e-20 + 1e-12 * direct.abs());
+                }
             }
         }
     }

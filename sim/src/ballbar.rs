@@ -118,3 +118,62 @@ pub fn plane_angle(plane: Plane, v: &Vector3<f64>) -> f64 {
         Plane::Yz => v.z.atan2(v.y),
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A noise-free bar without quantisation, 100 mm about the origin in XY.
+    fn bar(spec: BallbarSpec) -> Ballbar {
+        let exact = BallbarSpec {
+            resolution_m: 0.0,
+            noise_m: 0.0,
+            ..spec
+        };
+        Ballbar::new(exact, Vector3::zeros(), 0.1, Plane::Xy, 1)
+    }
+
+    /// A bar 1.5 K warm reads short by α·R·ΔT = 11.5e-6 · 100 mm · 1.5 K = 1.725 µm at every
+    /// angle; a cold one long by as much.
+    #[test]
+    fn a_warm_bar_reads_short_by_its_expansion() {
+        for deg in [0.0f64, 37.0, 90.0, 211.0] {
+            let tool = Vector3::new(deg.to_radians().cos(), deg.to_radians().sin(), 0.0) * 0.1;
+            let at = |c: f64| {
+                bar(BallbarSpec {
+                    bar_temperature_c: c,
+                    ..Default::default()
+                })
+                .read(&tool, 0.0)
+                .0
+            };
+            assert!(at(20.0).abs() < 1e-15);
+            assert!((at(21.5) + 1.725e-6).abs() < 1e-12, "{}", at(21.5));
+            assert!((at(18.5) - 1.725e-6).abs() < 1e-12, "{}", at(18.5));
+        }
+    }
+
+    /// A pivot set 5 µm off along +X reads -5 µm at 0° and +5 µm at 180° (first order: the
+    /// projection of the offset on the bar), none at 90°; a pivot creeping 2 µm/s along +Y
+    /// reads -2 µm at 90° one second after the first reading.
+    #[test]
+    fn eccentricity_and_drift_of_the_pivot_project_on_the_bar() {
+        let mut b = bar(BallbarSpec {
+            setup_eccentricity_m: Vector3::new(5e-6, 0.0, 0.0),
+            ..Default::default()
+        });
+        let on = |deg: f64| Vector3::new(deg.to_radians().cos(), deg.to_radians().sin(), 0.0) * 0.1;
+        let (r0, a0) = b.read(&on(0.0), 0.0);
+        assert!((r0 + 5e-6).abs() < 1e-12 && a0.abs() < 1e-9, "{r0} {a0}");
+        assert!((b.read(&on(180.0), 0.0).0 - 5e-6).abs() < 1e-12);
+        assert!(b.read(&on(90.0), 0.0).0.abs() < 1e-9);
+        let mut d = bar(BallbarSpec {
+            setup_drift_m_per_s: Vector3::new(0.0, 2e-6, 0.0),
+            ..Default::default()
+        });
+        assert!(d.read(&on(0.0), 10.0).0.abs() < 1e-15);
+        let (r, a) = d.read(&on(90.0), 11.0);
+        assert!((r + 2e-6).abs() < 1e-12, "{r}");
+        assert!((a - std::f64::consts::FRAC_PI_2).abs() < 1e-6, "{a}");
+    }
+}

@@ -218,6 +218,16 @@ fn reversal_spike_widens_with_feed() {
             "the width grows with feed: {spikes:?}"
         );
     }
+    // Once the reversal acceleration v²/r is large, the time the glitch lasts, t = w·r/v, is
+    // about fixed: the widths at 2000 and 5000 mm/min last within 20 % of one time, and the
+    // width grows about as the feed (2.5 times for a fixed time; over 2 asked).
+    let duration_ms = |(_, w): (f64, f64), feed: f64| w.to_radians() * 50.0 / (feed / 60_000.0);
+    let (t2, t5) = (
+        duration_ms(spikes[1], 2000.0),
+        duration_ms(spikes[2], 5000.0),
+    );
+    assert!((t5 / t2 - 1.0).abs() < 0.2, "{t2} ms and {t5} ms");
+    assert!(spikes[2].1 > 2.0 * spikes[1].1, "{spikes:?}");
     let mut frictionless = axes;
     for a in &mut frictionless {
         a.drive.guide_friction = LuGreParams::NONE;
