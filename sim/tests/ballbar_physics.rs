@@ -20,6 +20,16 @@ fn machine() -> Machine {
 }
 
 fn circle_run(axes: [AxisDynamics; 3], feed_mm_min: f64, fidelity: Fidelity) -> Run {
+    circle_run_with(axes, feed_mm_min, fidelity, BallbarSpec::default())
+}
+
+/// [`circle_run`] with the ball bar `spec`.
+fn circle_run_with(
+    axes: [AxisDynamics; 3],
+    feed_mm_min: f64,
+    fidelity: Fidelity,
+    spec: BallbarSpec,
+) -> Run {
     let m = machine();
     let center = Vector3::new(0.25, 0.2, 0.2);
     let test = CircularTest::iso230_4(Plane::Xy, center, 0.15, feed_mm_min / 60_000.0);
@@ -30,7 +40,7 @@ fn circle_run(axes: [AxisDynamics; 3], feed_mm_min: f64, fidelity: Fidelity) -> 
         program,
         ballbar: vec![BallbarSetup {
             name: None,
-            spec: BallbarSpec::default(),
+            spec,
             center,
             radius_m: 0.15,
             plane: Plane::Xy,
@@ -239,4 +249,38 @@ fn injected_squareness_is_written_in_urad() {
     ea.sort_by(f64::total_cmp);
     ea.dedup();
     assert!(close(ea, &[6.0, 9.0]), "{}", truth["squareness"]);
+}
+
+/// Both plants run the same ISO 230-4 test (150 mm, 2000 mm/min, CW and CCW, with backlash on
+/// X) to the same ball-bar trace within 0.05 µm at every sample (the bound; the bar's
+/// quantisation off so that it cannot round a small difference up to 0.1 µm), and the
+/// multibody run is deterministic: a second run gives the same trace to the bit.
+#[test]
+fn multibody_and_reduced_give_the_same_trace_and_multibody_repeats_itself() {
+    let axes = [
+        common::axis(250.0, 2e-6, 33.0),
+        common::axis(450.0, 0.0, 33.3),
+        common::axis(180.0, 0.0, 33.0),
+    ];
+    let spec = BallbarSpec {
+        resolution_m: 0.0,
+        ..BallbarSpec::default()
+    };
+    let reduced = circle_run_with(axes, 2000.0, Fidelity::Reduced, spec);
+    let multibody = circle_run_with(axes, 2000.0, Fidelity::Multibody, spec);
+    let again = circle_run_with(axes, 2000.0, Fidelity::Multibody, spec);
+    assert_eq!(multibody.ballbar, again.ballbar);
+    for dir in ["cw", "ccw"] {
+        let (r, m) = (trace(&reduced, dir), trace(&multibody, dir));
+        assert_eq!(r.angle_deg.len(), m.angle_deg.len());
+        assert!(r.angle_deg.len() > 25_000, "{} samples", r.angle_deg.len());
+        let worst = r
+            .deviation_um
+            .iter()
+            .zip(&m.deviation_um)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f64::max);
+        eprintln!("{dir}: largest difference {worst:.4} µm");
+        assert!(worst < 0.05, "{dir}: largest difference {worst} µm");
+    }
 }
