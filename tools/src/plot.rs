@@ -445,6 +445,7 @@ impl Polar {
         for (i, t) in traces.iter().enumerate() {
             self.draw_trace(root, t, trace_colour(traces, i))?;
         }
+        self.draw_ring_labels(root)?;
         let y = self.draw_legend(root, traces)?;
         if let Some(text) = iso_figures {
             draw_text_block(root, text, (1000, y + 40))?;
@@ -489,15 +490,6 @@ impl Polar {
                 light.stroke_width(1)
             };
             root.draw(&Circle::new(self.centre, r.round() as u32, style))?;
-            let step = fmt_um(f64::from(j.abs()) * self.div_um);
-            let label = match j.signum() {
-                0 => "0 µm".to_string(),
-                1 => format!("+{step}"),
-                _ => format!("−{step}"),
-            };
-            let font = (FONT, 13).into_font().color(&RGBColor(110, 110, 110));
-            let at = self.pixel(r + 3.0, 45.0);
-            root.draw(&Text::new(label, at, font))?;
         }
         let scale = format!("Scale: {} µm/div", fmt_um(self.div_um));
         let at = (self.centre.0 - 60, self.centre.1 + 16);
@@ -508,6 +500,34 @@ impl Polar {
             (self.centre.0 - 60, self.centre.1 + 40),
             (FONT, 14).into_font().color(&RGBColor(90, 90, 90)),
         ))?;
+        Ok(())
+    }
+
+    /// The rings' values along the 45° ray, each on a white patch so that the traces drawn
+    /// before them do not hide them.
+    fn draw_ring_labels<DB: DrawingBackend>(
+        &self,
+        root: &DrawingArea<DB, Shift>,
+    ) -> DrawResult<DB> {
+        let n = self.divisions as i32;
+        for j in -n..=n {
+            let r = self.nominal_px + f64::from(j) * self.div_um * self.px_per_um;
+            let step = fmt_um(f64::from(j.abs()) * self.div_um);
+            let label = match j.signum() {
+                0 => "0 µm".to_string(),
+                1 => format!("+{step}"),
+                _ => format!("−{step}"),
+            };
+            let font = (FONT, 13).into_font().color(&RGBColor(110, 110, 110));
+            let at = self.pixel(r + 3.0, 45.0);
+            let (w, h) = root.estimate_text_size(&label, &font)?;
+            let patch = [
+                (at.0 - 1, at.1 - 1),
+                (at.0 + w as i32 + 1, at.1 + h as i32 + 1),
+            ];
+            root.draw(&Rectangle::new(patch, WHITE.filled()))?;
+            root.draw(&Text::new(label, at, font))?;
+        }
         Ok(())
     }
 
@@ -583,7 +603,13 @@ impl Polar {
             let colour = trace_colour(traces, i);
             let line = vec![(x, y + 9), (x + 34, y + 9)];
             root.draw(&PathElement::new(line, colour.stroke_width(3)))?;
-            let text = format!("{} ({})", t.label, t.direction.to_uppercase());
+            // Labels of our runs name the direction already; a CSV's may not.
+            let sense = t.direction.to_uppercase();
+            let text = if t.label.split_whitespace().any(|w| w == sense) {
+                t.label.clone()
+            } else {
+                format!("{} ({sense})", t.label)
+            };
             root.draw(&Text::new(text, (x + 44, y), (FONT, 16).into_font()))?;
             y += 28;
         }
