@@ -257,11 +257,22 @@ fn draw_thermal_on<DB: DrawingBackend>(
         .copied()
         .zip(h.ambient_c.iter().copied())
         .collect();
-    for (i, (name, pts)) in series
+    let all: Vec<(String, Vec<(f64, f64)>)> = series
         .chain(std::iter::once(("ambient".to_string(), ambient)))
-        .enumerate()
-    {
+        .collect();
+    for (i, (name, pts)) in all.iter().enumerate() {
         let colour = Palette99::pick(i).to_rgba();
+        // A curve within a thousandth of the scale of a later one everywhere is hidden under
+        // it: the legend says so.
+        let hidden = |other: &[(f64, f64)]| {
+            let gap = |(a, b): (&(f64, f64), &(f64, f64))| (a.1 - b.1).abs();
+            other.iter().zip(pts).map(gap).fold(0.0, f64::max) < 1e-3 * (hi - lo)
+        };
+        let name = match all[i + 1..].iter().find(|(_, other)| hidden(other)) {
+            Some((twin, _)) => format!("{name} (under {twin})"),
+            None => name.clone(),
+        };
+        let pts = pts.clone();
         chart
             .draw_series(LineSeries::new(pts, colour.stroke_width(2)))?
             .label(name)
