@@ -111,6 +111,62 @@ fn normal_draws_have_the_stated_mean_and_sd() {
     assert!((sd - 15.0).abs() < 0.7, "sd {sd}");
 }
 
+/// `n` draws of the one parameter `key` of `entry`, one sample per seed.
+fn draws(entry: &str, key: &str, n: u64) -> Vec<f64> {
+    let ds = dataset(entry);
+    (0..n).map(|s| value(&ds.sample(s).values, key)).collect()
+}
+
+/// Sample mean and standard deviation (n - 1).
+fn mean_sd(v: &[f64]) -> (f64, f64) {
+    let n = v.len() as f64;
+    let mean = v.iter().sum::<f64>() / n;
+    let var = v.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (n - 1.0);
+    (mean, var.sqrt())
+}
+
+#[test]
+fn lognormal_draws_have_the_stated_median_and_sigma() {
+    // ln x ~ N(ln m, s²) with m = 9, s = 0.5: mean of ln x = ln 9 = 2.197225. Over 4000
+    // draws its standard error is 0.5/√4000 = 0.0079 (4 se: 0.032); the sample sd of a normal
+    // has standard error s/√(2(n-1)) = 0.0056 (4 se: 0.022). A generator taking the median
+    // as the mean of ln x (9), sigma as the variance (sd 0.707 or 0.25), or the median as
+    // the mean of x (ln x centred on ln 9 - s²/2 = 2.072) lies far outside.
+    let key = "machine.errors.squareness.EA0Z_urad.backward";
+    let v = draws(
+        &format!(r#""{key}" = {{ distribution = "lognormal", median = 9.0, sigma = 0.5 }}"#),
+        key,
+        4000,
+    );
+    assert!(v.iter().all(|x| *x > 0.0));
+    let ln: Vec<f64> = v.iter().map(|x| x.ln()).collect();
+    let (mean, sd) = mean_sd(&ln);
+    assert!((mean - 2.197_225).abs() < 0.032, "mean of ln x {mean}");
+    assert!((sd - 0.5).abs() < 0.022, "sd of ln x {sd}");
+}
+
+#[test]
+fn uniform_draws_cover_min_to_max_evenly() {
+    // U(2, 6): mean 4, sd (6 - 2)/√12 = 1.1547. Over 4000 draws the mean's standard error is
+    // 1.1547/√4000 = 0.018 (4 se: 0.073); the sample variance's is √((μ4 - σ⁴)/n) with
+    // μ4 = 4⁴/80 = 3.2, σ⁴ = 1.778: 0.0189, so the sd's is 0.0189/(2·1.1547) = 0.0082
+    // (4 se: 0.033). The smallest draw exceeds 2 + 0.01 with probability
+    // (1 - 0.01/4)^4000 = e^-10, likewise the largest falls short of 6 - 0.01.
+    let key = "machine.axes.x.drive.backlash_um";
+    let v = draws(
+        &format!(r#""{key}" = {{ distribution = "uniform", min = 2.0, max = 6.0 }}"#),
+        key,
+        4000,
+    );
+    let (mean, sd) = mean_sd(&v);
+    assert!((mean - 4.0).abs() < 0.073, "mean {mean}");
+    assert!((sd - 4.0 / 12f64.sqrt()).abs() < 0.033, "sd {sd}");
+    let min = v.iter().copied().fold(f64::INFINITY, f64::min);
+    let max = v.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    assert!((2.0..2.01).contains(&min), "min {min}");
+    assert!(max > 5.99 && max <= 6.0, "max {max}");
+}
+
 #[test]
 fn bad_entries_are_refused_naming_the_key_and_what_is_accepted() {
     let cases = [

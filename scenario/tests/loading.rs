@@ -53,6 +53,67 @@ fn builtin_machine_loads_with_realistic_errors() {
     assert!((exx.backlash(0.3) - 2e-6).abs() < 1e-15);
 }
 
+/// The drives, servos and ball bar of the built-in scenario in SI units, each expected value
+/// converted by hand from scenarios/vmc500.toml.
+#[test]
+fn builtin_drive_servo_and_bar_values_arrive_in_si_units() {
+    let s = builtin().unwrap();
+    let exec = s
+        .execution
+        .as_ref()
+        .expect("the built-in scenario has a job");
+    // screw_stiffness_n_per_um 180, 200, 180 -> x 1e6 N/m; kv_per_s 33.0, 33.3, 33.0 (1/s as
+    // written). velocity_bandwidth_hz 60 -> Kp = M·2π·60 with M the carriage plus the motor
+    // inertia reflected through the 10 mm lead, J·(2π/0.010 m)² = J·394 784.176 1/m²:
+    //   X: 0.003·394 784.176 = 1184.352 528 + 250 = 1434.352 528 kg -> Kp 540 738.163 804 N·s/m
+    //   Y: 0.004·394 784.176 = 1579.136 704 + 450 = 2029.136 704 kg -> Kp 764 966.515 556 N·s/m
+    //   Z: 0.003·394 784.176 = 1184.352 528 + 180 = 1364.352 528 kg -> Kp 514 348.785 514 N·s/m
+    let expected = [
+        (180e6, 33.0, 1_434.352_528_131, 540_738.163_804),
+        (200e6, 33.3, 2_029.136_704_174, 764_966.515_556),
+        (180e6, 33.0, 1_364.352_528_131, 514_348.785_514),
+    ];
+    let close = |a: f64, b: f64| (a - b).abs() <= 1e-11 * b.abs();
+    // Guide Coulomb forces 50, 70, 40 N as written; both frictions: stribeck_mm_s 1.0 ->
+    // 1e-3 m/s, bristle_stiffness_n_per_um 20 -> 2e7 N/m.
+    let coulomb = [50.0, 70.0, 40.0];
+    for (k, (axis, (stiffness, kv, mass, kp))) in exec.axes.iter().zip(expected).enumerate() {
+        let d = &axis.drive;
+        assert!(close(d.screw.lead_m, 0.010), "{k}: lead {}", d.screw.lead_m);
+        assert!(close(d.screw.stiffness_n_per_m, stiffness), "{k}: {d:?}");
+        assert!(close(d.total_mass_kg(), mass), "{k}: {}", d.total_mass_kg());
+        for f in [&d.guide_friction, &d.screw_friction] {
+            assert!(close(f.stribeck_m_s, 1e-3), "{k}: {f:?}");
+            assert!(close(f.sigma0_n_per_m, 2e7), "{k}: {f:?}");
+        }
+        assert_eq!(d.guide_friction.coulomb_n, coulomb[k]);
+        assert!(close(axis.servo.kv_per_s, kv), "{k}: {:?}", axis.servo);
+        assert!(
+            close(axis.servo.velocity_kp_n_s_per_m, kp),
+            "{k}: Kp {}",
+            axis.servo.velocity_kp_n_s_per_m
+        );
+    }
+    // The built-in bar has no set-up drift; one of [3.0, -1.2, 0.6] µm/min is
+    // [3, -1.2, 0.6]·1e-6/60 = [5e-8, -2e-8, 1e-8] m/s.
+    for b in &exec.job.ballbar {
+        assert_eq!(b.spec.setup_drift_m_per_s, nalgebra::Vector3::zeros());
+    }
+    let text = with(
+        "bar_alpha_per_k = 11.5e-6",
+        "bar_alpha_per_k = 11.5e-6\nsetup_drift_um_per_min = [3.0, -1.2, 0.6]",
+    );
+    let s = parse(&text, "machine.toml", None).unwrap();
+    let job = &s.execution.as_ref().unwrap().job;
+    assert!(!job.ballbar.is_empty());
+    for b in &job.ballbar {
+        let v = b.spec.setup_drift_m_per_s;
+        for (got, want) in v.iter().zip([5e-8, -2e-8, 1e-8]) {
+            assert!(close(*got, want), "drift {v:?} m/s");
+        }
+    }
+}
+
 #[test]
 fn unknown_topology_is_refused_with_the_accepted_form() {
     let text = with("topology = \"WXYGZT\"", "topology = \"WXXGZT\"");

@@ -20,6 +20,27 @@ fn rows(o: &Output) -> Vec<Vec<f64>> {
         .collect()
 }
 
+/// The library's volumetric error (µm) of the built-in machine at `mm` with every axis in
+/// `direction`, at node temperatures `temps`.
+fn library_um(mm: [f64; 3], direction: vmt_model::Direction, temps: &[f64]) -> [f64; 3] {
+    let s = vmt_scenario::builtin().unwrap();
+    let state =
+        vmt_model::kinematics::AxisState::new(nalgebra::Vector3::from(mm) * 1e-3, direction);
+    let e = s.machine.volumetric_error(&state, temps).unwrap() * 1e6;
+    [e.x, e.y, e.z]
+}
+
+/// `got` and `want` (µm) agree to 1e-6 µm: the CLI prints six decimals, rounding by 5e-7 µm.
+fn assert_um(got: &[f64], want: [f64; 3], what: &str) {
+    assert_eq!(got.len(), 3, "{what}: {got:?}");
+    for k in 0..3 {
+        assert!(
+            (got[k] - want[k]).abs() < 1e-6,
+            "{what}: {got:?} vs {want:?}"
+        );
+    }
+}
+
 #[test]
 fn points_give_the_library_errors_and_reversal_shows_the_backlash() {
     let dir = tempfile::tempdir().unwrap();
@@ -80,6 +101,16 @@ fn json_output_has_one_object_per_point() {
     let arr = v.as_array().unwrap();
     assert_eq!(arr.len(), 2);
     assert!(arr[1]["dx_um"].as_f64().unwrap().abs() > 0.1);
+    // The columns are read by name: the first row is x = 30, y = 20, z = 10 mm. JSON carries
+    // the full double, so the objects equal the library's errors (forward, 20 °C) to rounding.
+    for (obj, mm) in arr.iter().zip([[30.0, 20.0, 10.0], [500.0, 400.0, 400.0]]) {
+        let got: Vec<f64> = ["dx_um", "dy_um", "dz_um"]
+            .iter()
+            .map(|k| obj[k].as_f64().unwrap())
+            .collect();
+        let want = library_um(mm, vmt_model::Direction::Forward, &[20.0; 6]);
+        assert_um(&got, want, &format!("{mm:?}"));
+    }
 }
 
 #[test]
@@ -95,6 +126,24 @@ fn time_in_the_thermal_run_warms_the_machine() {
     let r = rows(&o);
     // After 3 h of warm-up the spindle head has grown down: ΔZ falls by more than 10 µm.
     assert!(r[1][2] - r[0][2] < -10.0, "{r:?}");
+    // Each row is the library's error at the thermal run's node temperatures at its time.
+    let s = vmt_scenario::builtin().unwrap();
+    let (thermal, run) = (
+        s.machine.thermal.as_ref().unwrap(),
+        s.thermal_run.as_ref().unwrap(),
+    );
+    let temps = vmt_model::thermal::temperatures_at(
+        &thermal.network,
+        &run.schedule,
+        run.step_s,
+        &[0.0, 10800.0],
+    )
+    .unwrap();
+    assert_eq!((r.len(), temps.len()), (2, 2));
+    for (row, t) in r.iter().zip(&temps) {
+        let want = library_um([250.0, 200.0, 200.0], vmt_model::Direction::Forward, t);
+        assert_um(row, want, &format!("at {t:?} °C"));
+    }
 }
 
 #[test]
@@ -200,6 +249,26 @@ fn the_map_writes_csv_and_a_png_for_both_approaches() {
             .unwrap()
             .starts_with("forward,0.000,200.000,0.000,")
     );
+    // Forward then backward; Z (the plane's second axis) outer, X inner; 5 points over the
+    // strokes: X 0, 125, ..., 500 mm, Z 0, 100, ..., 400 mm, Y held at 200 mm. Each row's
+    // errors are the library's at that point, every axis approaching in that direction, 20 °C.
+    let mut lines = csv.lines().skip(1);
+    for (name, direction) in [
+        ("forward", vmt_model::Direction::Forward),
+        ("backward", vmt_model::Direction::Backward),
+    ] {
+        for iz in 0..5 {
+            for ix in 0..5 {
+                let mm = [125.0 * ix as f64, 200.0, 100.0 * iz as f64];
+                let line = lines.next().unwrap();
+                let (approach, numbers) = line.split_once(',').unwrap();
+                assert_eq!(approach, name, "{line}");
+                let v: Vec<f64> = numbers.split(',').map(|x| x.parse().unwrap()).collect();
+                assert_eq!(v[..3], mm, "{line}");
+                assert_um(&v[3..], library_um(mm, direction, &[20.0; 6]), line);
+            }
+        }
+    }
     let png = std::fs::read(dir.path().join("volumetric_xz_y200mm.png")).unwrap();
     assert_eq!(&png[..8], b"\x89PNG\r\n\x1a\n");
     let e = stderr(&vmt(&[

@@ -202,10 +202,44 @@ fn mcap_reads_back_with_python_mcap() {
     assert_eq!(props.as_object().map(|p| p.len()), Some(27 + 1));
     assert_eq!(props["following_error_x"]["type"], "number");
 
-    // The first servo message has every channel's first value.
+    // The first servo message has every channel's first value, the last every channel's last
+    // value, and each field summed over the messages in Python equals the sum of the channel
+    // here. Equal exactly: serde_json writes the shortest decimal that reads back as the same
+    // double, Python's float() and serde_json's float_roundtrip parse it correctly rounded, and
+    // both sides add the same doubles one by one in sample order (the file is in time order).
     let first = &s["topics"]["/servo"]["first"];
-    for c in &servo.channels {
-        assert_eq!(first[&c.name].as_f64(), Some(c.values[0]), "{}", c.name);
+    let last = &s["topics"]["/servo"]["last"];
+    let sums = &s["topics"]["/servo"]["sums"];
+    let mut fields: Vec<(&str, &[f64])> = vec![("time_s", &servo.times_s)];
+    fields.extend(
+        servo
+            .channels
+            .iter()
+            .map(|c| (c.name.as_str(), c.values.as_slice())),
+    );
+    assert_eq!(sums.as_object().map(|m| m.len()), Some(fields.len()));
+    for (name, values) in fields {
+        assert_eq!(first[name].as_f64(), Some(values[0]), "{name}");
+        assert_eq!(last[name].as_f64(), values.last().copied(), "{name}");
+        let sum: f64 = values.iter().sum();
+        assert_eq!(sums[name].as_f64(), Some(sum), "{name}");
+    }
+    for (topic, trace) in [(ccw, &run.ballbar[0]), (cw, &run.ballbar[1])] {
+        let t = &s["topics"][topic];
+        for (name, values) in [
+            ("time_s", &trace.times_s),
+            ("angle_deg", &trace.angle_deg),
+            ("deviation_um", &trace.deviation_um),
+        ] {
+            assert_eq!(t["first"][name].as_f64(), Some(values[0]), "{topic} {name}");
+            assert_eq!(
+                t["last"][name].as_f64(),
+                values.last().copied(),
+                "{topic} {name}"
+            );
+            let sum: f64 = values.iter().sum();
+            assert_eq!(t["sums"][name].as_f64(), Some(sum), "{topic} {name}");
+        }
     }
     let units: Value = serde_json::from_str(
         s["topics"]["/servo"]["metadata"]["units"]
@@ -347,12 +381,13 @@ fn rrd_reads_back_with_python_rerun() {
         }
     }
     let fe_x = &e["/series/following_error_um/x"];
-    let first = run.streams[0]
+    let fe = &run.streams[0]
         .channel("following_error_x")
         .expect("fe")
-        .values[0]
-        * 1e6;
+        .values;
+    let (first, last) = (fe[0] * 1e6, fe[fe.len() - 1] * 1e6);
     assert!((fe_x["first_scalar"]["value"].as_f64().unwrap_or(f64::NAN) - first).abs() < 1e-9);
+    assert!((fe_x["last_scalar"]["value"].as_f64().unwrap_or(f64::NAN) - last).abs() < 1e-9);
     assert_eq!(
         fe_x["last_scalar"]["time_ns"],
         ns(*run.streams[0].times_s.last().expect("times"))

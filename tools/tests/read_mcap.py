@@ -2,7 +2,9 @@
 """Reads an MCAP file written by `vmt_tools::formats::write_mcap` with the Python `mcap` package
 and prints a JSON summary on stdout: package version, header, topics (schema, encodings, message
 counts), metadata names and values, first/last log time (ns), chunk compressions, the decoded
-ground truth and the first message of every topic.
+ground truth, and per topic its first and last message and the sum of each numeric field over
+its messages (added one by one in file order, so that a reader summing the same values in the
+same order gets the same double exactly).
 
 Usage: python3 read_mcap.py FILE.mcap
 Exit status 3 with a message on stderr when the `mcap` package is missing.
@@ -41,6 +43,8 @@ def main(path):
                 "count": 0,
                 "statistics_count": summary.statistics.channel_message_counts.get(cid, 0),
                 "first": None,
+                "last": None,
+                "sums": {},
             }
         first_time, last_time, previous, ordered = None, None, -1, True
         ground_truth = None
@@ -55,6 +59,13 @@ def main(path):
             decoded = json.loads(message.data)
             if t["first"] is None:
                 t["first"] = decoded
+            t["last"] = decoded
+            sums = t["sums"]
+            for name, value in decoded.items() if isinstance(decoded, dict) else ():
+                # bool is an int in Python; JSON numbers only. Plain additions, not sum(), which
+                # compensates from Python 3.12 on.
+                if isinstance(value, (int, float)) and not isinstance(value, bool):
+                    sums[name] = sums.get(name, 0.0) + value
             if channel.topic == "/ground_truth":
                 ground_truth = decoded
             first_time = message.log_time if first_time is None else min(first_time, message.log_time)

@@ -114,6 +114,25 @@ fn a_drifting_pivot_shows_as_drift_in_time() {
     });
     assert!(share(&d.by_time, "drift") > 3.0 * share(&l.by_time, "drift"));
     assert!(d.by_time.iter().map(|p| p.share).sum::<f64>() > 0.999);
+    // The share from the injected law. The pivot drifts 8 µm in X over the test, s = 0..1; the
+    // bar reads -8 s cos θ' with θ' the tool's angle, which lags the logged angle θ by
+    // φ = 30 ms · 1000 mm/min / 150 mm = 1/300 rad along the motion (scale and lag are in both
+    // traces and otherwise cancel): cos θ' = cos θ + φ sin 2πu in both runs (u = 0..1 over a
+    // run, θ = ∓2πu). CW: s = u/2, g = -4u (cos 2πu + φ sin 2πu); CCW: s = (1+u)/2,
+    // g = -4(1+u)(cos 2πu + φ sin 2πu) µm. Drift is each run's least-squares slope in time:
+    // with v = u - 1/2, var v = 1/12, and over u = 0..1 ∫u cos 2πu = 0, ∫u² cos 2πu = 1/(2π²),
+    // ∫u sin 2πu = ∫u² sin 2πu = -1/(2π):
+    //   cov(g, v) = -2/π² + φ/π = -0.201581 (CW), -2/π² + 3φ/π = -0.199459 (CCW);
+    //   trend mean square 12 cov² = 0.48762 + 0.47740 = 0.96502 µm².
+    // Mean squares 16 ∫w² (cos² 2πu + φ sin 4πu), w = u or 1 + u, with ∫u² sin 4πu = -1/(4π):
+    //   CW 16/6 + 1/π² - 4φ/π = 2.76375, CCW 56/3 + 1/π² - 12φ/π = 18.75526 µm²,
+    // plus per run the difference of two noises of 0.3 µm and two 0.1 µm roundings,
+    // 2·0.09 + 2·0.01/12 = 0.18167 µm². Share = 0.96502 / 21.8823 = 0.0441 (0.0450 without
+    // the lag's φ, whose sine terms weigh in at first order in u where the cosine's cancel).
+    // The noise moves each cov(g, v) by √(0.18167 / 12 / 56548) = 5.2e-4 µm, the share by 1.6e-4:
+    // five of those is the band.
+    let drift = share(&d.by_time, "drift");
+    assert!((drift - 0.0441).abs() < 8e-4, "drift share {drift}");
 }
 
 #[test]

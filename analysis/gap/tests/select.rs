@@ -146,16 +146,43 @@ fn geometric_offsets_are_replays_that_match_a_simulation() {
         ),
     ];
     let model = ScenarioModel::new(&short_test(), "model.toml", None).unwrap();
-    model.traces(&[]).unwrap();
+    assert_eq!(model.value(&values[0].0), Some(12.0));
+    assert_eq!(model.value(&values[1].0), Some(-2.0));
+    let base = model.traces(&[]).unwrap();
     let replayed = model.traces(&values).unwrap();
     assert_eq!(model.replays(), 1);
     let fresh = ScenarioModel::new(&short_test(), "model.toml", None).unwrap();
     let simulated = fresh.traces(&values).unwrap();
     assert_eq!(fresh.replays(), 0);
-    for (r, s) in replayed.iter().zip(&simulated) {
+    assert_eq!(replayed.len(), 2, "a CW and a CCW circle");
+    assert_eq!(simulated.len(), replayed.len());
+    assert_eq!(base.len(), replayed.len());
+    for ((r, s), b) in replayed.iter().zip(&simulated).zip(&base) {
+        assert_eq!(r.deviation_um.len(), s.deviation_um.len(), "{}", r.label);
+        assert_eq!(r.deviation_um.len(), b.deviation_um.len(), "{}", r.label);
         for (a, b) in r.deviation_um.iter().zip(&s.deviation_um) {
             assert!((a - b).abs() < 1e-9, "{a} vs {b}");
         }
+        // The offsets change the reading, so the match above is not of two unchanged runs.
+        // The pivot moves by Δe = 4 - (-2) = 6 µm in Y: the bar |tool - pivot| changes by
+        // -Δe sin θ = -6 sin θ µm on the circle. EC0Y goes from 12 to 30 µrad: Δγ = 18 µrad
+        // turns the Y axis about +Z, δx = -Δγ y with y = 200 mm + 50 mm sin θ (the circle's
+        // centre is at Y 200 mm), radially δx cos θ = -3.6 cos θ - 0.45 sin 2θ µm: the centre
+        // term, 18e-6 · 200 mm, is a second eccentricity. |3.6 cos θ + 6 sin θ + 0.45 sin 2θ|
+        // is a first harmonic of √(3.6² + 6²) = 7.00 µm at θ = atan(6/3.6) = 59.0°, where
+        // sin 2θ = 0.88 adds 0.40 µm; maximised over θ: 7.405 µm at 56.2° (and 236.2°; the
+        // signs of the terms move the peak, not its size). Zero noise and resolution here.
+        let largest = r
+            .deviation_um
+            .iter()
+            .zip(&b.deviation_um)
+            .map(|(r, b)| (r - b).abs())
+            .fold(0.0, f64::max);
+        assert!(
+            (largest - 7.405).abs() < 0.02 * 7.405,
+            "{}: largest change {largest} µm, 7.405 µm expected",
+            r.label
+        );
     }
     model
         .traces(&[("machine.axes.x.drive.backlash_um".to_string(), 2.0)])
