@@ -28,7 +28,7 @@ use crate::truth::TruthInputs;
 use nalgebra::Vector3;
 use std::ops::Range;
 use thiserror::Error;
-use vmt_model::drive::servo::sampled_loop_radius;
+use vmt_model::drive::servo::{loops_are_stable, sampled_loop_radius};
 use vmt_model::drive::{AxisCommand, Drive, DriveParams, ServoParams};
 use vmt_model::kinematics::{AxisState, VolumetricEvaluator};
 use vmt_model::machine::Machine;
@@ -136,7 +136,7 @@ pub enum SimError {
     },
     /// The sampled servo loops of an axis are unstable.
     #[error(
-        "the {axis} axis' velocity loop of {bandwidth_hz:.1} Hz is unstable at the servo period of {period_us:.1} µs (a disturbance grows {radius:.3}-fold per period, with its Kv, integral time and current loop; rigid drive, linearised): {stable}"
+        "the {axis} axis' velocity loop of {bandwidth_hz:.1} Hz is unstable at the servo period of {period_us:.1} µs (a disturbance grows {radius:.3}-fold per period, with its Kv, integral time, current loop and screw, linearised without friction or backlash): {stable}"
     )]
     ServoUnstable {
         /// The axis.
@@ -441,24 +441,22 @@ pub fn check_step(
 /// ([`sampled_loop_radius`]), naming the stable velocity bandwidths when they are not.
 pub fn check_servo(axes: &[AxisDynamics; 3], period_s: f64) -> Result<(), SimError> {
     for (a, d) in Axis::ALL.into_iter().zip(axes) {
-        let mass = d.drive.total_mass_kg();
-        let radius = sampled_loop_radius(&d.servo, mass, period_s);
-        if radius < 1.0 {
+        if loops_are_stable(&d.servo, &d.drive, period_s) {
             continue;
         }
-        let per_hz = mass * std::f64::consts::TAU;
+        let per_hz = d.drive.total_mass_kg() * std::f64::consts::TAU;
         let stable = |hz: f64| {
             let s = ServoParams {
                 velocity_kp_n_s_per_m: per_hz * hz,
                 ..d.servo
             };
-            sampled_loop_radius(&s, mass, period_s) < 1.0
+            loops_are_stable(&s, &d.drive, period_s)
         };
         return Err(SimError::ServoUnstable {
             axis: a,
             bandwidth_hz: d.servo.velocity_kp_n_s_per_m / per_hz,
             period_us: period_s * 1e6,
-            radius,
+            radius: sampled_loop_radius(&d.servo, &d.drive, period_s),
             stable: stable_bandwidths(stable, 1.0 / period_s),
         });
     }
@@ -466,14 +464,15 @@ pub fn check_servo(axes: &[AxisDynamics; 3], period_s: f64) -> Result<(), SimErr
 }
 
 /// The stable velocity bandwidths below `top_hz` as words: the interval found on a log grid
-/// from 0.01 Hz, its ends refined by bisection.
+/// from 0.01 Hz, its ends refined by bisection (one interval: the loop is too slow for its
+/// position gain below it, too fast for its sampling and current loop above it).
 fn stable_bandwidths(stable: impl Fn(f64) -> bool, top_hz: f64) -> String {
     const STEPS: usize = 400;
     let grid: Vec<f64> = (0..=STEPS)
         .map(|i| 0.01 * (top_hz / 0.01).powf(i as f64 / STEPS as f64))
         .collect();
     let Some(first) = grid.iter().position(|&hz| stable(hz)) else {
-        return "no velocity bandwidth is stable with these Kv, integral time and current loop at this period; lower kv_per_s or the servo period".into();
+        return "no velocity bandwidth is stable with this position gain, integral time and current loop at this servo period; lengthen velocity_integral_ms, shorten current_time_constant_ms or servo_period_us, or lower kv_per_s".into();
     };
     let last = grid.iter().rposition(|&hz| stable(hz)).unwrap_or(first);
     let edge = |(mut inside, mut outside): (f64, f64)| {

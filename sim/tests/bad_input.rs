@@ -131,6 +131,15 @@ fn a_servo_loop_unstable_at_the_servo_period_is_refused_stating_the_stable_bandw
             ends[1]
         );
     }
+    // An integral time as short as the current loop's lag leaves no stable bandwidth at all:
+    // the message says which settings to change instead.
+    a[1].servo.velocity_kp_n_s_per_m = per_hz * 60.0;
+    a[1].servo.velocity_ti_s = 0.5e-3;
+    let msg = check_servo(&a, period).unwrap_err().to_string();
+    assert!(
+        msg.ends_with("no velocity bandwidth is stable with this position gain, integral time and current loop at this servo period; lengthen velocity_integral_ms, shorten current_time_constant_ms or servo_period_us, or lower kv_per_s"),
+        "{msg}"
+    );
 }
 
 /// A scenario file whose plant step is too coarse is refused when it loads, the error naming

@@ -19,16 +19,22 @@
 //! force, integrated exactly by the plant. At constant velocity the integral removes the velocity
 //! error, so the following error is `e = (1 - k_vff)·v / Kv`.
 //!
-//! Sampling limits the gains ([`sampled_loop_radius`]): linearised about rest on a rigid drive
-//! of mass `M` (no friction, saturation or quantisation), one period maps the state
-//! `s = [x, v, F, I, x_prev]` by a constant matrix, the controller above with the plant
-//! `ẋ = v, M v̇ = F, Tc Ḟ = F_ref − F` integrated exactly under the held `F_ref` (zero-order
-//! hold). The loops are stable when every eigenvalue of that matrix lies inside the unit
-//! circle. Without the current lag and the integral the velocity loop alone reads
-//! `v[n+1] = v[n] − (K/2)(v[n] + v[n−1])`, `K = Kp·T/M`, stable for `K < 2` (the backward
-//! difference averages the velocity over the last period).
+//! Sampling limits the gains ([`sampled_loop_radius`]): linearised about rest (no friction,
+//! backlash, saturation or quantisation), one period maps the state
+//! `s = [x_m, v_m, x_c, v_c, F, I, x_m(prev)]` by a constant matrix: the controller above on
+//! the two-mass drive (`M_m v̇_m = F − k(x_m − x_c) − c(v_m − v_c)`,
+//! `m v̇_c = k(x_m − x_c) + c(v_m − v_c)`, `Tc Ḟ = F_ref − F`) integrated exactly under the held
+//! `F_ref` (zero-order hold), the velocity from the motor encoder, the position from it or from
+//! the scale. The loops are stable when no eigenvalue of that matrix lies outside the unit
+//! circle. On a rigid drive of mass `M` without the current lag and the integral the velocity
+//! loop reads `v[n+1] = v[n] − (K/2)(v[n] + v[n−1])`, `K = Kp·T/M`, stable for `K < 2` (the
+//! backward difference averages the velocity over the last period); the screw's compliance
+//! lowers the limit, as the motor alone answers the loop above the screw mode.
 
-use nalgebra::{Matrix4, Matrix5, RowVector5, Vector3};
+use super::axis::{DriveParams, Feedback};
+use nalgebra::{SMatrix, Schur};
+
+type RowVector7 = SMatrix<f64, 1, 7>;
 
 /// Controller settings of one axis, SI units.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -105,40 +111,81 @@ impl ServoController {
     }
 }
 
-/// The spectral radius of the sampled position and velocity loops of `p` run every `period_s`
-/// on a rigid drive of total mass `mass_kg`, linearised about rest (module docs): below 1 the
-/// loops are stable, and a disturbance decays by this factor per period.
-pub fn sampled_loop_radius(p: &ServoParams, mass_kg: f64, period_s: f64) -> f64 {
-    let (t, tc) = (period_s, p.current_time_constant_s);
-    // Plant over one period with F_ref held: exp of the augmented matrix [[A, B], [0, 0]] · T
-    // gives Φ (top left) and Γ (top of the last column).
-    #[rustfmt::skip]
-    let augmented = Matrix4::new(
-        0.0, 1.0, 0.0, 0.0,
-        0.0, 0.0, 1.0 / mass_kg, 0.0,
-        0.0, 0.0, -1.0 / tc, 1.0 / tc,
-        0.0, 0.0, 0.0, 0.0,
-    ) * t;
-    let e = augmented.exp();
-    let phi = e.fixed_view::<3, 3>(0, 0);
-    let gamma: Vector3<f64> = e.fixed_view::<3, 1>(0, 3).into();
-    // The controller as rows on s = [x, v, F, I, x_prev]: the velocity error (regulating to
-    // rest), the force reference, the integral.
-    let ev = RowVector5::new(-p.kv_per_s - 1.0 / t, 0.0, 0.0, 0.0, 1.0 / t);
-    let kp = p.velocity_kp_n_s_per_m;
-    let f_ref = ev * (kp * (1.0 + t / p.velocity_ti_s))
-        + RowVector5::new(0.0, 0.0, 0.0, kp / p.velocity_ti_s, 0.0);
-    let mut a = Matrix5::zeros();
-    for i in 0..3 {
-        for j in 0..3 {
-            a[(i, j)] = phi[(i, j)];
-        }
-        a.set_row(i, &(a.row(i) + f_ref * gamma[i]));
+/// The spectral radius of the sampled position and velocity loops of `p` driving `drive`, run
+/// every `period_s`, linearised about rest (module docs): below 1 the loops are stable, above
+/// 1 a disturbance grows by this factor per period (an eigenvalue of exactly 1, a loop without
+/// integral action or position gain, only drifts; see [`loops_are_stable`]). Infinite when the
+/// numbers overflow.
+pub fn sampled_loop_radius(p: &ServoParams, drive: &DriveParams, period_s: f64) -> f64 {
+    let a = sampled_loop_matrix(p, drive, period_s);
+    if !a.iter().all(|v| v.is_finite()) {
+        return f64::INFINITY;
     }
-    a.set_row(3, &(RowVector5::new(0.0, 0.0, 0.0, 1.0, 0.0) + ev * t));
-    a[(4, 0)] = 1.0;
-    a.complex_eigenvalues()
-        .iter()
-        .map(|z| z.norm())
-        .fold(0.0, f64::max)
+    match Schur::try_new(a, f64::EPSILON, 1000) {
+        Some(schur) => schur
+            .complex_eigenvalues()
+            .iter()
+            .map(|z| z.norm())
+            .fold(0.0, f64::max),
+        None => f64::INFINITY,
+    }
+}
+
+/// Whether the loops of `p` on `drive` at `period_s` are stable: no eigenvalue beyond the unit
+/// circle, rounding allowed for (1e-9, far below any growth that shows in a run).
+pub fn loops_are_stable(p: &ServoParams, drive: &DriveParams, period_s: f64) -> bool {
+    sampled_loop_radius(p, drive, period_s) <= 1.0 + 1e-9
+}
+
+/// The matrix that maps `[x_m, v_m, x_c, v_c, F, I, x_m(prev)]` over one servo period (module
+/// docs), forces divided by the total mass so that the entries do not scale with it.
+fn sampled_loop_matrix(p: &ServoParams, drive: &DriveParams, period_s: f64) -> SMatrix<f64, 7, 7> {
+    let (t, tc) = (period_s, p.current_time_constant_s);
+    let total = drive.total_mass_kg();
+    let (mu_m, mu_c) = (
+        drive.reflected_motor_mass_kg() / total,
+        drive.carriage_mass_kg / total,
+    );
+    let (k, c) = (
+        drive.screw.stiffness_n_per_m / total,
+        drive.screw.damping_n_s_per_m / total,
+    );
+    // The plant over one period with F_ref held: exp of [[A, B], [0, 0]]·T gives Φ (top left)
+    // and Γ (top of the last column); state [x_m, v_m, x_c, v_c, F], input F_ref.
+    #[rustfmt::skip]
+    let augmented = SMatrix::<f64, 6, 6>::from_row_slice(&[
+        0.0, 1.0, 0.0, 0.0, 0.0, 0.0,
+        -k / mu_m, -c / mu_m, k / mu_m, c / mu_m, 1.0 / mu_m, 0.0,
+        0.0, 0.0, 0.0, 1.0, 0.0, 0.0,
+        k / mu_c, c / mu_c, -k / mu_c, -c / mu_c, 0.0, 0.0,
+        0.0, 0.0, 0.0, 0.0, -1.0 / tc, 1.0 / tc,
+        0.0, 0.0, 0.0, 0.0, 0.0, 0.0,
+    ]) * t;
+    let e = augmented.exp();
+    // The controller as rows on the state: velocity error (regulating to rest, the position
+    // from the motor encoder or the scale, the velocity from the motor encoder), force
+    // reference, integral.
+    let position = match drive.feedback {
+        Feedback::MotorEncoder => 0,
+        Feedback::LinearScale { .. } => 2,
+    };
+    let mut ev = RowVector7::zeros();
+    ev[position] -= p.kv_per_s;
+    ev[0] -= 1.0 / t;
+    ev[6] += 1.0 / t;
+    let kp = p.velocity_kp_n_s_per_m / total;
+    let mut f_ref = ev * (kp * (1.0 + t / p.velocity_ti_s));
+    f_ref[5] += kp / p.velocity_ti_s;
+    let mut a = SMatrix::<f64, 7, 7>::zeros();
+    for i in 0..5 {
+        for j in 0..5 {
+            a[(i, j)] = e[(i, j)];
+        }
+        a.set_row(i, &(a.row(i) + f_ref * e[(i, 5)]));
+    }
+    let mut integral = RowVector7::zeros();
+    integral[5] = 1.0;
+    a.set_row(5, &(integral + ev * t));
+    a[(6, 0)] = 1.0;
+    a
 }
