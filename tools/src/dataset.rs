@@ -11,9 +11,10 @@
 //! - `manifest.csv`, `manifest.parquet`: one row per complete run, sorted by id: `id`, `seed`,
 //!   every parameter, every ground-truth figure of the first circular test as `truth.<key>`.
 //! - `dataset.json`: the dataset's identity, written before the first run: `seed`, `scenario`
-//!   (the file as given), `scenario_fnv1a64` (a hash of its text) and `count` (the runs last
-//!   asked for). An invocation into a folder made with another seed or scenario text is refused,
-//!   and so is one whose --count would leave complete runs out of the manifest.
+//!   (the file as given), `scenario_fnv1a64` (a hash of its text), `count` (the runs last asked
+//!   for) and `labels_format` ([`LABELS_FORMAT`]). An invocation into a folder made with another
+//!   seed, scenario text or labels format is refused, and so is one whose --count would leave
+//!   complete runs out of the manifest.
 //!
 //! Run `i`'s seed is splitmix64 of (K, i), so a run does not depend on the number of threads
 //! nor on which runs were already done.
@@ -37,6 +38,10 @@ use vmt_scenario::dataset::{self, Dataset};
 const TMP_PREFIX: &str = ".tmp-";
 /// The identity file of a dataset folder.
 pub const IDENTITY_FILE: &str = "dataset.json";
+/// The version of what `labels.json` holds: 2 since the truth's injected squareness is in µrad
+/// (format 1, without the key in `dataset.json`, wrote it in rad under the same keys). Runs of
+/// two formats never share a dataset.
+pub const LABELS_FORMAT: u64 = 2;
 
 /// What `vmt dataset` is asked for.
 pub struct Request<'a> {
@@ -96,6 +101,8 @@ pub struct Identity {
     pub scenario_fnv1a64: String,
     /// The number of runs last asked for.
     pub count: u64,
+    /// [`LABELS_FORMAT`] of the runs (1 when `dataset.json` does not say).
+    pub labels_format: u64,
 }
 
 impl Identity {
@@ -105,6 +112,7 @@ impl Identity {
             "scenario": self.scenario,
             "scenario_fnv1a64": self.scenario_fnv1a64,
             "count": self.count,
+            "labels_format": self.labels_format,
         });
         format!("{v:#}\n")
     }
@@ -136,19 +144,18 @@ pub fn read_identity(dir: &Path) -> Result<Option<Identity>, CliError> {
             .ok_or_else(|| bad("scenario_fnv1a64"))?
             .into(),
         count: v["count"].as_u64().ok_or_else(|| bad("count"))?,
+        labels_format: match &v["labels_format"] {
+            Value::Null => 1,
+            f => f.as_u64().ok_or_else(|| bad("labels_format"))?,
+        },
     }))
 }
 
-/// Checks that `out` is a new folder or the same dataset (seed and scenario text) as `want`,
-/// and that no complete run has an id of `want.count` or more; then records `want` (keeping
-/// the scenario path the dataset was started with). A folder of runs without `dataset.json`
-/// (written before it existed) is adopted when `same_run` finds every run to be the one this
-/// dataset would draw.
-fn claim(
-    out: &Path,
-    want: &Identity,
-    same_run: &dyn Fn(&Path) -> Result<bool, CliError>,
-) -> Result<(), CliError> {
+/// Checks that `out` is a new folder or the same dataset (seed, scenario text and labels format)
+/// as `want`, and that no complete run has an id of `want.count` or more; then records `want`
+/// (keeping the scenario path the dataset was started with). A folder of runs without
+/// `dataset.json` was written before it existed, in labels format 1, and is refused.
+fn claim(out: &Path, want: &Identity) -> Result<(), CliError> {
     let dir = out.display();
     let done = if out.join("runs").is_dir() {
         complete_runs(out)?
@@ -166,6 +173,13 @@ fn claim(
                     have.seed, want.seed
                 ));
             }
+            if have.labels_format != want.labels_format {
+                differs.push(format!(
+                    "its labels are in format {} (an older vmt: the injected squareness in rad), \
+                     this vmt writes format {}",
+                    have.labels_format, want.labels_format
+                ));
+            }
             if have.scenario_fnv1a64 != want.scenario_fnv1a64 {
                 differs.push(format!(
                     "it was made from another scenario text ({} when started, hash {}; {} now, hash {})",
@@ -181,15 +195,13 @@ fn claim(
             }
         }
         None => {
-            for run in &done {
-                if !same_run(run)? {
-                    return Err(CliError::Argument(format!(
-                        "{dir} holds runs but no {IDENTITY_FILE}, and run {} is not the one \
-                         this --seed and scenario draw: continue it with the seed and scenario \
-                         it was made with, or give a new --out folder",
-                        name_of(run)
-                    )));
-                }
+            if let Some(run) = done.first() {
+                return Err(CliError::Argument(format!(
+                    "{dir} holds runs (run {} and more) but no {IDENTITY_FILE}: an older vmt \
+                     wrote them, in labels format 1 (the injected squareness in rad), which this \
+                     vmt does not mix with its own; give a new --out folder",
+                    name_of(run)
+                )));
             }
         }
     }
@@ -246,16 +258,6 @@ pub fn build(req: &Request) -> Result<Outcome, CliError> {
     })?;
     // The template itself must load, so a scenario error is reported once, not per run.
     vmt_scenario::parse(&text, &file, Some(base))?;
-    // A run is this dataset's when its sampled scenario is the one this seed draws for its id.
-    let same_run = |dir: &Path| -> Result<bool, CliError> {
-        let Ok(i) = name_of(dir).parse::<u64>() else {
-            return Ok(false);
-        };
-        let path = dir.join("scenario.toml");
-        let have = std::fs::read_to_string(&path)
-            .map_err(|e| CliError::input(&path.display().to_string(), None, e.to_string()))?;
-        Ok(have == ds.sample(run_seed(req.seed, i)).text)
-    };
     claim(
         req.out,
         &Identity {
@@ -263,8 +265,8 @@ pub fn build(req: &Request) -> Result<Outcome, CliError> {
             scenario: file.clone(),
             scenario_fnv1a64: fnv1a64(&text),
             count: req.count,
+            labels_format: LABELS_FORMAT,
         },
-        &same_run,
     )?;
     let runs = req.out.join("runs");
     std::fs::create_dir_all(&runs).map_err(|e| CliError::output(&runs, e))?;

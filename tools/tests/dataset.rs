@@ -269,17 +269,22 @@ fn a_folder_of_another_seed_scenario_or_smaller_count_is_refused() {
         &[&folder, "--count 1", "000001", "--count 2 or more"],
     );
     refused(dataset_run(&s, &out, 0, 7, 2), &["--count 0", "at least 1"]);
-    // A folder of runs without its identity (made before dataset.json existed) is taken over
-    // only by the seed and scenario that drew its runs.
+    // Runs in labels format 1 (an older vmt: dataset.json without the key, or no dataset.json)
+    // are never mixed with this vmt's.
+    let identity: Value = serde_json::from_slice(&bytes(&out, "dataset.json")).unwrap();
+    assert_eq!(identity["labels_format"], 2);
+    let mut old = identity.clone();
+    old.as_object_mut().unwrap().remove("labels_format");
+    std::fs::write(out.join("dataset.json"), old.to_string()).unwrap();
+    refused(
+        dataset_run(&s, &out, 2, 7, 2),
+        &[&folder, "labels are in format 1", "format 2"],
+    );
     std::fs::remove_file(out.join("dataset.json")).unwrap();
     refused(
-        dataset_run(&s, &out, 2, 8, 2),
-        &[&folder, "dataset.json", "run 000000"],
+        dataset_run(&s, &out, 2, 7, 2),
+        &[&folder, "dataset.json", "run 000000", "format 1"],
     );
-    let o = dataset_run(&s, &out, 2, 7, 2);
-    assert!(o.status.success(), "{}", stderr(&o));
-    let identity: Value = serde_json::from_slice(&bytes(&out, "dataset.json")).unwrap();
-    assert_eq!(identity["seed"], 7);
     let fresh = tmp.path().join("fresh");
     let o = dataset_run(&s, &fresh, 0, 7, 2);
     assert!(!o.status.success() && stderr(&o).contains("--count 0"));
