@@ -13,9 +13,9 @@
 //! - [`thermal`]: the lumped thermal network (temperatures in time).
 //! - [`thermal_deformation`]: from temperatures to thermal link and joint deformations.
 //!
-//! Units are SI (m, rad, s, K, W), conversions at the edges, with three exceptions where the
-//! field names carry the unit: [`iso230_2`] works in mm and µm as the standard does, the thermal
-//! network takes temperatures in °C and the spindle speed in rpm.
+//! Units are SI (m, rad, s, K, W), conversions at the edges, except where a name carries its
+//! unit: [`iso230_2`] works in mm and µm as the standard does, temperatures are in °C (the
+//! thermal network and the machine's thermal evaluations) and spindle speeds in rpm.
 
 pub mod axis;
 pub mod cutting;

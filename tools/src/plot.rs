@@ -262,11 +262,14 @@ fn draw_thermal_on<DB: DrawingBackend>(
         .collect();
     for (i, (name, pts)) in all.iter().enumerate() {
         let colour = Palette99::pick(i).to_rgba();
-        // A curve within a thousandth of the scale of a later one everywhere is hidden under
-        // it: the legend says so.
+        // A curve within a thousandth of the axis' span of a later one at every time is hidden
+        // under it: the legend says so (a NaN is never hidden).
         let hidden = |other: &[(f64, f64)]| {
-            let gap = |(a, b): (&(f64, f64), &(f64, f64))| (a.1 - b.1).abs();
-            other.iter().zip(pts).map(gap).fold(0.0, f64::max) < 1e-3 * (hi - lo)
+            other.len() == pts.len()
+                && other
+                    .iter()
+                    .zip(pts)
+                    .all(|(a, b)| (a.1 - b.1).abs() <= 1e-3 * (hi - lo + 2.0 * pad))
         };
         let name = match all[i + 1..].iter().find(|(_, other)| hidden(other)) {
             Some((twin, _)) => format!("{name} (under {twin})"),
