@@ -484,4 +484,9 @@ fn sampled_loop_radius_scales_and_degenerates_cleanly() {
         ..s
     };
     assert_eq!(sampled_loop_radius(&overflow, &d, SERVO), f64::INFINITY);
+    let instant = ServoParams {
+        current_time_constant_s: 1e-50,
+        ..s
+    };
+    assert_eq!(sampled_loop_radius(&instant, &d, SERVO), f64::INFINITY);
 }

@@ -361,7 +361,7 @@ fn finite(v: f64, path: &KeyPath, accepted: &str) -> std::result::Result<f64, In
     }
 }
 
-fn in_range(
+pub(crate) fn in_range(
     v: f64,
     lo: f64,
     hi: f64,
@@ -373,9 +373,15 @@ fn in_range(
     if (lo..=hi).contains(&v) {
         Ok(v)
     } else {
+        // 1e306 as typed, not as 307 digits.
+        let shown = if v != 0.0 && !(1e-4..1e6).contains(&v.abs()) {
+            format!("{v:e}")
+        } else {
+            v.to_string()
+        };
         Err(Invalid::new(
             path.clone(),
-            format!("{v} is out of range; {accepted}"),
+            format!("{shown} is out of range; {accepted}"),
         ))
     }
 }

@@ -1,7 +1,7 @@
 //! Scenario sections for executing jobs: each axis' drive and servo, the controller, the
 //! simulation settings, the job and the ball bar.
 
-use crate::build::BuildError;
+use crate::build::{BuildError, in_range};
 use crate::error::{Invalid, KeyPath};
 use crate::schema::Numbers;
 use nalgebra::Vector3;
@@ -397,25 +397,39 @@ pub fn servo(s: &ServoToml, drive: &DriveParams, p: &KeyPath) -> R<ServoParams> 
             ))
         }
     };
-    let bandwidth = pos(
+    // Generous bounds around servo drives (Kv 10–100 1/s, velocity loops of tens to hundreds of
+    // Hz, current loops of 0.1–2 ms), so that the loop check has numbers it can evaluate.
+    let bandwidth = in_range(
         s.velocity_bandwidth_hz,
+        0.1,
+        1e4,
         &p.key("velocity_bandwidth_hz"),
-        "a bandwidth",
+        "a bandwidth (Hz)",
     )?;
     Ok(ServoParams {
-        kv_per_s: pos(s.kv_per_s, &p.key("kv_per_s"), "a position loop gain")?,
+        kv_per_s: in_range(
+            s.kv_per_s,
+            0.1,
+            1e3,
+            &p.key("kv_per_s"),
+            "a position loop gain (1/s)",
+        )?,
         velocity_kp_n_s_per_m: drive.total_mass_kg() * std::f64::consts::TAU * bandwidth,
-        velocity_ti_s: pos(
+        velocity_ti_s: in_range(
             s.velocity_integral_ms,
+            0.01,
+            1e5,
             &p.key("velocity_integral_ms"),
-            "an integral time",
+            "an integral time (ms)",
         )? * 1e-3,
         velocity_ff: ff(s.velocity_ff, "velocity_ff")?,
         acceleration_ff: ff(s.acceleration_ff, "acceleration_ff")?,
-        current_time_constant_s: pos(
+        current_time_constant_s: in_range(
             s.current_time_constant_ms,
+            0.001,
+            100.0,
             &p.key("current_time_constant_ms"),
-            "a time constant",
+            "a time constant (ms)",
         )? * 1e-3,
         force_limit_n: pos(s.peak_torque_n_m, &p.key("peak_torque_n_m"), "a torque")?
             / drive.screw.m_per_rad(),

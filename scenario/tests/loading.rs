@@ -199,6 +199,24 @@ fn out_of_range_values_are_refused() {
         "[machine.thermal.links.\"X-T\"]",
     ));
     assert!(e.message.contains("W-X, X-Y, Y-G, G-Z, Z-T"), "{e}");
+    // Servo settings beyond any drive's are refused at their key with the range, the value as
+    // typed (not 307 digits).
+    let e = error_of(&with("kv_per_s = 33.0", "kv_per_s = 0.0"));
+    assert_eq!(e.key.as_deref(), Some("machine.axes.x.servo.kv_per_s"));
+    assert!(e.message.contains("from 0.1 to 1000"), "{e}");
+    let e = error_of(&with(
+        "velocity_bandwidth_hz = 60.0",
+        "velocity_bandwidth_hz = 1e306",
+    ));
+    assert!(e.message.starts_with("1e306 is out of range"), "{e}");
+    let e = error_of(&with(
+        "current_time_constant_ms = 0.5",
+        "current_time_constant_ms = 1e-47",
+    ));
+    assert_eq!(
+        e.key.as_deref(),
+        Some("machine.axes.x.servo.current_time_constant_ms")
+    );
 }
 
 fn write_scenario_with_table(dir: &Path, rows: &str) -> std::path::PathBuf {

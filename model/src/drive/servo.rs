@@ -161,6 +161,11 @@ fn sampled_loop_matrix(p: &ServoParams, drive: &DriveParams, period_s: f64) -> S
         0.0, 0.0, 0.0, 0.0, -1.0 / tc, 1.0 / tc,
         0.0, 0.0, 0.0, 0.0, 0.0, 0.0,
     ]) * t;
+    // Rates beyond 1e12 per period (a current loop of 1e-16 s) are no drive's, and the matrix
+    // exponential's squarings grow with them: such a drive reads as unevaluable.
+    if augmented.iter().any(|v| !v.is_finite()) || augmented.amax() > 1e12 {
+        return SMatrix::repeat(f64::NAN);
+    }
     let e = augmented.exp();
     // The controller as rows on the state: velocity error (regulating to rest, the position
     // from the motor encoder or the scale, the velocity from the motor encoder), force
