@@ -358,7 +358,7 @@ fn rigid_drive() -> DriveParams {
 }
 
 /// The growth of a disturbance per servo period when `ServoController::update` runs the two-mass
-/// drive (motor encoder feedback, no friction or backlash) through the current lag, the motion
+/// drive (position from its feedback, velocity from the motor; no friction or backlash) through the current lag, the motion
 /// between samples integrated by classical Runge-Kutta in 100 steps under the held force
 /// reference: the ratio of the largest |x_m| in two windows 300 periods apart, to the power
 /// 1/300.
@@ -375,8 +375,19 @@ fn growth_per_period(s: &ServoParams, d: &DriveParams) -> f64 {
     let mut ctrl = ServoController::default();
     let mut peaks = Vec::new();
     let h = t / 100.0;
+    let position = match d.feedback {
+        Feedback::MotorEncoder => 0,
+        Feedback::LinearScale { .. } => 2,
+    };
     for n in 0..700 {
-        let r = ctrl.update(s, &AxisCommand::default(), y[0], y[0], d.total_mass_kg(), t);
+        let r = ctrl.update(
+            s,
+            &AxisCommand::default(),
+            y[position],
+            y[0],
+            d.total_mass_kg(),
+            t,
+        );
         for _ in 0..100 {
             let add = |a: [f64; 5], b: [f64; 5], f: f64| std::array::from_fn(|i| a[i] + f * b[i]);
             let k1 = rate(y, r);
@@ -441,6 +452,22 @@ fn sampled_loop_radius_is_the_growth_of_the_running_controller() {
         assert!(
             (seen - rho).abs() < 2e-3,
             "{hz} Hz: radius {rho}, seen {seen}"
+        );
+    }
+    // Position from a linear scale on the carriage: the same agreement.
+    let scale = DriveParams {
+        feedback: Feedback::LinearScale { resolution_m: 0.0 },
+        ..d
+    };
+    for hz in [60.0, 1500.0] {
+        let s = servo_of_bandwidth(hz, &scale);
+        let (rho, seen) = (
+            sampled_loop_radius(&s, &scale, SERVO),
+            growth_per_period(&s, &scale),
+        );
+        assert!(
+            (seen - rho).abs() < 2e-3,
+            "scale, {hz} Hz: radius {rho}, seen {seen}"
         );
     }
     // Between the two limits: stable on the rigid drive, unstable on the compliant one.

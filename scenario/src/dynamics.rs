@@ -334,22 +334,36 @@ pub fn drive(d: &DriveToml, moving_mass_kg: f64, p: &KeyPath) -> R<DriveParams> 
         }
     };
     Ok(DriveParams {
-        motor_inertia_kg_m2: pos(
+        // Bounds around feed drives (rotors of 1e-5 to 0.1 kg·m², leads of 2 to 50 mm, screws of
+        // tens to hundreds of N/µm), generous, so that the step and loop checks can evaluate them.
+        motor_inertia_kg_m2: in_range(
             d.motor_inertia_kg_m2,
+            1e-7,
+            10.0,
             &p.key("motor_inertia_kg_m2"),
-            "an inertia",
+            "an inertia (kg·m²)",
         )?,
         screw: ScrewParams {
-            lead_m: pos(d.screw_lead_mm, &p.key("screw_lead_mm"), "a lead")? * 1e-3,
-            stiffness_n_per_m: pos(
+            lead_m: in_range(
+                d.screw_lead_mm,
+                0.1,
+                1000.0,
+                &p.key("screw_lead_mm"),
+                "a lead (mm)",
+            )? * 1e-3,
+            stiffness_n_per_m: in_range(
                 d.screw_stiffness_n_per_um,
+                0.01,
+                1e5,
                 &p.key("screw_stiffness_n_per_um"),
-                "a stiffness",
+                "a stiffness (N/µm)",
             )? * 1e6,
-            damping_n_s_per_m: nonneg(
+            damping_n_s_per_m: in_range(
                 d.screw_damping_n_s_per_m,
+                0.0,
+                1e8,
                 &p.key("screw_damping_n_s_per_m"),
-                "a damping",
+                "a damping (N·s/m)",
             )?,
             backlash_m: nonneg(d.backlash_um, &p.key("backlash_um"), "a backlash")? * 1e-6,
             cyclic_m: cyclic(d.screw_cyclic_um, &p.key("screw_cyclic_um"))?,
@@ -464,8 +478,20 @@ pub fn controller(c: &ControllerToml) -> R<(InterpolatorConfig, usize)> {
     };
     let config = InterpolatorConfig {
         limits,
-        ipo_period_s: pos(c.ipo_period_ms, &p.key("ipo_period_ms"), "a period")? * 1e-3,
-        servo_period_s: pos(c.servo_period_us, &p.key("servo_period_us"), "a period")? * 1e-6,
+        ipo_period_s: in_range(
+            c.ipo_period_ms,
+            0.01,
+            100.0,
+            &p.key("ipo_period_ms"),
+            "a period (ms)",
+        )? * 1e-3,
+        servo_period_s: in_range(
+            c.servo_period_us,
+            10.0,
+            10_000.0,
+            &p.key("servo_period_us"),
+            "a period (µs)",
+        )? * 1e-6,
         exact_stop: c.exact_stop,
     };
     config

@@ -217,6 +217,16 @@ fn out_of_range_values_are_refused() {
         e.key.as_deref(),
         Some("machine.axes.x.servo.current_time_constant_ms")
     );
+    // Drive and controller numbers beyond any machine's, which the step and loop checks could
+    // not evaluate, are refused at their own keys.
+    let e = error_of(&with("screw_lead_mm = 10.0", "screw_lead_mm = 1e-300"));
+    assert_eq!(e.key.as_deref(), Some("machine.axes.x.drive.screw_lead_mm"));
+    let e = error_of(&with(
+        "servo_period_us = 125.0",
+        "servo_period_us = 0.000001",
+    ));
+    assert_eq!(e.key.as_deref(), Some("controller.servo_period_us"));
+    assert!(e.message.contains("from 10 to 10000"), "{e}");
 }
 
 fn write_scenario_with_table(dir: &Path, rows: &str) -> std::path::PathBuf {

@@ -418,7 +418,8 @@ pub fn check_step(
     let h = period_s / substeps.max(1) as f64;
     for (a, d) in Axis::ALL.into_iter().zip(axes) {
         let (limit, mode) = d.drive.largest_stable_step_s();
-        if h > limit {
+        // A limit that is not a number (parameters beyond any drive's) refuses too.
+        if h > limit || limit.is_nan() {
             // Saturating: a limit many orders below the period (absurd stiffness) must still
             // give an error, not an overflow.
             let mut needed = (period_s / limit).ceil() as usize;

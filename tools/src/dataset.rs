@@ -174,11 +174,16 @@ fn claim(out: &Path, want: &Identity) -> Result<(), CliError> {
                 ));
             }
             if have.labels_format != want.labels_format {
-                differs.push(format!(
-                    "its labels are in format {} (an older vmt: the injected squareness in rad), \
-                     this vmt writes format {}",
+                let which = if have.labels_format < want.labels_format {
+                    "an older vmt's; format 1 or unknown wrote the injected squareness in rad"
+                } else {
+                    "a newer vmt's"
+                };
+                return Err(CliError::Argument(format!(
+                    "{dir} holds runs with labels in format {} ({which}) and this vmt writes \
+                     format {}; the two are never mixed: give a new --out folder",
                     have.labels_format, want.labels_format
-                ));
+                )));
             }
             if have.scenario_fnv1a64 != want.scenario_fnv1a64 {
                 differs.push(format!(
@@ -198,8 +203,8 @@ fn claim(out: &Path, want: &Identity) -> Result<(), CliError> {
             if let Some(run) = done.first() {
                 return Err(CliError::Argument(format!(
                     "{dir} holds runs (run {} and more) but no {IDENTITY_FILE}: an older vmt \
-                     wrote them, in labels format 1 (the injected squareness in rad), which this \
-                     vmt does not mix with its own; give a new --out folder",
+                     wrote them, in labels format 1 or unknown, which this vmt does not mix with \
+                     its own; give a new --out folder",
                     name_of(run)
                 )));
             }

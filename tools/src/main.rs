@@ -78,9 +78,10 @@ enum Command {
     #[command(verbatim_doc_comment)]
     Diagnose(DiagnoseArgs),
     /// Simulate N random machines drawn from the scenario's [dataset] distributions: writes
-    /// OUT/dataset.json (seed and scenario hash), OUT/runs/<id>/{run.mcap,labels.json,
-    /// scenario.toml} and OUT/manifest.{csv,parquet}; continues where an interrupted invocation
-    /// stopped, and refuses a folder made with another seed or scenario text.
+    /// OUT/dataset.json (seed, scenario hash, labels format), OUT/runs/<id>/{run.mcap,
+    /// labels.json,scenario.toml} and OUT/manifest.{csv,parquet}; continues where an interrupted
+    /// invocation stopped, and refuses a folder made with another seed, scenario text or labels
+    /// format (every folder of runs without dataset.json is of an older format).
     ///
     /// Example:
     ///   vmt dataset --scenario scenarios/dataset_xy.toml --count 500 --seed 1 --out ds

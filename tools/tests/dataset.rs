@@ -278,12 +278,17 @@ fn a_folder_of_another_seed_scenario_or_smaller_count_is_refused() {
     std::fs::write(out.join("dataset.json"), old.to_string()).unwrap();
     refused(
         dataset_run(&s, &out, 2, 7, 2),
-        &[&folder, "labels are in format 1", "format 2"],
+        &[
+            &folder,
+            "labels in format 1 (an older vmt's",
+            "writes format 2",
+            "new --out",
+        ],
     );
     std::fs::remove_file(out.join("dataset.json")).unwrap();
     refused(
         dataset_run(&s, &out, 2, 7, 2),
-        &[&folder, "dataset.json", "run 000000", "format 1"],
+        &[&folder, "dataset.json", "run 000000", "format 1 or unknown"],
     );
     let fresh = tmp.path().join("fresh");
     let o = dataset_run(&s, &fresh, 0, 7, 2);
