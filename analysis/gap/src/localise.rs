@@ -27,8 +27,9 @@
 //!
 //! Beside each share stands the share the same place would hold if the residual were spread
 //! evenly (white noise): the fraction of samples for angles, one half for direction, `2/n` per
-//! harmonic order (`1/n` for order 0), `1/n`·(fit size) for a trend. Their ratio is the place's concentration; the
-//! places with a large share and a concentration well above one are where the gap sits.
+//! harmonic order (`1/n` for order 0), `1/n`·(fit size) for a trend. Their ratio is the place's
+//! concentration; the places with a large share and a concentration well above one are where
+//! the gap sits.
 
 use crate::align::{GapError, TracePair};
 use crate::whiteness::{Whiteness, ljung_box};

@@ -11,9 +11,9 @@
 //!    step from the model as given, the effects being near-linear at the micrometre level), and
 //!    scored on the held-out residual the linear model predicts;
 //! 2. the candidate with the smallest predicted held-out residual among those that lower the
-//!    calibration BIC `n ln(RSS/n) + k ln n` by at least [`Options::min_bic_drop`] is simulated with its fitted values (the
-//!    nonlinear check) and accepted when the simulated BIC drops by at least
-//!    [`Options::min_bic_drop`] and the held-out mean square shrinks by at least
+//!    calibration BIC `n ln(RSS/n) + k ln n` by at least [`Options::min_bic_drop`] is simulated
+//!    with its fitted values (the nonlinear check) and accepted when the simulated BIC drops by
+//!    at least [`Options::min_bic_drop`] and the held-out mean square shrinks by at least
 //!    [`Options::min_held_out_shrink`] of what is left;
 //! 3. one more Gauss–Newton step from the simulated residual refines the values.
 //!

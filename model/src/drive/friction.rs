@@ -11,8 +11,8 @@
 //! with σ0 the bristle stiffness (N/m), σ1 the bristle damping (N·s/m), σ2 the viscous
 //! coefficient (N·s/m), Fc the Coulomb and Fs the static (breakaway) force (N), vs the Stribeck
 //! velocity (m/s) and δ its exponent (2 is usual). In steady sliding `z = g(v) sign(v)` and
-//! `F = Fc + (Fs - Fc) exp(-(|v|/vs)^δ) + σ2 |v|` (times sign v): the Stribeck curve, whose falling
-//! part gives stick-slip against a compliant drive; at a reversal the bristles must deflect
+//! `F = Fc + (Fs - Fc) exp(-(|v|/vs)^δ) + σ2 |v|` (times sign v): the Stribeck curve, whose
+//! falling part gives stick-slip against a compliant drive; at a reversal the bristles must deflect
 //! through `2 g` before sliding again, which delays the friction reversal (pre-sliding).
 //!
 //! Integration over a step `h` with the velocity held: the bristle equation is linear in `z`,
