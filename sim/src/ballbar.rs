@@ -133,12 +133,17 @@ mod tests {
         Ballbar::new(exact, Vector3::zeros(), 0.1, Plane::Xy, 1)
     }
 
+    /// The point of the bar's 100 mm circle at `deg` in XY, m.
+    fn on(deg: f64) -> Vector3<f64> {
+        Vector3::new(deg.to_radians().cos(), deg.to_radians().sin(), 0.0) * 0.1
+    }
+
     /// A bar 1.5 K warm reads short by α·R·ΔT = 11.5e-6 · 100 mm · 1.5 K = 1.725 µm at every
     /// angle; a cold one long by as much.
     #[test]
     fn a_warm_bar_reads_short_by_its_expansion() {
         for deg in [0.0f64, 37.0, 90.0, 211.0] {
-            let tool = Vector3::new(deg.to_radians().cos(), deg.to_radians().sin(), 0.0) * 0.1;
+            let tool = on(deg);
             let at = |c: f64| {
                 bar(BallbarSpec {
                     bar_temperature_c: c,
@@ -162,7 +167,6 @@ mod tests {
             setup_eccentricity_m: Vector3::new(5e-6, 0.0, 0.0),
             ..Default::default()
         });
-        let on = |deg: f64| Vector3::new(deg.to_radians().cos(), deg.to_radians().sin(), 0.0) * 0.1;
         let (r0, a0) = b.read(&on(0.0), 0.0);
         assert!((r0 + 5e-6).abs() < 1e-12 && a0.abs() < 1e-9, "{r0} {a0}");
         assert!((b.read(&on(180.0), 0.0).0 - 5e-6).abs() < 1e-12);

@@ -122,10 +122,11 @@ impl ServoController {
 /// integral action or position gain, only drifts; see [`loops_are_stable`]). Infinite when the
 /// numbers overflow.
 pub fn sampled_loop_radius(p: &ServoParams, drive: &DriveParams, period_s: f64) -> f64 {
-    let a = sampled_loop_matrix(p, drive, period_s);
-    if !a.iter().all(|v| v.is_finite()) {
+    let Some(a) =
+        sampled_loop_matrix(p, drive, period_s).filter(|a| a.iter().all(|v| v.is_finite()))
+    else {
         return f64::INFINITY;
-    }
+    };
     match Schur::try_new(a, f64::EPSILON, 1000) {
         Some(schur) => schur
             .complex_eigenvalues()
@@ -143,8 +144,13 @@ pub fn loops_are_stable(p: &ServoParams, drive: &DriveParams, period_s: f64) -> 
 }
 
 /// The matrix that maps `[x_m, v_m, x_c, v_c, F, I, x_m(prev)]` over one servo period (module
-/// docs), forces divided by the total mass so that the entries do not scale with it.
-fn sampled_loop_matrix(p: &ServoParams, drive: &DriveParams, period_s: f64) -> SMatrix<f64, 7, 7> {
+/// docs), forces divided by the total mass so that the entries do not scale with it; None when
+/// the drive's rates are beyond evaluation.
+fn sampled_loop_matrix(
+    p: &ServoParams,
+    drive: &DriveParams,
+    period_s: f64,
+) -> Option<SMatrix<f64, 7, 7>> {
     let (t, tc) = (period_s, p.current_time_constant_s);
     let total = drive.total_mass_kg();
     let (mu_m, mu_c) = (
@@ -169,7 +175,7 @@ fn sampled_loop_matrix(p: &ServoParams, drive: &DriveParams, period_s: f64) -> S
     // Rates beyond 1e12 per period (a current loop of 1e-16 s) are no drive's, and the matrix
     // exponential's squarings grow with them: such a drive reads as unevaluable.
     if augmented.iter().any(|v| !v.is_finite()) || augmented.amax() > 1e12 {
-        return SMatrix::repeat(f64::NAN);
+        return None;
     }
     let e = augmented.exp();
     // The controller as rows on the state: velocity error (regulating to rest, the position
@@ -197,5 +203,5 @@ fn sampled_loop_matrix(p: &ServoParams, drive: &DriveParams, period_s: f64) -> S
     integral[5] = 1.0;
     a.set_row(5, &(integral + ev * t));
     a[(6, 0)] = 1.0;
-    a
+    Some(a)
 }
