@@ -626,6 +626,7 @@ fn start_transient_finding(
     let floor = MIN_CONTRIBUTION_UM.max(smoothed_noise_floor(res, noise));
     let sense = t.sense.name();
     let mut name = format!("Transient at the start, {}", sense.to_uppercase());
+    let mut details = Vec::new();
     let (c, s) = (res.cos[0].abs(), res.sin[0].abs());
     let near = features::SPIKE_ZONE_DEG.to_radians().sin() * 2.0;
     // p reverses where sin θ = 0, q where cos θ = 0.
@@ -635,12 +636,11 @@ fn start_transient_finding(
         Some(axis) => {
             let letter = letters[axis];
             match spikes[axis] {
-                Some(v) => name.push_str(&format!(
-                    " (starts where {letter} can reverse: within one {letter} spike, {v:.2} µm)"
-                )),
-                None => name.push_str(&format!(
-                    " (starts where {letter} can reverse: not separable from a spike there)"
-                )),
+                Some(v) => {
+                    name.push_str(&format!(" ({letter} reversal, within its spike)"));
+                    details.push((format!("{}_spike_um", letter.to_ascii_lowercase()), v));
+                }
+                None => name.push_str(&format!(" ({letter} reversal, spike not separable)")),
             }
             spikes[axis]
         }
@@ -658,7 +658,7 @@ fn start_transient_finding(
         contribution_um: contribution,
         threshold,
         present: h.abs() >= threshold,
-        details: Vec::new(),
+        details,
     })
 }
 

@@ -57,7 +57,15 @@ fn value(f: &Finding) -> String {
 fn details(f: &Finding) -> String {
     f.details
         .iter()
-        .map(|(k, v)| format!("{k} {v:.3}"))
+        // Whole numbers (counts, and widths on a whole-millisecond sample grid) without the
+        // decimals that would make a count read as a measurement.
+        .map(|(k, v)| {
+            if v.fract() == 0.0 && v.abs() < 1e15 {
+                format!("{k} {v:.0}")
+            } else {
+                format!("{k} {v:.3}")
+            }
+        })
         .collect::<Vec<_>>()
         .join(", ")
 }
@@ -81,16 +89,21 @@ pub fn text(d: &Diagnosis) -> String {
         let _ = writeln!(s, "  {k:<44} {v}");
     }
     let _ = writeln!(s, "\nErrors, ranked by contribution (µm peak to valley)");
-    for f in &d.findings {
+    // The name and value columns are as wide as their longest entry, so that the numbers stay
+    // in columns.
+    let values: Vec<String> = d.findings.iter().map(value).collect();
+    let widest = |v: &mut dyn Iterator<Item = &str>| v.map(|s| s.chars().count()).max();
+    let width = widest(&mut d.findings.iter().map(|f| f.name.as_str())).unwrap_or(0);
+    let value_width = widest(&mut values.iter().map(String::as_str)).unwrap_or(0);
+    for (f, v) in d.findings.iter().zip(&values) {
         let mark = if f.present { "*" } else { " " };
-        let _ = writeln!(
-            s,
-            "{mark} {:<56} {:>24} {:>7.2}  {}",
+        let line = format!(
+            "{mark} {:<width$}  {v:>value_width$} {:>7.2}  {}",
             f.name,
-            value(f),
             f.contribution_um,
             details(f)
         );
+        let _ = writeln!(s, "{}", line.trim_end());
     }
     if !d.not_computed.is_empty() {
         let _ = writeln!(s, "\nNot determined by this test");
@@ -150,4 +163,32 @@ pub fn json(d: &Diagnosis) -> serde_json::Value {
         o.insert("decision_rule".into(), RULE.into());
     }
     v
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn counts_print_as_whole_numbers_and_measurements_keep_their_decimals() {
+        let f = Finding {
+            key: "spike_x".into(),
+            name: "Reversal spike X".into(),
+            value: -3.38,
+            unit: "µm",
+            ci95: 0.1,
+            contribution_um: 3.38,
+            threshold: 0.5,
+            present: true,
+            details: vec![
+                ("width_ms".into(), 12.0),
+                ("reversals".into(), 2.0),
+                ("at_minus_x_end_um".into(), 3.2366),
+            ],
+        };
+        assert_eq!(
+            details(&f),
+            "width_ms 12, reversals 2, at_minus_x_end_um 3.237"
+        );
+    }
 }
