@@ -323,6 +323,43 @@ fn writers_refuse_inconsistent_runs_without_panicking() {
 }
 
 #[test]
+fn files_appear_whole_or_not_at_all() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let run = test_run();
+    let names = |d: &std::path::Path| -> Vec<String> {
+        let mut v: Vec<String> = std::fs::read_dir(d)
+            .expect("read dir")
+            .map(|e| e.expect("entry").file_name().to_string_lossy().into_owned())
+            .collect();
+        v.sort();
+        v
+    };
+    // Written under `<name>.partial`, renamed when complete.
+    write_mcap(&run, &dir.path().join("run.mcap")).expect("mcap");
+    write_rrd(&run, &dir.path().join("run.rrd")).expect("rrd");
+    assert_eq!(names(dir.path()), ["run.mcap", "run.rrd"]);
+
+    // A write that fails at the end (the final name is taken by a folder) leaves the folder
+    // as it was and no partial file behind.
+    for name in ["busy.mcap", "busy.rrd"] {
+        let busy = dir.path().join(name);
+        std::fs::create_dir(&busy).expect("folder");
+        let e = if name.ends_with("mcap") {
+            write_mcap(&run, &busy)
+        } else {
+            write_rrd(&run, &busy)
+        }
+        .expect_err("a folder in the way");
+        assert!(e.to_string().contains(name), "{e}");
+        assert!(busy.is_dir());
+    }
+    assert_eq!(
+        names(dir.path()),
+        ["busy.mcap", "busy.rrd", "run.mcap", "run.rrd"]
+    );
+}
+
+#[test]
 fn rrd_reads_back_with_python_rerun() {
     let run = test_run();
     let dir = tempfile::tempdir().expect("temp dir");

@@ -55,7 +55,7 @@
 //! | `scenario` | `name`, `toml` (the scenario file that made the run) |
 //! | `ground_truth` | `json` (the ground truth as compact JSON, as on `/ground_truth`) |
 
-use super::{check_stream, check_trace, time_ns, unique_slugs};
+use super::{atomically, check_stream, check_trace, time_ns, unique_slugs};
 use crate::error::CliError;
 use ::mcap::records::{MessageHeader, Metadata};
 use ::mcap::{Compression, WriteOptions, Writer};
@@ -90,6 +90,11 @@ type McapWriter = Writer<BufWriter<File>>;
 /// times), when a sample time is negative or not finite, or when the file cannot be written.
 pub fn write_mcap(run: &Run, path: &Path) -> Result<(), CliError> {
     validate(run, path)?;
+    atomically(path, |partial| write_file(run, partial))
+}
+
+/// [`write_mcap`] of a validated run to `path`.
+fn write_file(run: &Run, path: &Path) -> Result<(), CliError> {
     let err = |e: ::mcap::McapError| CliError::output(path, e);
     let file = File::create(path).map_err(|e| CliError::output(path, e))?;
     let mut writer = WriteOptions::new()

@@ -20,6 +20,26 @@ use vmt_sim::run::{BallbarTrace, Stream};
 pub use self::mcap::write_mcap;
 pub use self::rerun::write_rrd;
 
+/// Writes the file `path` through `write`, which is given a sibling path to write instead:
+/// `<path>.partial` until it is complete, then renamed to `path` in one step. A run interrupted
+/// while writing (Ctrl-C, a full disk, kill -9) leaves a `.partial` file, never a truncated
+/// `path` that looks finished, and a file from an earlier run stays whole until it is replaced.
+/// On an error the partial file is removed.
+pub(crate) fn atomically(
+    path: &Path,
+    write: impl FnOnce(&Path) -> Result<(), CliError>,
+) -> Result<(), CliError> {
+    let mut partial = path.as_os_str().to_owned();
+    partial.push(".partial");
+    let partial = std::path::PathBuf::from(partial);
+    let done = write(&partial)
+        .and_then(|()| std::fs::rename(&partial, path).map_err(|e| CliError::output(path, e)));
+    if done.is_err() {
+        let _ = std::fs::remove_file(&partial);
+    }
+    done
+}
+
 /// `text` as a lower-case name of ASCII letters, digits and single underscores, e.g.
 /// `XY 150 mm 1000 mm/min CCW` -> `xy_150_mm_1000_mm_min_ccw`; `unnamed` if nothing is left.
 pub(crate) fn slug(text: &str) -> String {

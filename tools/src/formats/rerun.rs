@@ -71,7 +71,7 @@
 //! `defaults` and visualizer overrides. The entity paths are laid out so that the viewer's own
 //! heuristics give much the same views when the blueprint is reset.
 
-use super::{check_stream, check_trace, slug, unique_slugs};
+use super::{atomically, check_stream, check_trace, slug, unique_slugs};
 use crate::error::CliError;
 use rerun::blueprint::{
     Blueprint, ContainerLike, Horizontal, Spatial2DView, Spatial3DView, Tabs, TextDocumentView,
@@ -100,10 +100,19 @@ pub const APPLICATION_ID: &str = "vmt";
 /// Fails when the topology is not one of the 24, when a stream or trace is inconsistent, when a
 /// sample time is not finite or beyond ±292 years, or when the file cannot be written.
 pub fn write_rrd(run: &Run, path: &Path) -> Result<(), CliError> {
-    let err = |e: &dyn std::fmt::Display| CliError::output(path, e);
-    let topology: Topology = run.machine.topology.parse().map_err(|e| err(&e))?;
+    let topology: Topology = run
+        .machine
+        .topology
+        .parse()
+        .map_err(|e| CliError::output(path, e))?;
     run.streams.iter().try_for_each(|s| check_stream(s, path))?;
     run.ballbar.iter().try_for_each(|t| check_trace(t, path))?;
+    atomically(path, |partial| write_file(run, topology, partial))
+}
+
+/// [`write_rrd`] of a checked run to `path`.
+fn write_file(run: &Run, topology: Topology, path: &Path) -> Result<(), CliError> {
+    let err = |e: &dyn std::fmt::Display| CliError::output(path, e);
     let groups = polar_groups(&run.ballbar);
     let rec = rerun::RecordingStreamBuilder::new(APPLICATION_ID)
         .recording_id(recording_id(run))
