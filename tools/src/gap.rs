@@ -648,8 +648,13 @@ fn vibration_bench(a: &BenchArgs, text: &str, file: &str) -> Result<(), CliError
     finish_bench(a, &report, &figures, &outcomes)
 }
 
+/// A share as a percentage; a share of no cases (0/0) is not one.
 fn pct(x: f64) -> String {
-    format!("{:.1} %", 100.0 * x)
+    if x.is_nan() {
+        "no cases".into()
+    } else {
+        format!("{:.1} %", 100.0 * x)
+    }
 }
 
 /// The bench's report in Markdown: `command` made it, on `job` of the model `file`.
@@ -738,4 +743,13 @@ fn bench_report(
         );
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn a_share_of_no_cases_says_so() {
+        assert_eq!(super::pct(0.5833), "58.3 %");
+        assert_eq!(super::pct(f64::NAN), "no cases");
+    }
 }

@@ -168,9 +168,6 @@ struct DatasetArgs {
     /// No progress bar.
     #[arg(long)]
     quiet: bool,
-    /// Diagnose the ball-bar traces of the run afterwards (`vmt diagnose` on its MCAP).
-    #[arg(long)]
-    diagnose: bool,
 }
 
 #[derive(Args)]

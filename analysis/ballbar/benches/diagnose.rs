@@ -1,5 +1,5 @@
 //! Diagnoses per second of one ISO 230-4 test: a 150 mm circle at 1000 mm/min, CW and CCW, 360°
-//! each, sampled at 1 kHz (2 × 56 549 samples), with backlash, scale, squareness, servo mismatch
+//! each, sampled at 1 kHz (2 × 56 548 samples), with backlash, scale, squareness, servo mismatch
 //! and 0.3 µm noise. One core. Goal (issue 4): at least 1000 diagnoses per second.
 //!
 //! Run: `cargo bench -p vmt-ballbar --bench diagnose -- --measurement-time 5` (criterion's
