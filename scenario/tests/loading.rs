@@ -137,6 +137,49 @@ fn nan_is_refused_naming_the_key() {
 }
 
 #[test]
+fn errors_inside_tagged_tables_name_the_field_and_its_line() {
+    // [job], [machine.thermal.ambient] and [[machine.thermal.sources]] carry a `kind` tag.
+    for (replace, by, key, message) in [
+        (
+            "radius_mm = 150.0",
+            "radius_mm = \"150\"",
+            "job.radius_mm",
+            "invalid type: string \"150\", expected f64",
+        ),
+        (
+            "radius_mm = 150.0",
+            "radius_typo = 150.0",
+            "job.radius_typo",
+            "unknown field `radius_typo`",
+        ),
+        (
+            "w_per_mm_s = 0.5",
+            "w_per_mm_s = \"a\"",
+            "machine.thermal.sources[1].w_per_mm_s",
+            "invalid type: string \"a\"",
+        ),
+        (
+            "mean_c = 20.0",
+            "mean_c = [20.0]",
+            "machine.thermal.ambient.mean_c",
+            "invalid type: sequence, expected f64",
+        ),
+    ] {
+        let text = with(replace, by);
+        let e = error_of(&text);
+        assert_eq!(e.key.as_deref(), Some(key), "{e}");
+        assert_eq!(e.position.map(|p| p.0), Some(line_of(&text, by)), "{e}");
+        assert!(e.message.contains(message), "{e}");
+    }
+    // A missing field already names itself; it is placed at its table.
+    let text = with("radius_mm = 150.0", "");
+    let e = error_of(&text);
+    assert_eq!(e.key.as_deref(), Some("job"), "{e}");
+    assert_eq!(e.position.map(|p| p.0), Some(line_of(&text, "[job]")));
+    assert!(e.message.contains("missing field `radius_mm`"), "{e}");
+}
+
+#[test]
 fn missing_axis_is_refused() {
     // Drop every [machine.axes.z...] table.
     let mut skipping = false;
