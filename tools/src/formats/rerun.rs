@@ -79,10 +79,11 @@ use rerun::blueprint::{
 };
 use rerun::components::FillMode;
 use rerun::{
-    Boxes3D, Color, LineStrips2D, LineStrips3D, RecordingStream, Scalars, SeriesLines,
-    TextDocument, TimeColumn, Transform3D, ViewCoordinates,
+    Boxes3D, Color, LineStrips2D, LineStrips3D, RecordingStream, Scalars, SerializationResult,
+    SerializedComponentColumn, SeriesLines, TextDocument, TimeColumn, Transform3D, ViewCoordinates,
 };
 use std::hash::{DefaultHasher, Hash, Hasher};
+use std::ops::Range;
 use std::path::Path;
 use vmt_model::Axis;
 use vmt_model::kinematics::{Element, Topology};
@@ -93,6 +94,11 @@ pub const TIMELINE: &str = "sim_time";
 
 /// Application id of the recordings.
 pub const APPLICATION_ID: &str = "vmt";
+
+/// Rows of a time series sent to the recording at a time: small enough that a long run is
+/// never converted to Arrow whole, large enough to cost nothing per row (the format tests'
+/// 18 850-row streams go in three blocks).
+const SERIES_BLOCK: usize = 8192;
 
 /// Writes `run` to the Rerun recording `path` (created or truncated) with the entities and the
 /// blueprint listed in the [module documentation](self); the timeline is `sim_time`.
@@ -350,19 +356,37 @@ impl Logger<'_> {
             return Ok(());
         };
         let k = axis.index();
-        let translations = ch.values.iter().map(|&p| {
-            let mut v = [0.0_f32; 3];
-            v[k] = (sign * p) as f32;
-            v
-        });
-        let columns = Transform3D::update_fields()
-            .with_many_translation(translations)
-            .columns_of_unit_batches()
-            .map_err(|e| self.err(e))?;
-        let time = self.time_column(&servo.times_s, &servo.name)?;
-        self.rec
-            .send_columns(entity, [time], columns)
-            .map_err(|e| self.err(e))
+        self.send_blocks(entity, &servo.times_s, &servo.name, |rows| {
+            let translations = ch.values[rows].iter().map(|&p| {
+                let mut v = [0.0_f32; 3];
+                v[k] = (sign * p) as f32;
+                v
+            });
+            Transform3D::update_fields()
+                .with_many_translation(translations)
+                .columns_of_unit_batches()
+        })
+    }
+
+    /// Sends the rows of `entity` at the times `times_s` ([`SERIES_BLOCK`] rows at a time, so
+    /// that a long run is not converted to Arrow all at once: a 17-minute job logged at 1 kHz
+    /// has a million rows per entity), with the columns `columns` makes of each block of rows.
+    fn send_blocks<C: IntoIterator<Item = SerializedComponentColumn>>(
+        &self,
+        entity: &str,
+        times_s: &[f64],
+        what: &str,
+        columns: impl Fn(Range<usize>) -> SerializationResult<C>,
+    ) -> Result<(), CliError> {
+        for first in (0..times_s.len()).step_by(SERIES_BLOCK) {
+            let rows = first..(first + SERIES_BLOCK).min(times_s.len());
+            let time = self.time_column(&times_s[rows.clone()], first, what)?;
+            let columns = columns(rows).map_err(|e| self.err(e))?;
+            self.rec
+                .send_columns(entity, [time], columns)
+                .map_err(|e| self.err(e))?;
+        }
+        Ok(())
     }
 
     fn tool_path(&self, workpiece: &str, servo: &Stream) -> Result<(), CliError> {
@@ -385,9 +409,14 @@ impl Logger<'_> {
     }
 
     /// `times_s` as a `sim_time` column in integer nanoseconds.
-    fn time_column(&self, times_s: &[f64], what: &str) -> Result<TimeColumn, CliError> {
+    fn time_column(
+        &self,
+        times_s: &[f64],
+        first: usize,
+        what: &str,
+    ) -> Result<TimeColumn, CliError> {
         let mut nanos = Vec::with_capacity(times_s.len());
-        for (i, &t) in times_s.iter().enumerate() {
+        for (i, &t) in (first..).zip(times_s) {
             let ns = (t * 1e9).round();
             // i64::MIN is reserved by Rerun; keep well inside the range.
             if !(ns.is_finite() && ns.abs() < 9.2e18) {
@@ -407,19 +436,15 @@ impl Logger<'_> {
         name: &str,
         colour: Color,
         times_s: &[f64],
-        values: impl Iterator<Item = f64>,
+        value: impl Fn(usize) -> f64,
     ) -> Result<(), CliError> {
         self.log_static(
             entity,
             &SeriesLines::new().with_names([name]).with_colors([colour]),
         )?;
-        let columns = Scalars::new(values)
-            .columns_of_unit_batches()
-            .map_err(|e| self.err(e))?;
-        let time = self.time_column(times_s, entity)?;
-        self.rec
-            .send_columns(entity, [time], columns)
-            .map_err(|e| self.err(e))
+        self.send_blocks(entity, times_s, entity, |rows| {
+            Scalars::new(rows.map(&value)).columns_of_unit_batches()
+        })
     }
 
     fn servo_series(&self, servo: &Stream) -> Result<(), CliError> {
@@ -428,15 +453,15 @@ impl Logger<'_> {
             if let Some(c) = servo.channel(&format!("following_error_{axis}")) {
                 let entity = format!("/series/following_error_um/{axis}");
                 let name = format!("following error {axis} (µm)");
-                let values = c.values.iter().map(|v| v * 1e6);
-                self.series(&entity, &name, colour, &servo.times_s, values)?;
+                let value = |i: usize| c.values[i] * 1e6;
+                self.series(&entity, &name, colour, &servo.times_s, value)?;
             }
             for (kind, shade) in [("guide", 1.0), ("screw", 0.6)] {
                 if let Some(c) = servo.channel(&format!("{kind}_friction_{axis}")) {
                     let entity = format!("/series/friction_n/{kind}_{axis}");
                     let name = format!("{kind} friction {axis} (N)");
-                    let values = c.values.iter().copied();
-                    self.series(&entity, &name, scale(colour, shade), &servo.times_s, values)?;
+                    let value = |i: usize| c.values[i];
+                    self.series(&entity, &name, scale(colour, shade), &servo.times_s, value)?;
                 }
             }
         }
@@ -446,8 +471,8 @@ impl Logger<'_> {
     fn deviation_series(&self, t: &BallbarTrace, slug: &str) -> Result<(), CliError> {
         let entity = format!("/series/ballbar_deviation_um/{slug}");
         let name = format!("{} (µm)", t.label);
-        let values = t.deviation_um.iter().copied();
-        self.series(&entity, &name, direction_colour(t), &t.times_s, values)
+        let value = |i: usize| t.deviation_um[i];
+        self.series(&entity, &name, direction_colour(t), &t.times_s, value)
     }
 
     /// The laser deviations over time, one series per direction of approach.
@@ -464,8 +489,8 @@ impl Logger<'_> {
             let entity = format!("/series/laser_deviation_um/{dir}");
             let name = format!("{} {dir} deviation (µm)", l.axis);
             let times: Vec<f64> = mine.iter().map(|r| r.time_s).collect();
-            let values = mine.iter().map(|r| r.deviation_um);
-            self.series(&entity, &name, colour, &times, values)?;
+            let value = |i: usize| mine[i].deviation_um;
+            self.series(&entity, &name, colour, &times, value)?;
         }
         Ok(())
     }
