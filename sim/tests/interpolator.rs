@@ -683,6 +683,27 @@ fn invalid_blocks_name_their_line() {
 
     let negative_dwell = program(V3::zeros(), vec![Motion::Dwell { seconds: -1.0 }]);
     assert!(Interpolator::new(&negative_dwell, &config()).is_err());
+
+    // Too long a program is refused at the block that passes the limit: a creeping move, and
+    // a long dwell after a short move.
+    let creep = program(
+        V3::zeros(),
+        vec![line(v3(0.01, 0.0, 0.0), 0.1), line(v3(0.2, 0.0, 0.0), 1e-6)],
+    );
+    let err = Interpolator::new(&creep, &config()).unwrap_err();
+    assert!(
+        matches!(err, InterpolatorError::ProgramTooLong { line: 11, .. }),
+        "{err}"
+    );
+    let dwell = program(
+        V3::zeros(),
+        vec![
+            line(v3(0.01, 0.0, 0.0), 0.1),
+            Motion::Dwell { seconds: 1e6 },
+        ],
+    );
+    let err = Interpolator::new(&dwell, &config()).unwrap_err();
+    assert!(err.to_string().contains("block at line 11"), "{err}");
 }
 
 #[test]

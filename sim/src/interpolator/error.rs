@@ -77,10 +77,12 @@ pub enum InterpolatorError {
     },
     /// The program would need more interpolation samples than the interpolator holds.
     #[error(
-        "the program lasts about {duration_s} s, longer than the {max_duration_s} s the \
-         interpolator holds at this interpolation period"
+        "the program lasts about {duration_s} s by the block at line {line}, longer than the \
+         {max_duration_s} s the interpolator holds at this interpolation period"
     )]
     ProgramTooLong {
+        /// Source line of the block at which the limit is passed, 1-based.
+        line: usize,
         /// The planned duration, s.
         duration_s: f64,
         /// The longest accepted duration, s.

@@ -215,7 +215,7 @@ impl<'a> Builder<'a> {
             .segments
             .last()
             .map_or((0.0, start), |seg| (seg.s_end(), seg.geometry.end()));
-        let ticks = self.ticks(dwell.seconds)?;
+        let ticks = self.ticks(dwell.seconds, dwell.span.line)?;
         self.push(ticks, Activity::Dwell { dwell, s, position });
         Ok(())
     }
@@ -230,7 +230,8 @@ impl<'a> Builder<'a> {
         let profile =
             planning::plan_section(segments, &self.corners, &self.config.limits, self.window_s)?;
         self.corners.clear();
-        let ticks = self.ticks(profile.duration + self.window_s)?;
+        let last_line = segments[segments.len() - 1].span.line;
+        let ticks = self.ticks(profile.duration + self.window_s, last_line)?;
         let s_start = segments[0].s_start;
         self.push(
             ticks,
@@ -243,13 +244,15 @@ impl<'a> Builder<'a> {
         Ok(())
     }
 
-    /// Whole IPO periods covering `seconds`, refusing programs beyond [`MAX_IPO_TICKS`].
-    fn ticks(&self, seconds: f64) -> Result<usize, InterpolatorError> {
+    /// Whole IPO periods covering `seconds`, refusing programs beyond [`MAX_IPO_TICKS`] at the
+    /// block of `line`.
+    fn ticks(&self, seconds: f64, line: usize) -> Result<usize, InterpolatorError> {
         let period = self.config.ipo_period_s;
         let ticks = (seconds / period * (1.0 - TICK_SLACK)).ceil().max(0.0);
         let total = self.tick as f64 + ticks;
         if total.is_nan() || total > MAX_IPO_TICKS as f64 {
             return Err(InterpolatorError::ProgramTooLong {
+                line,
                 duration_s: total * period,
                 max_duration_s: MAX_IPO_TICKS as f64 * period,
             });

@@ -111,6 +111,8 @@ pub(crate) struct Segment {
 pub(crate) struct Dwell {
     /// Index of the block in the program.
     pub block: usize,
+    /// Where the block was written.
+    pub span: SourceSpan,
     /// Duration, s.
     pub seconds: f64,
     /// Spindle state during the dwell.
@@ -416,6 +418,7 @@ fn build_step(
             }
             let dwell = Dwell {
                 block,
+                span,
                 seconds: *seconds,
                 spindle: b.spindle,
             };

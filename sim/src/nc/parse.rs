@@ -25,7 +25,7 @@
 //! | `I J K` | arc centre offset from the arc's start point, always incremental (G91.1 style) |
 //! | `R` | arc radius instead of I/J/K: `R > 0` the shorter arc (≤ 180°), `R < 0` the longer one |
 //! | `F` | feed, mm/min (in/min after G20), modal, > 0 |
-//! | `S` | spindle speed, rpm, ≥ 0 |
+//! | `S` | spindle speed, rpm, 0 to 200 000 (the fastest production spindles) |
 //! | `M3` / `M4` / `M5` | spindle clockwise / counter-clockwise / stop |
 //! | `M2`, `M30` | end of program: the blocks after it are not read |
 //!
@@ -62,6 +62,9 @@ const WORD_LETTERS: &str = "G, M, N, X, Y, Z, I, J, K, R, F, S and P";
 const BLOCK_GRAMMAR: &str = "a block holds words (a letter and a number, as X12.5 or G1), \
                              comments in parentheses or after ;, and an N line number";
 const MM_PER_INCH: f64 = 25.4;
+/// The fastest spindle speed accepted, rpm: above the fastest production spindles (about
+/// 150 000 rpm, micro-machining), so that a typo cannot ask for a cut step of picoseconds.
+pub const MAX_SPINDLE_RPM: f64 = 200_000.0;
 
 /// A G-code program the parser refused: where (1-based line and column), and what is wrong and
 /// what would be accepted.
@@ -82,6 +85,9 @@ pub struct NcError {
 /// for the accepted words. The first problem found in reading order is returned as an
 /// [`NcError`]; any input, however malformed, gives `Ok` or `Err`, never a panic.
 pub fn parse(text: &str, start: Vector3<f64>) -> Result<Program, NcError> {
+    // A byte-order mark (Windows editors write one) is not part of the program; columns are
+    // counted as an editor shows them, without it.
+    let text = text.strip_prefix('\u{feff}').unwrap_or(text);
     let locator = Locator::new(text);
     if !start.iter().all(|c| c.is_finite()) {
         return Err(NcError {
@@ -157,10 +163,23 @@ impl<'s> Locator<'s> {
 
     fn error(&self, fault: Fault) -> NcError {
         let SourceSpan { line, column } = self.span(fault.offset);
+        // The parser reads `X1e2` as X1 followed by a word E2; say what was meant.
+        let exponent = self
+            .src
+            .get(..fault.offset)
+            .and_then(|b| b.chars().next_back());
+        let at_e = self.src.get(fault.offset..).and_then(|a| a.chars().next());
+        let message = match (exponent, at_e) {
+            (Some(d), Some('e' | 'E')) if d.is_ascii_digit() || d == '.' => {
+                "exponent notation (as 1e2) is not accepted: write the number in full (100)"
+                    .to_string()
+            }
+            _ => fault.message,
+        };
         NcError {
             line,
             column,
-            message: fault.message,
+            message,
         }
     }
 }
@@ -902,10 +921,10 @@ impl<'l, 's> Interpreter<'l, 's> {
 
     fn spindle(&mut self, w: &Words, m: &MCodes) -> Result<(), Fault> {
         if let Some((s, at)) = w.get('S') {
-            if s < 0.0 {
+            if !(0.0..=MAX_SPINDLE_RPM).contains(&s) {
                 return Err(Fault::new(
                     at,
-                    format!("S{s}: the spindle speed must be >= 0 rpm"),
+                    format!("S{s}: the spindle speed must be from 0 to {MAX_SPINDLE_RPM} rpm"),
                 ));
             }
             self.spindle_rpm = s;
@@ -1465,6 +1484,27 @@ mod tests {
         assert!(e.message.contains("comment not closed"), "{e}");
         let e = err("G1. X1");
         assert!(e.message.contains("`G1.` is not a code number"), "{e}");
+    }
+
+    #[test]
+    fn exponents_spindle_bounds_and_a_byte_order_mark() {
+        let e = err("G1 X1e2 F100");
+        assert_eq!((e.line, e.column), (1, 6), "{e}");
+        assert!(e.message.contains("exponent notation"), "{e}");
+        // An E that follows a space is a word of its own, named as such.
+        let e = err("G1 X1 E2 F100");
+        assert!(e.message.contains("the word E is not supported"), "{e}");
+        let e = err("M3 S200001");
+        assert!(e.message.contains("from 0 to 200000 rpm"), "{e}");
+        assert!(err("M3 S-1").message.contains("from 0 to 200000 rpm"));
+        let p = parse("\u{feff}M3 S200000\nG1 X1 F100", Vector3::zeros()).expect("BOM skipped");
+        assert_eq!(p.blocks[0].spindle, Spindle::Clockwise(200_000.0));
+        let e = err("\u{feff}G1 A1");
+        assert_eq!(
+            (e.line, e.column),
+            (1, 4),
+            "columns as an editor shows them: {e}"
+        );
     }
 
     #[test]
