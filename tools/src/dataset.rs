@@ -78,6 +78,9 @@ pub fn run_seed(k: u64, i: u64) -> u64 {
 }
 
 /// The id of run `i`: zero-padded so that names sort like numbers up to a million runs.
+/// The most runs of a dataset: their ids have six digits, so that they sort as numbers.
+pub const MAX_RUNS: u64 = 1_000_000;
+
 fn run_id(i: u64) -> String {
     format!("{i:06}")
 }
@@ -245,10 +248,11 @@ fn write_aside(
 
 /// Simulates the runs of `req` that are not complete yet and rebuilds the manifest.
 pub fn build(req: &Request) -> Result<Outcome, CliError> {
-    if req.count == 0 {
-        return Err(CliError::Argument(
-            "--count 0: a dataset needs at least 1 run".into(),
-        ));
+    if !(1..=MAX_RUNS).contains(&req.count) {
+        return Err(CliError::Argument(format!(
+            "--count {}: a dataset holds from 1 to {MAX_RUNS} runs (ids of six digits)",
+            req.count
+        )));
     }
     let file = req.scenario.display().to_string();
     let text = std::fs::read_to_string(req.scenario)

@@ -389,6 +389,9 @@ pub struct GapArgs {
 
 /// Runs `vmt gap`.
 pub fn command(a: &GapArgs) -> Result<(), CliError> {
+    if let Some(dir) = &a.out {
+        crate::out::output_dir(dir)?;
+    }
     let accelerometer = a
         .real
         .iter()
@@ -542,6 +545,9 @@ impl BenchArgs {
 pub fn bench_command(a: &BenchArgs) -> Result<(), CliError> {
     use vmt_gap::bench;
     a.check()?;
+    if let Some(dir) = &a.out {
+        crate::out::output_dir(dir)?;
+    }
     let (text, file) = match &a.model {
         Some(p) => (
             std::fs::read_to_string(p)
@@ -607,7 +613,6 @@ fn finish_bench(
     let Some(dir) = &a.out else {
         return Ok(());
     };
-    std::fs::create_dir_all(dir).map_err(|e| CliError::output(dir, e))?;
     let md = dir.join("gap_bench.md");
     std::fs::write(&md, report).map_err(|e| CliError::output(&md, e))?;
     let js = dir.join("gap_bench.json");

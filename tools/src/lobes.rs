@@ -349,8 +349,8 @@ pub fn summary(cases: &[Case]) -> String {
 
 /// `vmt lobes`: computes, writes lobes.csv, sd_map.csv and the image, prints the summary.
 pub fn command(args: &LobesArgs) -> Result<(), CliError> {
+    crate::out::output_dir(&args.out)?;
     let cases = compute(args)?;
-    std::fs::create_dir_all(&args.out).map_err(|e| CliError::output(&args.out, e))?;
     for (name, text) in [
         ("lobes.csv", lobes_csv(&cases)),
         ("sd_map.csv", map_csv(&cases)),

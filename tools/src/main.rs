@@ -389,6 +389,7 @@ fn run_job(args: RunArgs) -> Result<(), CliError> {
             )));
         }
     };
+    vmt_tools::out::output_dir(&args.out)?;
     let run = vmt_tools::job::execute(&scenario, &text, fidelity, args.quiet)?;
     let written = vmt_tools::job::write(&run, &args.out)?;
     vmt_tools::outln!(

@@ -47,3 +47,10 @@ macro_rules! errln {
         $crate::out::print_err(format_args!("{}\n", format_args!($($arg)*)))
     };
 }
+
+/// Creates the output folder `dir` (and its parents) before a command does its work, so that a
+/// path that cannot be a folder (an existing file, a place without write access) is refused
+/// at once, not after a long simulation.
+pub fn output_dir(dir: &std::path::Path) -> Result<(), CliError> {
+    std::fs::create_dir_all(dir).map_err(|e| CliError::output(dir, e))
+}

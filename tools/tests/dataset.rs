@@ -268,7 +268,10 @@ fn a_folder_of_another_seed_scenario_or_smaller_count_is_refused() {
         dataset_run(&s, &out, 1, 7, 2),
         &[&folder, "--count 1", "000001", "--count 2 or more"],
     );
-    refused(dataset_run(&s, &out, 0, 7, 2), &["--count 0", "at least 1"]);
+    refused(
+        dataset_run(&s, &out, 0, 7, 2),
+        &["--count 0", "from 1 to 1000000"],
+    );
     // Runs in labels format 1 (an older vmt: dataset.json without the key, or no dataset.json)
     // are never mixed with this vmt's.
     let identity: Value = serde_json::from_slice(&bytes(&out, "dataset.json")).unwrap();
@@ -291,7 +294,13 @@ fn a_folder_of_another_seed_scenario_or_smaller_count_is_refused() {
         &[&folder, "dataset.json", "run 000000", "format 1 or unknown"],
     );
     let fresh = tmp.path().join("fresh");
-    let o = dataset_run(&s, &fresh, 0, 7, 2);
-    assert!(!o.status.success() && stderr(&o).contains("--count 0"));
-    assert!(!fresh.exists(), "--count 0 wrote {}", fresh.display());
+    for count in [0, 1_000_001] {
+        let o = dataset_run(&s, &fresh, count, 7, 2);
+        assert!(
+            !o.status.success() && stderr(&o).contains(&format!("--count {count}")),
+            "{}",
+            stderr(&o)
+        );
+        assert!(!fresh.exists(), "--count {count} wrote {}", fresh.display());
+    }
 }

@@ -140,3 +140,23 @@ fn a_feed_above_the_controllers_largest_is_noted_at_its_line() {
     );
     assert!(!e.contains("bad.nc:3:"), "{e}");
 }
+
+#[test]
+fn an_output_folder_that_cannot_be_made_is_refused_before_the_run() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("taken");
+    std::fs::write(&file, "a file, not a folder").unwrap();
+    let kwon = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../scenarios/kwon_seven_step.toml"
+    );
+    for out in [file.clone(), file.join("sub")] {
+        let start = std::time::Instant::now();
+        let o = vmt(&["run", kwon, "--out", out.to_str().unwrap(), "--quiet"]);
+        // Kwon's seven steps take seconds to simulate; the refusal comes before them.
+        let took = start.elapsed().as_secs_f64();
+        assert!(!o.status.success());
+        assert!(stderr(&o).contains(out.to_str().unwrap()), "{}", stderr(&o));
+        assert!(took < 4.0, "refused after {took} s: after the simulation");
+    }
+}
