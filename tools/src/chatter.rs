@@ -105,6 +105,7 @@ fn read_csv(bytes: &[u8], file: &str) -> Result<Log, CliError> {
             )
         })?
         .clone();
+    crate::traces::unique_columns(&header, file)?;
     let find = |n: &str| header.iter().position(|h| h == n);
     let found = || header.iter().collect::<Vec<_>>().join(",");
     let time = find("time_s").ok_or_else(|| {

@@ -56,12 +56,11 @@ pub fn read(path: &Path, machine: &Machine) -> Result<Points, CliError> {
     let mut reader = csv::ReaderBuilder::new()
         .trim(csv::Trim::All)
         .from_reader(bytes.as_slice());
-    let header: Vec<String> = reader
+    let header = reader
         .headers()
-        .map_err(|e| CliError::input(&file, Some(1), format!("cannot read the header: {e}")))?
-        .iter()
-        .map(str::to_string)
-        .collect();
+        .map_err(|e| CliError::input(&file, Some(1), format!("cannot read the header: {e}")))?;
+    crate::traces::unique_columns(header, &file)?;
+    let header: Vec<String> = header.iter().map(str::to_string).collect();
     let layout = Layout::of(&header, machine, &file)?;
     let mut states = Vec::new();
     let mut lines = Vec::new();
@@ -176,16 +175,6 @@ impl Layout {
                 nodes.join(", ")
             }
         );
-        for (i, h) in header.iter().enumerate() {
-            if let Some(first) = header[..i].iter().position(|x| x == h) {
-                let msg = format!(
-                    "column `{h}` is given twice (columns {} and {})",
-                    first + 1,
-                    i + 1
-                );
-                return Err(CliError::input(file, Some(1), msg));
-            }
-        }
         let find = |name: &str| header.iter().position(|h| h == name);
         let mut position = [0; 3];
         for (slot, name) in position.iter_mut().zip(POSITION) {

@@ -239,7 +239,23 @@ pub(crate) fn csv_with_header<'a>(
         .headers()
         .map_err(|e| CliError::input(file, Some(1), e.to_string()))?
         .clone();
+    unique_columns(&header, file)?;
     Ok((reader, header))
+}
+
+/// Refuses a header that names a column twice: which of the two a reader took would be a guess.
+pub(crate) fn unique_columns(header: &csv::StringRecord, file: &str) -> Result<(), CliError> {
+    for (i, h) in header.iter().enumerate() {
+        if let Some(first) = header.iter().take(i).position(|x| x == h) {
+            let msg = format!(
+                "column `{h}` is given twice (columns {} and {})",
+                first + 1,
+                i + 1
+            );
+            return Err(CliError::input(file, Some(1), msg));
+        }
+    }
+    Ok(())
 }
 
 /// Cell `k` of `rec`, line `line` of `file`, as a finite number; `name` names its column.

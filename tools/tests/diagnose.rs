@@ -114,6 +114,12 @@ fn a_missing_column_is_named_with_the_accepted_columns() {
         "{e}"
     );
     assert!(e.contains("angle_deg, deviation_um, direction"), "{e}");
+    let (ok, e) = diagnose_text("angle_deg,deviation_um,direction,deviation_um\n0,1,ccw,2\n");
+    assert!(!ok);
+    assert!(
+        e.contains("bad.csv:1") && e.contains("`deviation_um` is given twice (columns 2 and 4)"),
+        "{e}"
+    );
 }
 
 #[test]

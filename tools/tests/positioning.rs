@@ -76,6 +76,10 @@ fn bad_laser_csvs_are_refused_naming_line_and_value() {
             "no `run` column; a positioning test has target_mm, direction (forward or backward), run, and deviation_um or reading_mm (found: target_mm, direction, deviation_um)",
         ),
         (
+            "target_mm,direction,run,deviation_um,run\n0,forward,1,1,2\n".into(),
+            "laser.csv:1: column `run` is given twice (columns 3 and 5)",
+        ),
+        (
             laser_csv().replacen("1,backward", "1,back", 1),
             "laser.csv:7: direction `back` is not accepted; forward (approached from below) or backward",
         ),
