@@ -386,6 +386,21 @@ pub fn command(dir: &Path) -> Result<(), CliError> {
     for w in &s.warnings {
         crate::errln!("warning: {w}");
     }
+    if s.failed.len() == s.runs {
+        let why = s.failed.first().map_or_else(
+            || "it holds no complete run".to_string(),
+            |(id, e)| {
+                format!(
+                    "none of its {} runs could be diagnosed (run {id}: {e})",
+                    s.runs
+                )
+            },
+        );
+        return Err(CliError::Argument(format!(
+            "{}: nothing to score: {why}; `vmt accuracy` scores ball-bar datasets",
+            dir.display()
+        )));
+    }
     crate::out!("{}", markdown(&s))?;
     write(&s, dir)?;
     crate::outln!(

@@ -221,6 +221,17 @@ fn accuracy_compares_the_diagnosis_with_the_truth() {
         md.contains("**Warning:**") && md.contains("quiet runs"),
         "{md}"
     );
+    // Runs none of which can be diagnosed are an error, not an empty table.
+    for r in run_names(&out) {
+        std::fs::write(out.join("runs").join(r).join("run.mcap"), "not an MCAP").unwrap();
+    }
+    let o = vmt(&["accuracy", out.to_str().unwrap()]);
+    let e = stderr(&o);
+    assert!(!o.status.success(), "{e}");
+    assert!(
+        e.contains("nothing to score: none of its 2 runs could be diagnosed (run 000000"),
+        "{e}"
+    );
 }
 
 /// The run folders of `out`, by name.
