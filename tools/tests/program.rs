@@ -141,7 +141,17 @@ fn bad_arguments_are_refused_with_exit_code_2() {
         (
             "--feed-mm-min",
             "0",
-            "feed 0 mm/min: the feed must be a finite number > 0 (--feed-mm-min)",
+            "feed 0 mm/min: the feed must be from 0.1 to 100000 mm/min (--feed-mm-min)",
+        ),
+        (
+            "--feed-mm-min",
+            "1e308",
+            "feed 1e308 mm/min: the feed must be from 0.1 to 100000 mm/min (--feed-mm-min)",
+        ),
+        (
+            "--center-mm",
+            "1e308,0,0",
+            "centre (1e308, 0, 0) mm: every coordinate must be a number from -10000 to 10000 mm",
         ),
         (
             "--arc-deg",

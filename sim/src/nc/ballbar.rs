@@ -58,6 +58,11 @@ pub const MAX_FEED_IN_M: f64 = 10e-3;
 pub const MIN_ARC_DEG: f64 = 90.0;
 /// Largest accepted approach from above, m (10 mm: a lift clear of the bar's seat, not a move).
 pub const MAX_APPROACH_M: f64 = 10e-3;
+/// Feeds a test program may ask for, mm/min: from a creep the program still writes with four
+/// decimals to beyond any machine tool's rapid traverse.
+pub const FEED_RANGE_MM_MIN: (f64, f64) = (0.1, 100_000.0);
+/// Largest centre coordinate, m (10 m: beyond the working space of any machining centre).
+pub const MAX_CENTRE_M: f64 = 10.0;
 /// Run-in and run-out overshoot of [`CircularTest::iso230_4`], degrees.
 pub const DEFAULT_OVERSHOOT_DEG: f64 = 45.0;
 /// Centre-ball position of the programs in `scenarios/kwon_seven_step/`, mm: the middle of the
@@ -232,12 +237,12 @@ impl CircularTest {
     /// approach from 0 to 10 mm above the start.
     pub fn validate(&self) -> Result<(), InvalidTest> {
         use TestParameter as P;
-        if !self.center.iter().all(|c| c.is_finite()) {
+        if !self.center.iter().all(|c| c.abs() <= MAX_CENTRE_M) {
             let c = self.center * 1e3;
             return Err(invalid(
                 P::Center,
                 format!("({}, {}, {}) mm", num(c.x), num(c.y), num(c.z)),
-                "every coordinate must be a finite number",
+                "every coordinate must be a number from -10000 to 10000 mm",
             ));
         }
         let r = self.radius_m;
@@ -249,11 +254,12 @@ impl CircularTest {
                 "a ball bar measures circles of 50 to 600 mm radius",
             ));
         }
-        if !(self.feed_m_s > 0.0 && self.feed_m_s.is_finite()) {
+        let (lo, hi) = FEED_RANGE_MM_MIN;
+        if !(lo..=hi).contains(&(self.feed_m_s * 6e4)) {
             return Err(invalid(
                 P::Feed,
                 format!("{} mm/min", num(self.feed_m_s * 6e4)),
-                "the feed must be a finite number > 0",
+                &format!("the feed must be from {lo} to {hi} mm/min"),
             ));
         }
         if !(self.arc_deg >= MIN_ARC_DEG && self.arc_deg <= 360.0) {
@@ -263,11 +269,11 @@ impl CircularTest {
                 "the data arc must be from 90 to 360 deg (a shorter arc cannot tell the circle's centre from its radius)",
             ));
         }
-        if !self.start_deg.is_finite() {
+        if !(-360.0..=360.0).contains(&self.start_deg) {
             return Err(invalid(
                 P::Start,
                 format!("{} deg", num(self.start_deg)),
-                "the start angle must be a finite number",
+                "the start angle must be from -360 to 360 deg",
             ));
         }
         if !(self.overshoot_deg >= 0.0 && self.arc_deg + 2.0 * self.overshoot_deg <= 720.0) {
@@ -485,7 +491,7 @@ fn fmt4(x: f64) -> String {
 
 /// A value for a message: up to 4 decimals without trailing zeros, or scientific when tiny.
 fn num(x: f64) -> String {
-    if x != 0.0 && x.abs() < 1e-3 {
+    if x != 0.0 && (x.abs() < 1e-3 || x.abs() >= 1e9) {
         format!("{x:e}")
     } else {
         fmt_short(x)
@@ -1283,7 +1289,39 @@ mod tests {
                     ..ok.clone()
                 },
                 TestParameter::Center,
-                "finite",
+                "from -10000 to 10000 mm",
+            ),
+            (
+                CircularTest {
+                    center: Vector3::new(1e305, 0.0, 0.0),
+                    ..ok.clone()
+                },
+                TestParameter::Center,
+                "centre (1e308, 0, 0) mm",
+            ),
+            (
+                CircularTest {
+                    feed_m_s: 1e-300,
+                    ..ok.clone()
+                },
+                TestParameter::Feed,
+                "mm/min: the feed must be from 0.1 to 100000 mm/min",
+            ),
+            (
+                CircularTest {
+                    feed_m_s: 1e300,
+                    ..ok.clone()
+                },
+                TestParameter::Feed,
+                "e304 mm/min: the feed must be from",
+            ),
+            (
+                CircularTest {
+                    start_deg: 361.0,
+                    ..ok.clone()
+                },
+                TestParameter::Start,
+                "from -360 to 360 deg",
             ),
         ];
         for (t, parameter, text) in cases {
