@@ -34,6 +34,8 @@ pub enum ThermalInput {
 /// Points read from a CSV file.
 #[derive(Clone, Debug)]
 pub struct Points {
+    /// The file they were read from.
+    pub file: String,
     /// Axis states, one per row.
     pub states: Vec<AxisState>,
     /// File line of each row.
@@ -141,6 +143,7 @@ pub fn read(path: &Path, machine: &Machine) -> Result<Points, CliError> {
         ThermalInput::Reference
     };
     Ok(Points {
+        file,
         states,
         lines,
         thermal,
@@ -273,6 +276,18 @@ pub fn evaluate(scenario: &Scenario, points: &Points) -> Result<Vec<Vector3<f64>
                     "time_s needs [thermal_run] in the scenario".into(),
                 ));
             };
+            let end_s = run.schedule.duration_s();
+            if let Some(i) = times.iter().position(|&t| t > end_s) {
+                return Err(CliError::input(
+                    &points.file,
+                    Some(points.lines[i]),
+                    format!(
+                        "time_s = {} s: the scenario's thermal run lasts {end_s} s; a time \
+                         within it is accepted (extend [thermal_run] to look later)",
+                        times[i]
+                    ),
+                ));
+            }
             temperatures_at(&thermal.network, &run.schedule, run.step_s, times)
                 .map_err(|e| CliError::Model(e.to_string()))?
         }

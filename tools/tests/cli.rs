@@ -296,6 +296,18 @@ fn times_beyond_the_evaluated_range_are_refused_not_run_forever() {
         e.contains("p.csv:2: time_s = 1e300; a time from 0 to 1e7 s"),
         "{e}"
     );
+    // Within that range but after the built-in thermal run (8 h): refused at its line, as
+    // --time-h is.
+    let csv = write(
+        dir.path(),
+        "late.csv",
+        "x_mm,y_mm,z_mm,time_s\n1,2,3,28800\n\n1,2,3,28801\n",
+    );
+    let e = stderr(&vmt(&["volumetric", "--points", &csv]));
+    assert!(
+        e.contains("late.csv:4: time_s = 28801 s: the scenario's thermal run lasts 28800 s"),
+        "{e}"
+    );
     let e = stderr(&vmt(&[
         "thermal",
         "--every-s",
