@@ -117,16 +117,14 @@ impl Iso230_2 {
     pub fn evaluate(targets_mm: &[f64], deviations: &[Deviation]) -> Self {
         let m = targets_mm.len();
         let stats = |approach: Approach| -> (Vec<f64>, Vec<f64>) {
-            (0..m)
-                .map(|i| {
-                    let v: Vec<f64> = deviations
-                        .iter()
-                        .filter(|d| d.target == i && d.approach == approach)
-                        .map(|d| d.deviation_um)
-                        .collect();
-                    mean_sd(&v)
-                })
-                .unzip()
+            // One pass sorts the deviations by target, so that many targets stay linear.
+            let mut at: Vec<Vec<f64>> = vec![Vec::new(); m];
+            for d in deviations.iter().filter(|d| d.approach == approach) {
+                if let Some(v) = at.get_mut(d.target) {
+                    v.push(d.deviation_um);
+                }
+            }
+            at.iter().map(|v| mean_sd(v)).unzip()
         };
         let (up, su) = stats(Approach::Forward);
         let (down, sd) = stats(Approach::Backward);
