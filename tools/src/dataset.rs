@@ -7,7 +7,8 @@
 //!   parameter, `ground_truth`). A run is written into `runs/.tmp-<id>` and renamed into place
 //!   when complete, so a listed run is always whole; an interrupted invocation (kill -9
 //!   included) leaves at most temporary folders, which the next one removes before it
-//!   continues with the runs still missing.
+//!   continues with the runs still missing. A run folder missing one of its files (deleted
+//!   by hand) is not complete: it is simulated again and replaced.
 //! - `manifest.csv`, `manifest.parquet`: one row per complete run, sorted by id: `id`, `seed`,
 //!   every parameter, every ground-truth figure of the first circular test as `truth.<key>`.
 //! - `dataset.json`: the dataset's identity, written before the first run: `seed`, `scenario`
@@ -78,6 +79,9 @@ pub fn run_seed(k: u64, i: u64) -> u64 {
 }
 
 /// The id of run `i`: zero-padded so that names sort like numbers up to a million runs.
+/// The files of a complete run folder.
+const RUN_FILES: [&str; 3] = ["run.mcap", "scenario.toml", "labels.json"];
+
 /// The most runs of a dataset: their ids have six digits, so that they sort as numbers.
 pub const MAX_RUNS: u64 = 1_000_000;
 
@@ -355,7 +359,9 @@ pub fn complete_runs(dir: &Path) -> Result<Vec<PathBuf>, CliError> {
         .map_err(|e| CliError::input(&runs.display().to_string(), None, e.to_string()))?
     {
         let path = entry.map_err(|e| CliError::output(&runs, e))?.path();
-        if !name_of(&path).starts_with(TMP_PREFIX) && path.join("labels.json").is_file() {
+        if !name_of(&path).starts_with(TMP_PREFIX)
+            && RUN_FILES.iter().all(|f| path.join(f).is_file())
+        {
             out.push(path);
         }
     }
@@ -400,6 +406,11 @@ fn simulate_one(
     });
     write_file(&tmp.join("labels.json"), &format!("{labels:#}\n"))?;
     let dest = runs.join(&id);
+    // A folder of this id is an incomplete one (the run is only simulated when it is not
+    // complete): the new run, the same bytes as the lost one, takes its place.
+    if dest.exists() {
+        std::fs::remove_dir_all(&dest).map_err(|e| CliError::output(&dest, e))?;
+    }
     std::fs::rename(&tmp, &dest).map_err(|e| CliError::output(&dest, e))
 }
 

@@ -100,6 +100,23 @@ fn same_seed_gives_identical_files_with_one_and_two_threads_and_resumes() {
             "{f} differs after the restart"
         );
     }
+    // Files deleted by hand from complete runs: those runs are simulated again and replaced.
+    std::fs::remove_file(two.join("runs/000000/run.mcap")).unwrap();
+    std::fs::remove_file(two.join("runs/000001/labels.json")).unwrap();
+    let said = dataset(&s, &two, 3, 2);
+    assert!(
+        said.contains("2 runs simulated") && said.contains("1 already complete"),
+        "{said}"
+    );
+    for f in files
+        .iter()
+        .chain(&["runs/000000/run.mcap", "runs/000001/labels.json"])
+    {
+        assert!(
+            bytes(&one, f) == bytes(&two, f),
+            "{f} differs after the repair"
+        );
+    }
 }
 
 #[test]
