@@ -487,9 +487,25 @@ pub struct BenchArgs {
 
 impl BenchArgs {
     /// The bench's own settings within what they mean and what a run of it can hold (the
-    /// test's radius and feed are checked by the scenario they are written into).
+    /// test's radius and feed here as options; the model's scenario checks them again against
+    /// its machine: strokes, largest feed).
     fn check(&self) -> Result<(), CliError> {
         use crate::error::{check_count, check_range};
+        use vmt_sim::nc::ballbar::{BALLBAR_MAX_RADIUS_M, BALLBAR_MIN_RADIUS_M, FEED_RANGE_MM_MIN};
+        check_range(
+            "--radius-mm",
+            self.radius_mm,
+            (BALLBAR_MIN_RADIUS_M * 1e3, BALLBAR_MAX_RADIUS_M * 1e3),
+            "mm",
+            "the circles a ball bar measures",
+        )?;
+        check_range(
+            "--feed-mm-min",
+            self.feed_mm_min,
+            FEED_RANGE_MM_MIN,
+            "mm/min",
+            "a test program's feed",
+        )?;
         check_range(
             "--nuisance",
             self.nuisance,

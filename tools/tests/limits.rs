@@ -138,6 +138,15 @@ fn gap_bench_settings_are_bounded() {
         &["gap-bench", "--nulls", "100000", "--quiet"],
         &["--nulls 100000: from 0 to 1000"],
     );
+    // The test's radius and feed are the options', not a line of the model's scenario.
+    refused(
+        &["gap-bench", "--radius-mm", "0", "--quiet"],
+        &["--radius-mm 0: from 50 to 600 mm"],
+    );
+    refused(
+        &["gap-bench", "--feed-mm-min", "1e9", "--quiet"],
+        &["--feed-mm-min 1000000000: from 0.1 to 100000 mm/min"],
+    );
 }
 
 #[test]
