@@ -116,6 +116,31 @@ fn measurements_of_another_test_are_refused_by_name() {
         e.contains("60 mm") && e.contains("XY 50 mm 2000 mm/min"),
         "{e}"
     );
+    // The job's own test given twice (the same file twice): named as such.
+    let csv = write_csv(dir.path(), "trace50.csv", &traces(50.0, &Errors::default()));
+    let csv = csv.to_str().unwrap();
+    let o = vmt(&[
+        "gap",
+        "--model",
+        model.to_str().unwrap(),
+        "--real",
+        csv,
+        csv,
+        "--radius-mm",
+        "50",
+        "--feed-mm-min",
+        "2000",
+        "--plane",
+        "XY",
+    ]);
+    assert!(!o.status.success());
+    let e = stderr(&o);
+    assert!(
+        e.contains("the measured runs hold 2 XY 50 mm 2000 mm/min")
+            && e.contains("the model's job runs it 1 time(s)")
+            && e.contains("given twice"),
+        "{e}"
+    );
 }
 
 /// The shipped milling slot at 0.2 mm depth (a stable cut), with its NC program, in `dir`.

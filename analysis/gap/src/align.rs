@@ -35,6 +35,21 @@ pub enum GapError {
     /// The model could not be built or simulated.
     #[error("model: {0}")]
     Model(String),
+    /// The measured runs hold a test more often than the model's job runs it.
+    #[error(
+        "{label}: the measured runs hold {given} {test} traces, the model's job runs it {in_job} \
+         time(s); give each test of the job once (is a file given twice?)"
+    )]
+    MoreThanInJob {
+        /// The measured trace in excess.
+        label: String,
+        /// The test, e.g. `XY 150 mm 1000 mm/min cw`.
+        test: String,
+        /// How many of the measured traces are of that test.
+        given: usize,
+        /// How many times the job runs it.
+        in_job: usize,
+    },
     /// A measured trace has no simulated counterpart in the model's job.
     #[error(
         "{label}: the model's job has no {plane} test of {radius_mm} mm at {feed_mm_min} mm/min {direction}; its tests are: {tests}"

@@ -244,11 +244,19 @@ fn residuals(
     let mut pairs = Vec::with_capacity(measured.len());
     for (i, m) in measured.iter().enumerate() {
         let k = measured[..i].iter().filter(|x| same(x, m)).count();
-        let s = simulated
-            .iter()
-            .filter(|s| same(s, m))
-            .nth(k)
-            .ok_or_else(|| not_in_job(m, simulated))?;
+        let in_job: Vec<&Trace> = simulated.iter().filter(|s| same(s, m)).collect();
+        let s = match in_job.get(k) {
+            Some(s) => s,
+            None if in_job.is_empty() => return Err(not_in_job(m, simulated)),
+            None => {
+                return Err(GapError::MoreThanInJob {
+                    label: m.label.clone(),
+                    test: test_name(m),
+                    given: measured.iter().filter(|x| same(x, m)).count(),
+                    in_job: in_job.len(),
+                });
+            }
+        };
         pairs.push(TracePair::align(m, s)?);
     }
     let bins = match grid {
@@ -262,19 +270,19 @@ fn residuals(
     Ok((pairs, bins))
 }
 
+/// A test as `XY 150 mm 1000 mm/min cw`.
+fn test_name(t: &Trace) -> String {
+    format!(
+        "{} {} mm {} mm/min {}",
+        t.plane,
+        t.radius_mm,
+        t.feed_mm_min,
+        t.sense.name()
+    )
+}
+
 fn not_in_job(m: &Trace, simulated: &[Trace]) -> GapError {
-    let tests: Vec<String> = simulated
-        .iter()
-        .map(|s| {
-            format!(
-                "{} {} mm {} mm/min {}",
-                s.plane,
-                s.radius_mm,
-                s.feed_mm_min,
-                s.sense.name()
-            )
-        })
-        .collect();
+    let tests: Vec<String> = simulated.iter().map(test_name).collect();
     GapError::NotInJob {
         label: m.label.clone(),
         plane: m.plane.to_string(),
