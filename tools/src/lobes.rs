@@ -26,11 +26,12 @@ pub struct LobesArgs {
     /// it, the 1-DOF benchmark at the immersions of --immersion.
     #[arg(long)]
     pub scenario: Option<PathBuf>,
-    /// Radial immersions a/D of the benchmark, comma-separated, each in (0, 1].
-    #[arg(long, value_delimiter = ',', default_values_t = [1.0, 0.5, 0.1, 0.05])]
+    /// Radial immersions a/D of the benchmark, comma-separated, each in (0, 1] (a scenario's
+    /// engagement is its job's).
+    #[arg(long, value_delimiter = ',', default_values_t = [1.0, 0.5, 0.1, 0.05], conflicts_with = "scenario")]
     pub immersion: Vec<f64>,
-    /// Up or down milling of the benchmark.
-    #[arg(long, value_enum, default_value_t = Direction::Down)]
+    /// Up or down milling of the benchmark (a scenario's is its job's).
+    #[arg(long, value_enum, default_value_t = Direction::Down, conflicts_with = "scenario")]
     pub direction: Direction,
     /// Lowest spindle speed, rpm.
     #[arg(long, default_value_t = 5000.0)]

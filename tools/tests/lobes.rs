@@ -97,4 +97,23 @@ fn bad_lobe_arguments_are_refused_by_name() {
     ]);
     assert!(!o.status.success());
     assert!(stderr(&o).contains("no milling job"), "{}", stderr(&o));
+    // A scenario's engagement is its job's: the benchmark's options are refused beside it,
+    // not ignored.
+    for (option, value) in [("--immersion", "0.5"), ("--direction", "up")] {
+        let o = vmt(&[
+            "lobes",
+            "--scenario",
+            "../scenarios/milling_slot.toml",
+            option,
+            value,
+            "--out",
+            out,
+        ]);
+        assert_eq!(o.status.code(), Some(2));
+        let e = stderr(&o);
+        assert!(
+            e.contains("'--scenario <SCENARIO>' cannot be used with") && e.contains(option),
+            "{e}"
+        );
+    }
 }
