@@ -222,6 +222,7 @@ fn read_csv(bytes: &[u8], file: &str, axis: &str) -> Result<Option<PositioningRu
         // Name the line of the reading the check points at, if it points at one.
         let line = match &e {
             vmt_positioning::PositioningError::NotFinite { reading, .. }
+            | vmt_positioning::PositioningError::TargetOutOfRange { reading, .. }
             | vmt_positioning::PositioningError::Duplicate { reading, .. } => {
                 lines.get(*reading).copied()
             }

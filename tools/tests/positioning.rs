@@ -105,6 +105,23 @@ fn bad_laser_csvs_are_refused_naming_line_and_value() {
             "target 400 mm has 1 backward reading(s); ISO 230-2 needs at least 2",
         ),
         (
+            "target_mm,direction,run,deviation_um\n0,forward,1,1\n1e300,forward,1,1\n".into(),
+            "laser.csv:3: reading 1: target 1e300 mm is not accepted; a target within ±100000 mm",
+        ),
+        (
+            [1, 2]
+                .iter()
+                .flat_map(|run| {
+                    ["forward", "backward"]
+                        .map(|d| format!("0,{d},{run},0.5\n0.0000001,{d},{run},0.4\n"))
+                })
+                .fold(
+                    "target_mm,direction,run,deviation_um\n".to_string(),
+                    |a, b| a + &b,
+                ),
+            "targets 0 mm and 0.0000001 mm are closer than 0.001 mm",
+        ),
+        (
             laser_csv().replacen("2,forward,0,", "1,forward,0,", 1),
             "laser.csv:12: reading 10: run 1 at target 0 mm, forward, appears twice",
         ),

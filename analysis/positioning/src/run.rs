@@ -40,6 +40,27 @@ pub enum PositioningError {
         /// The value.
         value: f64,
     },
+    /// A target beyond any machine axis.
+    #[error(
+        "reading {reading}: target {} mm is not accepted; a target within ±{MAX_TARGET_MM} mm",
+        readable(*target_mm)
+    )]
+    TargetOutOfRange {
+        /// Reading index.
+        reading: usize,
+        /// The target, mm.
+        target_mm: f64,
+    },
+    /// Two targets closer than a laser interferometer tells apart.
+    #[error(
+        "targets {a_mm} mm and {b_mm} mm are closer than {MIN_TARGET_SPACING_MM} mm; targets are distinct positions along the axis"
+    )]
+    TargetsTooClose {
+        /// The lower target, mm.
+        a_mm: f64,
+        /// The next one, mm.
+        b_mm: f64,
+    },
     /// Fewer than two distinct targets.
     #[error(
         "the readings have {0} target(s); ISO 230-2 figures need at least 2 (the standard asks for 5)"
@@ -73,6 +94,20 @@ pub enum PositioningError {
     },
 }
 
+/// `x` as written, or in exponent form when it is too large to read digit by digit.
+fn readable(x: f64) -> String {
+    if x.abs() >= 1e9 {
+        format!("{x:e}")
+    } else {
+        x.to_string()
+    }
+}
+
+/// The farthest target accepted, mm (100 m: longer than any machine axis).
+pub const MAX_TARGET_MM: f64 = 1e5;
+/// The closest two targets may be, mm (1 µm): closer ones are one position read twice.
+pub const MIN_TARGET_SPACING_MM: f64 = 1e-3;
+
 /// A checked positioning test of one axis: targets in increasing order and, at every target,
 /// at least two readings per direction.
 #[derive(Clone, Debug, PartialEq)]
@@ -102,9 +137,28 @@ impl PositioningRun {
                 }
             }
         }
+        if let Some((k, r)) = readings
+            .iter()
+            .enumerate()
+            .find(|(_, r)| r.target_mm.abs() > MAX_TARGET_MM)
+        {
+            return Err(PositioningError::TargetOutOfRange {
+                reading: k,
+                target_mm: r.target_mm,
+            });
+        }
         let mut targets_mm: Vec<f64> = readings.iter().map(|r| r.target_mm).collect();
         targets_mm.sort_by(f64::total_cmp);
         targets_mm.dedup();
+        if let Some(w) = targets_mm
+            .windows(2)
+            .find(|w| w[1] - w[0] < MIN_TARGET_SPACING_MM)
+        {
+            return Err(PositioningError::TargetsTooClose {
+                a_mm: w[0],
+                b_mm: w[1],
+            });
+        }
         if targets_mm.len() < 2 {
             return Err(PositioningError::TooFewTargets(targets_mm.len()));
         }
