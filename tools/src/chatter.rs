@@ -20,6 +20,10 @@ use std::path::{Path, PathBuf};
 use vmt_chatter::detect::kim::{self, KimResult, KimSettings};
 use vmt_chatter::detect::spectral::{self, SpectralResult, SpectralSettings, tooth_passing_hz};
 
+/// The largest acceleration accepted from a CSV log, m/s² (10⁶, about 100 000 g: beyond the
+/// range of shock accelerometers, so a value above it is a unit or data error).
+const MAX_ACCELERATION_M_S2: f64 = 1e6;
+
 /// Which detector to run.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 pub enum Which {
@@ -171,7 +175,18 @@ fn read_csv(bytes: &[u8], file: &str) -> Result<Log, CliError> {
         }
         times.push(t);
         for ((name, col), v) in axes.iter().zip(&mut values) {
-            v.push(num(*col, name)?);
+            let a = num(*col, name)?;
+            if a.abs() > MAX_ACCELERATION_M_S2 {
+                return Err(CliError::input(
+                    file,
+                    line,
+                    format!(
+                        "column `{name}`: {a:e} m/s² is not accepted; an acceleration within \
+                         ±{MAX_ACCELERATION_M_S2:e} m/s² (check the unit: m/s², not g or mm/s²)"
+                    ),
+                ));
+            }
+            v.push(a);
         }
     }
     let channels = axes

@@ -204,6 +204,11 @@ fn bad_csvs_name_file_line_and_column() {
     );
     let e = error_of("time_s,ax\n0,1\n0.001,2\n0.003,3\n");
     assert!(e.contains("uniform sampling"), "{e}");
+    let e = error_of("time_s,ax\n0,1\n0.001,-2e200\n");
+    assert!(
+        e.contains("bad.csv:3") && e.contains("column `ax`: -2e200 m/s² is not accepted"),
+        "{e}"
+    );
     let e = error_of("time_s,ax,ax,az\n0,1,2,3\n");
     assert!(
         e.contains("bad.csv:1") && e.contains("`ax` is given twice (columns 2 and 3)"),
