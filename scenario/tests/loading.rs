@@ -455,3 +455,43 @@ fn a_test_feed_beyond_the_circles_acceleration_limit_is_refused() {
     assert_eq!(e.key.as_deref(), Some("job.feed_mm_min"), "{e}");
     assert!(e.message.contains("at most at 4929.5 mm/min"), "{e}");
 }
+
+/// Table errors name the file's line, counting blank and `#` lines the csv reader skips; a
+/// column given twice is refused naming both.
+#[test]
+fn table_errors_name_the_line_after_blank_and_comment_lines_and_duplicate_columns() {
+    let dir = tempfile::tempdir().unwrap();
+    for (rows, position, message) in [
+        (
+            "X,EXX,EYX,EZX,EAX,EBX,ECX\n0,0,0,0,0,0,0\n\n\n500,abc,1,1,1,1,1\n",
+            (5, 2),
+            "column EXX: `abc` is not a finite number",
+        ),
+        (
+            "# X table\nX,EXX,EYX,EZX,EAX,EBX,ECX\r\n# the start\r\n0,0,0,0,0,0,0\r\n\r\n# the end\r\n500,1,1,1,1,1,2e4\r\n",
+            (7, 7),
+            "ECX: 20000 µrad is beyond the accepted ±10000 µrad",
+        ),
+        (
+            "X,EXX,EYX,EZX,EAX,EBX,ECX\n0,0,0,0,0,0,0\n\n# short\n500,1,1,1,1,1\n",
+            (5, 1),
+            "malformed row: 6 fields, the rows before have 7",
+        ),
+        (
+            "# X table\nX,EXX,EYX,EZX,EAX,EBX\n0,0,0,0,0,0\n500,0,0,0,0,0\n",
+            (2, 1),
+            "missing column ECX",
+        ),
+        (
+            "X,EXX,EYX,EZX,EAX,EBX,ECX,exx\n0,0,0,0,0,0,0,1\n500,0,0,0,0,0,0,1\n",
+            (1, 8),
+            "column EXX is given twice, as columns 2 and 8; give each column once",
+        ),
+    ] {
+        let e = load(&write_scenario_with_table(dir.path(), rows)).unwrap_err();
+        assert!(e.file.ends_with("x.csv"), "{e}");
+        assert_eq!(e.key.as_deref(), Some("machine.errors.x.forward.table"));
+        assert_eq!(e.position, Some(position), "{rows:?}: {e}");
+        assert!(e.message.contains(message), "{e}");
+    }
+}
