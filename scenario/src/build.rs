@@ -216,8 +216,9 @@ fn execution(
 
 /// A test's feed and its instruments' sample rates within what the controller can give:
 /// a controller clamps a programmed feed to its maximum, so a ball-bar or positioning test
-/// above it would run slower than the feed it is labelled (and diagnosed) with; a ball bar is
-/// sampled at servo ticks, so it cannot be sampled faster than the servo rate.
+/// above it would run slower than the feed it is labelled (and diagnosed) with; a ball bar and
+/// a laser are sampled at servo ticks, so they cannot be sampled faster than the servo rate,
+/// and a laser's averaging window must hold at least one of its samples.
 fn check_test_rates(
     job: &vmt_sim::simulate::Job,
     kind: &crate::dynamics::JobToml,
@@ -268,6 +269,28 @@ fn check_test_rates(
             );
             let key = KeyPath::of(&["instruments", "ballbar", "sample_rate_hz"]);
             return Err(Invalid::new(key, msg).into());
+        }
+    }
+    if let Some(l) = &job.laser {
+        let laser = KeyPath::of(&["instruments", "laser"]);
+        let rate = l.spec.sample_rate_hz;
+        if rate > servo_hz {
+            let msg = format!(
+                "{} Hz is not accepted: the laser is sampled at servo ticks, at most {servo_hz} Hz (1 / controller.servo_period_us)",
+                typed(rate)
+            );
+            return Err(Invalid::new(laser.key("sample_rate_hz"), msg).into());
+        }
+        // The sampled ticks are the sample period rounded to whole servo periods.
+        let every = l.spec.sample_every(controller.servo_period_s);
+        let interval_s = user(every as f64 * controller.servo_period_s);
+        if l.spec.averaging_s < interval_s {
+            let msg = format!(
+                "{} s is not accepted: the averaging window holds no sample; the laser samples every {interval_s} s (every {every} servo ticks at instruments.laser.sample_rate_hz = {} Hz), so at least {interval_s} s is accepted",
+                typed(l.spec.averaging_s),
+                typed(rate)
+            );
+            return Err(Invalid::new(laser.key("averaging_s"), msg).into());
         }
     }
     Ok(())
@@ -361,6 +384,15 @@ fn finite(v: f64, path: &KeyPath, accepted: &str) -> std::result::Result<f64, In
     }
 }
 
+/// `v` as typed: 1e306, not as 307 digits.
+pub(crate) fn typed(v: f64) -> String {
+    if v != 0.0 && !(1e-4..1e6).contains(&v.abs()) {
+        format!("{v:e}")
+    } else {
+        v.to_string()
+    }
+}
+
 pub(crate) fn in_range(
     v: f64,
     lo: f64,
@@ -373,15 +405,9 @@ pub(crate) fn in_range(
     if (lo..=hi).contains(&v) {
         Ok(v)
     } else {
-        // 1e306 as typed, not as 307 digits.
-        let shown = if v != 0.0 && !(1e-4..1e6).contains(&v.abs()) {
-            format!("{v:e}")
-        } else {
-            v.to_string()
-        };
         Err(Invalid::new(
             path.clone(),
-            format!("{shown} is out of range; {accepted}"),
+            format!("{} is out of range; {accepted}", typed(v)),
         ))
     }
 }

@@ -1,7 +1,7 @@
 //! Scenario sections for executing jobs: each axis' drive and servo, the controller, the
 //! simulation settings, the job and the ball bar.
 
-use crate::build::{BuildError, in_range};
+use crate::build::{BuildError, in_range, typed};
 use crate::error::{Invalid, KeyPath};
 use crate::schema::Numbers;
 use nalgebra::Vector3;
@@ -574,36 +574,81 @@ fn laser_spec(l: Option<&LaserToml>) -> R<LaserSpec> {
         return Ok(LaserSpec::default());
     };
     let p = KeyPath::of(&["instruments", "laser"]);
-    let finite = |v: f64, k: &str| -> R<f64> {
-        if v.is_finite() {
-            Ok(v)
-        } else {
-            Err(Invalid::new(
-                p.key(k),
-                format!("{v} is not accepted; a finite number"),
-            ))
-        }
-    };
+    let range =
+        |v: f64, k: &str, (lo, hi): (f64, f64), what: &str| in_range(v, lo, hi, &p.key(k), what);
+    // Physical ranges: interferometers resolve 0.001 to 10 nm with tens of nm of noise per
+    // sample and measure up to 80 m; a weather station off by more than 30 K, 300 hPa (sea
+    // level against 2000 m) or the whole humidity scale, or a material sensor off by more than
+    // 30 K, or air drifting by more than 10 K/h, is a wrong unit or no sensor at all.
     Ok(LaserSpec {
-        resolution_m: nonneg(l.resolution_nm, &p.key("resolution_nm"), "a resolution")? * 1e-9,
-        noise_m: nonneg(l.noise_nm, &p.key("noise_nm"), "a noise")? * 1e-9,
-        sample_rate_hz: pos(l.sample_rate_hz, &p.key("sample_rate_hz"), "a sample rate")?,
+        resolution_m: range(
+            l.resolution_nm,
+            "resolution_nm",
+            (0.0, 1000.0),
+            "a resolution (nm)",
+        )? * 1e-9,
+        noise_m: range(l.noise_nm, "noise_nm", (0.0, 1000.0), "a noise (nm)")? * 1e-9,
+        sample_rate_hz: laser_rate(l.sample_rate_hz, &p.key("sample_rate_hz"))?,
         averaging_s: pos(l.averaging_s, &p.key("averaging_s"), "an averaging time")?,
-        air_temperature_error_k: finite(l.air_temperature_error_k, "air_temperature_error_k")?,
-        air_pressure_error_hpa: finite(l.air_pressure_error_hpa, "air_pressure_error_hpa")?,
-        humidity_error_percent: finite(l.humidity_error_percent, "humidity_error_percent")?,
-        material_temperature_error_k: finite(
+        air_temperature_error_k: range(
+            l.air_temperature_error_k,
+            "air_temperature_error_k",
+            (-30.0, 30.0),
+            "a temperature error (K)",
+        )?,
+        air_pressure_error_hpa: range(
+            l.air_pressure_error_hpa,
+            "air_pressure_error_hpa",
+            (-300.0, 300.0),
+            "a pressure error (hPa)",
+        )?,
+        humidity_error_percent: range(
+            l.humidity_error_percent,
+            "humidity_error_percent",
+            (-100.0, 100.0),
+            "a humidity error (%RH)",
+        )?,
+        material_temperature_error_k: range(
             l.material_temperature_error_k,
             "material_temperature_error_k",
+            (-30.0, 30.0),
+            "a temperature error (K)",
         )?,
-        material_alpha_per_k: nonneg(
+        // Invar near 0, steel 11.5e-6, aluminium 23e-6.
+        material_alpha_per_k: range(
             l.material_alpha_per_k,
-            &p.key("material_alpha_per_k"),
-            "an expansion coefficient",
+            "material_alpha_per_k",
+            (0.0, 5e-5),
+            "an expansion coefficient (1/K)",
         )?,
-        dead_path_m: nonneg(l.dead_path_mm, &p.key("dead_path_mm"), "a dead path")? * 1e-3,
-        air_drift_k_per_s: finite(l.air_drift_k_per_h, "air_drift_k_per_h")? / 3600.0,
+        dead_path_m: range(
+            l.dead_path_mm,
+            "dead_path_mm",
+            (0.0, 100_000.0),
+            "a dead path (mm)",
+        )? * 1e-3,
+        air_drift_k_per_s: range(
+            l.air_drift_k_per_h,
+            "air_drift_k_per_h",
+            (-10.0, 10.0),
+            "an air temperature drift (K/h)",
+        )? / 3600.0,
     })
+}
+
+/// A laser's sample rate: interferometers sample at tens of Hz to tens of kHz; the upper
+/// bound, the servo rate, is checked with the controller.
+fn laser_rate(rate: f64, path: &KeyPath) -> R<f64> {
+    if rate.is_finite() && rate >= 1.0 {
+        return Ok(rate);
+    }
+    Err(Invalid::new(
+        path.clone(),
+        format!(
+            "{} is out of range; a sample rate in Hz from 1 to the servo rate (1 / controller.servo_period_us) is accepted",
+            typed(rate)
+        ),
+    ))
 }
 
 fn plane_of(name: &str, path: KeyPath) -> R<Plane> {

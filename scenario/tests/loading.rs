@@ -21,6 +21,29 @@ fn line_of(text: &str, needle: &str) -> usize {
     text.lines().position(|l| l.contains(needle)).unwrap() + 1
 }
 
+fn scenarios() -> std::path::PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenarios")
+}
+
+/// A shipped scenario (`scenarios/<name>`) with the first `replace` replaced by `by`.
+fn shipped_with(name: &str, replace: &str, by: &str) -> String {
+    let text = std::fs::read_to_string(scenarios().join(name)).unwrap();
+    assert!(
+        text.contains(replace),
+        "test edit `{replace}` not in {name}"
+    );
+    text.replacen(replace, by, 1)
+}
+
+/// Asserts that `text`, read from the scenarios' folder, is refused at `key` on the line of
+/// `at`, the message naming what is accepted.
+fn assert_refused(text: &str, at: &str, key: &str, accepted: &str) {
+    let e = parse(text, "s.toml", Some(&scenarios())).expect_err(at);
+    assert_eq!(e.key.as_deref(), Some(key), "{e}");
+    assert_eq!(e.position.map(|p| p.0), Some(line_of(text, at)), "{e}");
+    assert!(e.message.contains(accepted), "{e}");
+}
+
 #[test]
 fn builtin_machine_loads_with_realistic_errors() {
     let s = builtin().unwrap();
@@ -454,6 +477,106 @@ fn a_test_feed_beyond_the_circles_acceleration_limit_is_refused() {
     let e = error_of(&text);
     assert_eq!(e.key.as_deref(), Some("job.feed_mm_min"), "{e}");
     assert!(e.message.contains("at most at 4929.5 mm/min"), "{e}");
+}
+
+/// The laser: a rate above the servo rate was clamped to it and an averaging window with no
+/// sample read 0; both are refused like the ball bar's rate. Its other values are bounded to
+/// what an interferometer and its sensors can be.
+#[test]
+fn laser_values_it_cannot_have_are_refused_at_their_keys() {
+    let laser = "instruments.laser";
+    let key = |k: &str| format!("{laser}.{k}");
+    let window = "the averaging window holds no sample";
+    for (replace, by, key, accepted) in [
+        (
+            "sample_rate_hz = 1000.0",
+            "sample_rate_hz = 1e308",
+            key("sample_rate_hz"),
+            "1e308 Hz is not accepted: the laser is sampled at servo ticks, at most 8000 Hz (1 / controller.servo_period_us)",
+        ),
+        (
+            "averaging_s = 1.0 ",
+            "averaging_s = 1e-9 ",
+            key("averaging_s"),
+            "1e-9 s is not accepted: the averaging window holds no sample; the laser samples every 0.001 s (every 8 servo ticks at instruments.laser.sample_rate_hz = 1000 Hz), so at least 0.001 s is accepted",
+        ),
+        (
+            "averaging_s = 1.0 ",
+            "averaging_s = 0.0009 ",
+            key("averaging_s"),
+            window,
+        ),
+        (
+            "sample_rate_hz = 1000.0",
+            "sample_rate_hz = 1e-9",
+            key("sample_rate_hz"),
+            "1e-9 is out of range; a sample rate in Hz from 1 to the servo rate (1 / controller.servo_period_us) is accepted",
+        ),
+        (
+            "resolution_nm = 1.0",
+            "resolution_nm = 1e308",
+            key("resolution_nm"),
+            "a resolution (nm) from 0 to 1000 is accepted",
+        ),
+        (
+            "noise_nm = 20.0",
+            "noise_nm = 1e308",
+            key("noise_nm"),
+            "a noise (nm) from 0 to 1000 is accepted",
+        ),
+        (
+            "dead_path_mm = 100.0",
+            "dead_path_mm = 1e308",
+            key("dead_path_mm"),
+            "a dead path (mm) from 0 to 100000 is accepted",
+        ),
+        (
+            "air_temperature_error_k = 0.5",
+            "air_temperature_error_k = 1e308",
+            key("air_temperature_error_k"),
+            "a temperature error (K) from -30 to 30 is accepted",
+        ),
+        (
+            "air_pressure_error_hpa = 0.0",
+            "air_pressure_error_hpa = 1e308",
+            key("air_pressure_error_hpa"),
+            "a pressure error (hPa) from -300 to 300 is accepted",
+        ),
+        (
+            "humidity_error_percent = 0.0",
+            "humidity_error_percent = 1e308",
+            key("humidity_error_percent"),
+            "a humidity error (%RH) from -100 to 100 is accepted",
+        ),
+        (
+            "material_temperature_error_k = 0.0",
+            "material_temperature_error_k = -1e308",
+            key("material_temperature_error_k"),
+            "a temperature error (K) from -30 to 30 is accepted",
+        ),
+        (
+            "material_alpha_per_k = 11.5e-6",
+            "material_alpha_per_k = 1e308",
+            key("material_alpha_per_k"),
+            "an expansion coefficient (1/K) from 0 to 0.00005 is accepted",
+        ),
+        (
+            "air_drift_k_per_h = 0.2",
+            "air_drift_k_per_h = 1e308",
+            key("air_drift_k_per_h"),
+            "an air temperature drift (K/h) from -10 to 10 is accepted",
+        ),
+    ] {
+        let text = shipped_with("iso230_2_x.toml", replace, by);
+        assert_refused(&text, by, &key, accepted);
+    }
+    // A window of one sample is accepted.
+    let text = shipped_with(
+        "iso230_2_x.toml",
+        "averaging_s = 1.0 ",
+        "averaging_s = 0.001 ",
+    );
+    parse(&text, "s.toml", None).unwrap();
 }
 
 /// Table errors name the file's line, counting blank and `#` lines the csv reader skips; a
