@@ -412,6 +412,24 @@ pub(crate) fn in_range(
     }
 }
 
+/// A whole number (a count, a length of a list) within `lo..=hi`.
+pub(crate) fn count_in_range(
+    n: usize,
+    lo: usize,
+    hi: usize,
+    path: &KeyPath,
+    what: &str,
+) -> std::result::Result<usize, Invalid> {
+    if (lo..=hi).contains(&n) {
+        Ok(n)
+    } else {
+        Err(Invalid::new(
+            path.clone(),
+            format!("{n} is out of range; {what} from {lo} to {hi} is accepted"),
+        ))
+    }
+}
+
 fn positive(v: f64, hi: f64, path: &KeyPath, what: &str) -> std::result::Result<f64, Invalid> {
     let v = in_range(v, 0.0, hi, path, what)?;
     if v > 0.0 {

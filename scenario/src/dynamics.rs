@@ -1,7 +1,7 @@
 //! Scenario sections for executing jobs: each axis' drive and servo, the controller, the
 //! simulation settings, the job and the ball bar.
 
-use crate::build::{BuildError, in_range, typed};
+use crate::build::{BuildError, count_in_range, in_range, typed};
 use crate::error::{Invalid, KeyPath};
 use crate::schema::Numbers;
 use nalgebra::Vector3;
@@ -681,6 +681,14 @@ pub fn job(
             directions,
         } => {
             let plane = plane_of(plane, p.key("plane"))?;
+            // Each direction is a whole circle in the generated program and its traces.
+            if directions.len() > MAX_DIRECTIONS {
+                let msg = format!(
+                    "{} directions are not accepted; a list of up to {MAX_DIRECTIONS} directions (cw, ccw) is accepted",
+                    directions.len()
+                );
+                return Err(Invalid::new(p.key("directions"), msg).into());
+            }
             let dirs = directions
                 .iter()
                 .enumerate()
@@ -769,6 +777,18 @@ fn program_job(
     })
 }
 
+/// Most circles of one ball-bar job.
+const MAX_DIRECTIONS: usize = 8;
+
+/// Most targets and runs of an ISO 230-2 job, bounded before its program (two dwells per target
+/// and run) is generated. The standard asks for 5 runs over at least 5 targets per metre: a 5 m
+/// axis at 10 mm steps has 500 targets.
+const MAX_TARGETS: usize = 1000;
+const MAX_RUNS: usize = 100;
+
+/// Most steps of a Kwon job: the seven, each up to four times.
+const MAX_KWON_STEPS: usize = 7 * 4;
+
 /// The ISO 230-2 targets: `targets_mm`, or `count` evenly spaced over `range_mm`, m.
 fn targets(
     list: &Option<Vec<f64>>,
@@ -777,7 +797,16 @@ fn targets(
     p: &KeyPath,
 ) -> R<Vec<f64>> {
     let mm = match (list, range, count) {
-        (Some(t), None, None) => t.clone(),
+        (Some(t), None, None) => {
+            if t.len() > MAX_TARGETS {
+                let msg = format!(
+                    "{} targets are not accepted; a list of up to {MAX_TARGETS} targets is accepted",
+                    t.len()
+                );
+                return Err(Invalid::new(p.key("targets_mm"), msg));
+            }
+            t.clone()
+        }
         (None, Some([a, b]), Some(n)) => {
             if !(a.is_finite() && b.is_finite() && b > a) {
                 return Err(Invalid::new(
@@ -785,16 +814,15 @@ fn targets(
                     format!("[{a}, {b}] is not accepted; an increasing pair of finite numbers"),
                 ));
             }
-            if *n < 2 {
-                return Err(Invalid::new(
-                    p.key("count"),
-                    format!(
-                        "{n} is not accepted; at least 2 targets (ISO 230-2 asks for 5 per metre, at least 5)"
-                    ),
-                ));
-            }
-            (0..*n)
-                .map(|i| a + (b - a) * i as f64 / (*n - 1) as f64)
+            let n = count_in_range(
+                *n,
+                2,
+                MAX_TARGETS,
+                &p.key("count"),
+                "a number of targets (ISO 230-2 asks for 5 per metre, at least 5)",
+            )?;
+            (0..n)
+                .map(|i| a + (b - a) * i as f64 / (n - 1) as f64)
                 .collect()
         }
         _ => {
@@ -831,12 +859,13 @@ fn positioning_job(j: &PositioningToml, instruments: &InstrumentsToml) -> R<Job>
         let msg = format!("`{upper}` is not accepted; X, Y or Z");
         return Err(Invalid::new(p.key("axis"), msg));
     };
-    if *runs < 2 {
-        return Err(Invalid::new(
-            p.key("runs"),
-            format!("{runs} is not accepted; at least 2 runs (ISO 230-2 asks for 5)"),
-        ));
-    }
+    count_in_range(
+        *runs,
+        2,
+        MAX_RUNS,
+        &p.key("runs"),
+        "a number of runs (ISO 230-2 asks for 5)",
+    )?;
     let mut line = Vector3::zeros();
     let others: Vec<usize> = (0..3).filter(|&i| i != axis.index()).collect();
     for (k, (&i, v)) in others.iter().zip(beam_line_mm.0).enumerate() {
@@ -902,6 +931,13 @@ fn kwon_job(pivot_mm: &[f64; 3], steps: &[u8], instruments: &InstrumentsToml) ->
             p.key("steps"),
             "give at least one step, 1 to 7",
         ));
+    }
+    if steps.len() > MAX_KWON_STEPS {
+        let msg = format!(
+            "{} steps are not accepted; a list of up to {MAX_KWON_STEPS} steps (each of 1 to 7) is accepted",
+            steps.len()
+        );
+        return Err(Invalid::new(p.key("steps"), msg));
     }
     let spec = ballbar_spec(instruments.ballbar.as_ref())?;
     let mut text = String::new();

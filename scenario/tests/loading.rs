@@ -44,6 +44,15 @@ fn assert_refused(text: &str, at: &str, key: &str, accepted: &str) {
     assert!(e.message.contains(accepted), "{e}");
 }
 
+/// [`assert_refused`] for edits `(replace, by, key, accepted)` of shipped scenario `name`; the
+/// refused value is on the last line of `by`.
+fn assert_edits_refused(name: &str, edits: &[(&str, &str, &str, &str)]) {
+    for (replace, by, key, accepted) in edits {
+        let text = shipped_with(name, replace, by);
+        assert_refused(&text, by.lines().last().unwrap(), key, accepted);
+    }
+}
+
 #[test]
 fn builtin_machine_loads_with_realistic_errors() {
     let s = builtin().unwrap();
@@ -477,6 +486,53 @@ fn a_test_feed_beyond_the_circles_acceleration_limit_is_refused() {
     let e = error_of(&text);
     assert_eq!(e.key.as_deref(), Some("job.feed_mm_min"), "{e}");
     assert!(e.message.contains("at most at 4929.5 mm/min"), "{e}");
+}
+
+/// An ISO 230-2 job's targets and runs, a ball-bar job's directions and a Kwon job's steps are
+/// bounded before their program is generated (10^8 targets or runs, or 150 circles, took all
+/// memory).
+#[test]
+fn test_programs_are_bounded_before_they_are_generated() {
+    let targets = "a number of targets (ISO 230-2 asks for 5 per metre, at least 5) from 2 to 1000 is accepted";
+    let runs = "a number of runs (ISO 230-2 asks for 5) from 2 to 100 is accepted";
+    let list: Vec<String> = (0..1001).map(|i| format!("{}.0", i + 1)).collect();
+    let list = format!("targets_mm = [{}]", list.join(", "));
+    assert_edits_refused(
+        "iso230_2_x.toml",
+        &[
+            ("count = 11", "count = 100000000", "job.count", targets),
+            ("count = 11", "count = 1001", "job.count", targets),
+            ("count = 11", "count = 1", "job.count", targets),
+            ("runs = 5", "runs = 100000000", "job.runs", runs),
+            ("runs = 5", "runs = 1", "job.runs", runs),
+            (
+                "range_mm = [25.0, 475.0]       # or targets_mm = [...] (ISO recommends uneven spacing)\ncount = 11",
+                &list,
+                "job.targets_mm",
+                "1001 targets are not accepted; a list of up to 1000 targets is accepted",
+            ),
+        ],
+    );
+    let cw = vec!["\"cw\""; 150].join(", ");
+    let text = with(
+        "directions = [\"cw\", \"ccw\"]",
+        &format!("directions = [{cw}]"),
+    );
+    assert_refused(
+        &text,
+        "directions = [",
+        "job.directions",
+        "150 directions are not accepted; a list of up to 8 directions (cw, ccw) is accepted",
+    );
+    assert_edits_refused(
+        "kwon_seven_step.toml",
+        &[(
+            "steps = [1, 2, 3, 4, 5, 6, 7]",
+            "steps = [1, 2, 3, 4, 5, 6, 7, 1, 2, 3, 4, 5, 6, 7, 1, 2, 3, 4, 5, 6, 7, 1, 2, 3, 4, 5, 6, 7, 1]",
+            "job.steps",
+            "29 steps are not accepted; a list of up to 28 steps (each of 1 to 7) is accepted",
+        )],
+    );
 }
 
 /// The laser: a rate above the servo rate was clamped to it and an averaging window with no
