@@ -412,6 +412,26 @@ pub(crate) fn in_range(
     }
 }
 
+/// [`in_range`] with both ends excluded.
+pub(crate) fn in_open_range(
+    v: f64,
+    lo: f64,
+    hi: f64,
+    path: &KeyPath,
+    what: &str,
+) -> std::result::Result<f64, Invalid> {
+    let accepted = format!("{what} above {lo} and below {hi} is accepted");
+    let v = finite(v, path, &accepted)?;
+    if v > lo && v < hi {
+        Ok(v)
+    } else {
+        Err(Invalid::new(
+            path.clone(),
+            format!("{} is out of range; {accepted}", typed(v)),
+        ))
+    }
+}
+
 /// A whole number (a count, a length of a list) within `lo..=hi`.
 pub(crate) fn count_in_range(
     n: usize,
@@ -430,7 +450,12 @@ pub(crate) fn count_in_range(
     }
 }
 
-fn positive(v: f64, hi: f64, path: &KeyPath, what: &str) -> std::result::Result<f64, Invalid> {
+pub(crate) fn positive(
+    v: f64,
+    hi: f64,
+    path: &KeyPath,
+    what: &str,
+) -> std::result::Result<f64, Invalid> {
     let v = in_range(v, 0.0, hi, path, what)?;
     if v > 0.0 {
         Ok(v)

@@ -535,6 +535,159 @@ fn test_programs_are_bounded_before_they_are_generated() {
     );
 }
 
+/// Milling values that hung or took all memory (a sample rate, cut step or mode frequency that
+/// makes the cut step tiny) or that no tool or sensor has are refused at their keys.
+#[test]
+fn milling_values_beyond_any_tool_or_sensor_are_refused_at_their_keys() {
+    let rate = "a sample rate in Hz from 100 to 1000000 is accepted";
+    let step = "a cut step in µs from 0.1 to 10000 is accepted";
+    let window = "a supervisor window in ms (at least one accelerometer sample) from 0.05 to 10000 is accepted";
+    assert_edits_refused(
+        "milling_slot.toml",
+        &[
+            (
+                "sample_rate_hz = 20000.0",
+                "sample_rate_hz = 1e308",
+                "instruments.accelerometer.sample_rate_hz",
+                rate,
+            ),
+            (
+                "sample_rate_hz = 20000.0",
+                "sample_rate_hz = 1e7",
+                "instruments.accelerometer.sample_rate_hz",
+                rate,
+            ),
+            (
+                "direction = \"down\"",
+                "direction = \"down\"\nstep_us = 1e-6",
+                "job.step_us",
+                step,
+            ),
+            (
+                "frequency_hz = 922.0",
+                "frequency_hz = 1e9",
+                "tools.T1.modes_x[0].frequency_hz",
+                "a natural frequency in Hz from 0 to 100000 is accepted",
+            ),
+            (
+                "stiffness_n_per_um = 1.340",
+                "stiffness_n_per_um = 0.0",
+                "tools.T1.modes_x[0].stiffness_n_per_um",
+                "a stiffness in N/µm must be > 0",
+            ),
+            (
+                "diameter_mm = 20.0",
+                "diameter_mm = 1e308",
+                "tools.T1.diameter_mm",
+                "a diameter in mm from 0 to 1000 is accepted",
+            ),
+            (
+                "flute_length_mm = 30.0",
+                "flute_length_mm = 1e308",
+                "tools.T1.flute_length_mm",
+                "a flute length in mm from 0 to 1000 is accepted",
+            ),
+            (
+                "teeth = 2",
+                "teeth = 1000",
+                "tools.T1.teeth",
+                "a number of teeth from 1 to 100 is accepted",
+            ),
+            (
+                "helix_deg = 0.0",
+                "helix_deg = 0.0\nrunout_um = 1e308",
+                "tools.T1.runout_um",
+                "a run-out in µm from 0 to 1000 is accepted",
+            ),
+            (
+                "noise_m_s2 = 0.05",
+                "noise_m_s2 = 1e308",
+                "instruments.accelerometer.noise_m_s2",
+                "a noise RMS in m/s² from 0 to 1000 is accepted",
+            ),
+            (
+                "supervisor_window_ms = 25.0",
+                "supervisor_window_ms = 1e308",
+                "job.supervisor_window_ms",
+                window,
+            ),
+            (
+                "supervisor_window_ms = 25.0",
+                "supervisor_window_ms = 1e-9",
+                "job.supervisor_window_ms",
+                window,
+            ),
+        ],
+    );
+    // The sensor's other values, which were all reported at job.tool, at their own keys.
+    assert_edits_refused(
+        "milling_slot.toml",
+        &[
+            (
+                "sample_rate_hz = 20000.0",
+                "sample_rate_hz = 1",
+                "instruments.accelerometer.sample_rate_hz",
+                rate,
+            ),
+            (
+                "noise_m_s2 = 0.05",
+                "noise_m_s2 = -1",
+                "instruments.accelerometer.noise_m_s2",
+                "-1 is out of range; a noise RMS in m/s² from 0 to 1000 is accepted",
+            ),
+            (
+                "noise_m_s2 = 0.05",
+                "noise_m_s2 = 0.05\nadc_bits = 0",
+                "instruments.accelerometer.adc_bits",
+                "0 is out of range; a resolution in bits from 1 to 32 is accepted",
+            ),
+            (
+                "noise_m_s2 = 0.05",
+                "noise_m_s2 = 0.05\nparticipation = [nan, 0.2]",
+                "instruments.accelerometer.participation[0]",
+                "NaN is not accepted; a participation factor from -10 to 10 is accepted",
+            ),
+            (
+                "noise_m_s2 = 0.05",
+                "noise_m_s2 = 0.05\nparticipation = [0.2]",
+                "instruments.accelerometer.participation",
+                "none (0.2 for every mode) or one per mode of the tool, 2 here",
+            ),
+            (
+                "noise_m_s2 = 0.05",
+                "noise_m_s2 = 0.05\nresonance_hz = 0",
+                "instruments.accelerometer.resonance_hz",
+                "a resonance in Hz from 100 to 1000000 is accepted",
+            ),
+            (
+                "noise_m_s2 = 0.05",
+                "noise_m_s2 = 0.05\nanti_alias_hz = 12000.0",
+                "instruments.accelerometer.anti_alias_hz",
+                "an anti-alias corner in Hz (below half of sample_rate_hz) above 0 and below 10000 is accepted",
+            ),
+            (
+                "direction = \"down\"",
+                "direction = \"down\"\nstep_us = nan",
+                "job.step_us",
+                step,
+            ),
+        ],
+    );
+}
+
+/// A micro end mill loads: the cut is checked with a feed per tooth within its radius.
+#[test]
+fn a_micro_end_mill_loads() {
+    let text = shipped_with(
+        "milling_slot.toml",
+        "diameter_mm = 20.0",
+        "diameter_mm = 0.1",
+    )
+    .replacen("axial_depth_mm = 0.5", "axial_depth_mm = 0.05", 1)
+    .replacen("radial_depth_mm = 20.0", "radial_depth_mm = 0.1", 1);
+    parse(&text, "s.toml", Some(&scenarios())).unwrap();
+}
+
 /// The laser: a rate above the servo rate was clamped to it and an averaging window with no
 /// sample read 0; both are refused like the ball bar's rate. Its other values are bounded to
 /// what an interferometer and its sensors can be.
