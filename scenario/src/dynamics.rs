@@ -266,40 +266,44 @@ fn finite3(v: &Numbers<3>, path: &KeyPath) -> R<Vector3<f64>> {
     }
 }
 
-fn nonneg(v: f64, path: &KeyPath, what: &str) -> R<f64> {
-    if v.is_finite() && v >= 0.0 {
-        Ok(v)
-    } else {
-        Err(Invalid::new(
-            path.clone(),
-            format!("{v} is not accepted; {what} must be a finite number >= 0"),
-        ))
-    }
-}
+/// Largest friction force accepted, N: ten tonnes moving at a friction coefficient of 0.1.
+const MAX_FRICTION_N: f64 = 1e5;
 
 fn friction(f: &FrictionToml, p: &KeyPath) -> R<LuGreParams> {
+    // Generous bounds around guideways and screws (bristles of 1 to 100 N/µm, Stribeck
+    // velocities of 0.1 to 10 mm/s, viscous friction of hundreds of N·s/m): beyond them the
+    // traces span millimetres or overflow.
+    let force = |v: f64, k: &str| in_range(v, 0.0, MAX_FRICTION_N, &p.key(k), "a force (N)");
     let out = LuGreParams {
-        sigma0_n_per_m: pos(
+        sigma0_n_per_m: in_range(
             f.bristle_stiffness_n_per_um,
+            0.01,
+            1e5,
             &p.key("bristle_stiffness_n_per_um"),
-            "a bristle stiffness",
+            "a bristle stiffness (N/µm)",
         )? * 1e6,
-        sigma1_n_s_per_m: nonneg(
+        sigma1_n_s_per_m: in_range(
             f.bristle_damping_n_s_per_m,
+            0.0,
+            1e8,
             &p.key("bristle_damping_n_s_per_m"),
-            "a damping",
+            "a damping (N·s/m)",
         )?,
-        sigma2_n_s_per_m: nonneg(
+        sigma2_n_s_per_m: in_range(
             f.viscous_n_s_per_m,
+            0.0,
+            1e6,
             &p.key("viscous_n_s_per_m"),
-            "a viscous coefficient",
+            "a viscous coefficient (N·s/m)",
         )?,
-        coulomb_n: nonneg(f.coulomb_n, &p.key("coulomb_n"), "a Coulomb force")?,
-        static_n: nonneg(f.static_n, &p.key("static_n"), "a static force")?,
-        stribeck_m_s: pos(
+        coulomb_n: force(f.coulomb_n, "coulomb_n")?,
+        static_n: force(f.static_n, "static_n")?,
+        stribeck_m_s: in_range(
             f.stribeck_mm_s,
+            0.001,
+            1000.0,
             &p.key("stribeck_mm_s"),
-            "a Stribeck velocity",
+            "a Stribeck velocity (mm/s)",
         )? * 1e-3,
         stribeck_exponent: pos(
             f.stribeck_exponent,
@@ -307,7 +311,9 @@ fn friction(f: &FrictionToml, p: &KeyPath) -> R<LuGreParams> {
             "a Stribeck exponent",
         )?,
     };
-    out.check().map_err(|m| Invalid::new(p.clone(), m))?;
+    // All within range, what is left is the static force below the Coulomb force.
+    out.check()
+        .map_err(|m| Invalid::new(p.key("static_n"), m))?;
     Ok(out)
 }
 
@@ -323,7 +329,13 @@ pub fn drive(d: &DriveToml, moving_mass_kg: f64, p: &KeyPath) -> R<DriveParams> 
                 )
             })?;
             Feedback::LinearScale {
-                resolution_m: pos(r, &p.key("scale_resolution_nm"), "a resolution")? * 1e-9,
+                resolution_m: in_range(
+                    r,
+                    0.001,
+                    10_000.0,
+                    &p.key("scale_resolution_nm"),
+                    "a resolution (nm)",
+                )? * 1e-9,
             }
         }
         other => {
@@ -365,24 +377,46 @@ pub fn drive(d: &DriveToml, moving_mass_kg: f64, p: &KeyPath) -> R<DriveParams> 
                 &p.key("screw_damping_n_s_per_m"),
                 "a damping (N·s/m)",
             )?,
-            backlash_m: nonneg(d.backlash_um, &p.key("backlash_um"), "a backlash")? * 1e-6,
+            // Worn screws reach tens of µm; a millimetre is beyond any drive.
+            backlash_m: in_range(
+                d.backlash_um,
+                0.0,
+                1000.0,
+                &p.key("backlash_um"),
+                "a backlash (µm)",
+            )? * 1e-6,
             cyclic_m: cyclic(d.screw_cyclic_um, &p.key("screw_cyclic_um"))?,
         },
         carriage_mass_kg: moving_mass_kg,
         guide_friction: friction(&d.guide_friction, &p.key("guide_friction"))?,
         screw_friction: friction(&d.screw_friction, &p.key("screw_friction"))?,
-        encoder_counts_per_rev: pos(
+        encoder_counts_per_rev: encoder_counts(
             d.encoder_counts_per_rev,
             &p.key("encoder_counts_per_rev"),
-            "a count",
         )?,
-        torque_constant_n_m_per_a: pos(
+        torque_constant_n_m_per_a: in_range(
             d.torque_constant_n_m_per_a,
+            0.001,
+            1000.0,
             &p.key("torque_constant_n_m_per_a"),
-            "a torque constant",
+            "a torque constant (N·m/A)",
         )?,
         feedback,
     })
+}
+
+/// Encoder counts per motor revolution: a whole number from a single-line quadrature encoder's
+/// 4 to a 32-bit absolute encoder's 2^32.
+fn encoder_counts(v: f64, path: &KeyPath) -> R<f64> {
+    const WHAT: &str = "a whole number of counts per revolution";
+    let counts = in_range(v, 4.0, 4_294_967_296.0, path, WHAT)?;
+    if counts.fract() != 0.0 {
+        return Err(Invalid::new(
+            path.clone(),
+            format!("{counts} is not accepted; {WHAT} from 4 to 4294967296 is accepted"),
+        ));
+    }
+    Ok(counts)
 }
 
 /// The screw's periodic lead error, µm -> m: finite, and under a tenth of a millimetre (a
@@ -546,8 +580,15 @@ fn ballbar_spec(b: Option<&BallbarToml>) -> R<BallbarSpec> {
         }
     };
     Ok(BallbarSpec {
-        resolution_m: nonneg(b.resolution_um, &p.key("resolution_um"), "a resolution")? * 1e-6,
-        noise_m: nonneg(b.noise_um, &p.key("noise_um"), "a noise")? * 1e-6,
+        // A ball bar's range is ±1 mm; it resolves 0.1 µm with noise well below a micrometre.
+        resolution_m: in_range(
+            b.resolution_um,
+            0.0,
+            100.0,
+            &p.key("resolution_um"),
+            "a resolution (µm)",
+        )? * 1e-6,
+        noise_m: in_range(b.noise_um, 0.0, 100.0, &p.key("noise_um"), "a noise (µm)")? * 1e-6,
         sample_rate_hz: pos(b.sample_rate_hz, &p.key("sample_rate_hz"), "a sample rate")?,
         setup_eccentricity_m: finite3(&b.setup_eccentricity_um, &p.key("setup_eccentricity_um"))?
             * 1e-6,

@@ -688,6 +688,133 @@ fn a_micro_end_mill_loads() {
     parse(&text, "s.toml", Some(&scenarios())).unwrap();
 }
 
+/// The ball bar's noise and resolution within its ±1 mm range (10^308 µm gave inf or all-zero
+/// traces).
+#[test]
+fn ballbar_noise_and_resolution_beyond_its_range_are_refused() {
+    for (replace, by, key, accepted) in [
+        (
+            "noise_um = 0.1",
+            "noise_um = 1e308",
+            "instruments.ballbar.noise_um",
+            "1e308 is out of range; a noise (µm) from 0 to 100 is accepted",
+        ),
+        (
+            "resolution_um = 0.1",
+            "resolution_um = 1e308",
+            "instruments.ballbar.resolution_um",
+            "1e308 is out of range; a resolution (µm) from 0 to 100 is accepted",
+        ),
+    ] {
+        assert_refused(&with(replace, by), by, key, accepted);
+    }
+}
+
+/// Drive values beyond any drive (traces spanning millimetres, NaN temperatures) and encoder
+/// counts that are not whole are refused at their keys; friction forces that were refused at
+/// the whole friction table are refused at theirs.
+#[test]
+fn drive_values_beyond_any_drive_are_refused_at_their_keys() {
+    let drive = "machine.axes.x.drive";
+    let backlash = "a backlash (µm) from 0 to 1000 is accepted";
+    let counts = "a whole number of counts per revolution from 4 to 4294967296 is accepted";
+    let force = "a force (N) from 0 to 100000 is accepted";
+    let friction = |k: &str| format!("{drive}.guide_friction.{k}");
+    for (replace, by, key, accepted) in [
+        (
+            "backlash_um = 1.0",
+            "backlash_um = 1e308",
+            format!("{drive}.backlash_um"),
+            backlash,
+        ),
+        (
+            "backlash_um = 1.0",
+            "backlash_um = 5000",
+            format!("{drive}.backlash_um"),
+            backlash,
+        ),
+        (
+            "encoder_counts_per_rev = 1048576",
+            "encoder_counts_per_rev = 1e308",
+            format!("{drive}.encoder_counts_per_rev"),
+            counts,
+        ),
+        (
+            "encoder_counts_per_rev = 1048576",
+            "encoder_counts_per_rev = 0.5",
+            format!("{drive}.encoder_counts_per_rev"),
+            counts,
+        ),
+        (
+            "encoder_counts_per_rev = 1048576",
+            "encoder_counts_per_rev = 1048576.5",
+            format!("{drive}.encoder_counts_per_rev"),
+            "1048576.5 is not accepted; a whole number of counts per revolution from 4 to 4294967296 is accepted",
+        ),
+        (
+            "torque_constant_n_m_per_a = 1.2",
+            "torque_constant_n_m_per_a = 1e-300",
+            format!("{drive}.torque_constant_n_m_per_a"),
+            "a torque constant (N·m/A) from 0.001 to 1000 is accepted",
+        ),
+        (
+            "feedback = \"motor_encoder\"",
+            "feedback = \"linear_scale\"\nscale_resolution_nm = 1e308",
+            format!("{drive}.scale_resolution_nm"),
+            "a resolution (nm) from 0.001 to 10000 is accepted",
+        ),
+        (
+            "static_n = 65.0",
+            "static_n = 1e308",
+            friction("static_n"),
+            force,
+        ),
+        (
+            "coulomb_n = 50.0",
+            "coulomb_n = 1e308",
+            friction("coulomb_n"),
+            force,
+        ),
+        (
+            "static_n = 65.0",
+            "static_n = 45.0",
+            friction("static_n"),
+            "the static force 45 N is below the Coulomb force 50 N",
+        ),
+        (
+            "viscous_n_s_per_m = 200.0",
+            "viscous_n_s_per_m = 1e308",
+            friction("viscous_n_s_per_m"),
+            "a viscous coefficient (N·s/m) from 0 to 1000000 is accepted",
+        ),
+        (
+            "bristle_damping_n_s_per_m = 3.0e4",
+            "bristle_damping_n_s_per_m = 1e308",
+            friction("bristle_damping_n_s_per_m"),
+            "a damping (N·s/m) from 0 to 100000000 is accepted",
+        ),
+        (
+            "bristle_stiffness_n_per_um = 20.0",
+            "bristle_stiffness_n_per_um = 1e308",
+            friction("bristle_stiffness_n_per_um"),
+            "a bristle stiffness (N/µm) from 0.01 to 100000 is accepted",
+        ),
+        (
+            "stribeck_mm_s = 1.0",
+            "stribeck_mm_s = 1e308",
+            friction("stribeck_mm_s"),
+            "a Stribeck velocity (mm/s) from 0.001 to 1000 is accepted",
+        ),
+    ] {
+        assert_refused(
+            &with(replace, by),
+            by.lines().last().unwrap(),
+            &key,
+            accepted,
+        );
+    }
+}
+
 /// The laser: a rate above the servo rate was clamped to it and an averaging window with no
 /// sample read 0; both are refused like the ball bar's rate. Its other values are bounded to
 /// what an interferometer and its sensors can be.
