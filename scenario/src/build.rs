@@ -156,12 +156,6 @@ fn execution(
         return Ok(None);
     };
     let (controller, substeps) = dynamics::controller(c)?;
-    let default = dynamics::SimulationToml {
-        fidelity: "reduced".into(),
-        seed: 0,
-        log_rate_hz: 1000.0,
-    };
-    let settings = dynamics::simulation(raw.simulation.as_ref().unwrap_or(&default), substeps)?;
     // A step beyond a drive's stability limit is refused here, where the error can name the
     // file and line of the key as well as the largest stable step.
     vmt_sim::simulate::check_step(&axes, controller.servo_period_s, substeps).map_err(|e| {
@@ -181,6 +175,17 @@ fn execution(
             e.to_string(),
         )
     })?;
+    // After the step and the loops, in the order the run checks them.
+    let default = dynamics::SimulationToml {
+        fidelity: "reduced".into(),
+        seed: 0,
+        log_rate_hz: 1000.0,
+    };
+    let settings = dynamics::simulation(
+        raw.simulation.as_ref().unwrap_or(&default),
+        substeps,
+        controller.servo_period_s,
+    )?;
     let tool = machine.volumetric.kinematics.tool_offset;
     let program_file = match (job, base_dir) {
         (dynamics::JobToml::Program { program }, Some(dir)) => {
@@ -922,7 +927,8 @@ fn ambient(a: &AmbientToml, p: &KeyPath) -> std::result::Result<Ambient, Invalid
             mean_c: in_range(*mean_c, -50.0, 80.0, &p.key("mean_c"), "°C")?,
             amplitude_k: in_range(*amplitude_k, 0.0, 50.0, &p.key("amplitude_k"), "K")?,
             period_s: positive(*period_h, 1e4, &p.key("period_h"), "a period in h")? * H,
-            phase_s: finite(*phase_h, &p.key("phase_h"), "a phase in h")? * H,
+            // Within the longest period accepted: a phase beyond it is a wrong unit.
+            phase_s: in_range(*phase_h, -1e4, 1e4, &p.key("phase_h"), "a phase in h")? * H,
         },
         AmbientToml::Table { points_h_c } => {
             let pp = p.key("points_h_c");

@@ -488,26 +488,35 @@ pub fn servo(s: &ServoToml, drive: &DriveParams, p: &KeyPath) -> R<ServoParams> 
 pub fn controller(c: &ControllerToml) -> R<(InterpolatorConfig, usize)> {
     let p = KeyPath::of(&["controller"]);
     let mm_min = 1.0 / 60_000.0;
+    // Generous bounds around machine tools (rapids up to 120 m/min, accelerations of 1 to
+    // 50 m/s², jerks of 10 to 10^4 m/s³, corner tolerances of µm to tenths of a mm): a limit
+    // near zero stretches a program beyond the interpolator, which would be refused at [job].
+    let accel = |v: f64, key: KeyPath| in_range(v, 0.01, 1000.0, &key, "an acceleration (m/s²)");
     let mut axis_accel = [0.0; 3];
     for (i, (slot, v)) in axis_accel.iter_mut().zip(c.axis_accel_m_s2.0).enumerate() {
-        *slot = pos(v, &p.key("axis_accel_m_s2").index(i), "an acceleration")?;
+        *slot = accel(v, p.key("axis_accel_m_s2").index(i))?;
     }
-    let rapid = pos(c.rapid_mm_min, &p.key("rapid_mm_min"), "a rapid rate")? * mm_min;
+    let speed = |v: f64, key: &str, what: &str| in_range(v, 1.0, 1e6, &p.key(key), what);
+    let rapid = speed(c.rapid_mm_min, "rapid_mm_min", "a rapid rate (mm/min)")? * mm_min;
     let limits = Limits {
         rapid_m_s: rapid,
-        max_feed_m_s: pos(c.max_feed_mm_min, &p.key("max_feed_mm_min"), "a feed")? * mm_min,
-        path_accel_m_s2: pos(
-            c.path_accel_m_s2,
-            &p.key("path_accel_m_s2"),
-            "an acceleration",
+        max_feed_m_s: speed(c.max_feed_mm_min, "max_feed_mm_min", "a feed (mm/min)")? * mm_min,
+        path_accel_m_s2: accel(c.path_accel_m_s2, p.key("path_accel_m_s2"))?,
+        path_jerk_m_s3: in_range(
+            c.path_jerk_m_s3,
+            0.1,
+            1e6,
+            &p.key("path_jerk_m_s3"),
+            "a jerk (m/s³)",
         )?,
-        path_jerk_m_s3: pos(c.path_jerk_m_s3, &p.key("path_jerk_m_s3"), "a jerk")?,
         axis_velocity_m_s: [rapid; 3],
         axis_accel_m_s2: axis_accel,
-        corner_tolerance_m: pos(
+        corner_tolerance_m: in_range(
             c.corner_tolerance_um,
+            0.001,
+            10_000.0,
             &p.key("corner_tolerance_um"),
-            "a tolerance",
+            "a tolerance (µm)",
         )? * 1e-6,
     };
     let config = InterpolatorConfig {
@@ -528,9 +537,15 @@ pub fn controller(c: &ControllerToml) -> R<(InterpolatorConfig, usize)> {
         )? * 1e-6,
         exact_stop: c.exact_stop,
     };
-    config
-        .validate()
-        .map_err(|e| Invalid::new(p.clone(), e.to_string()))?;
+    config.validate().map_err(|e| {
+        use vmt_sim::interpolator::InterpolatorError as E;
+        let key = match e {
+            E::JerkWindowTooShort { .. } => p.key("path_jerk_m_s3"),
+            E::ServoPeriodNotDivisor { .. } => p.key("servo_period_us"),
+            _ => p.clone(),
+        };
+        Invalid::new(key, e.to_string())
+    })?;
     if !(1..=64).contains(&c.plant_substeps) {
         return Err(Invalid::new(
             p.key("plant_substeps"),
@@ -543,8 +558,8 @@ pub fn controller(c: &ControllerToml) -> R<(InterpolatorConfig, usize)> {
     Ok((config, c.plant_substeps))
 }
 
-/// Simulation settings.
-pub fn simulation(s: &SimulationToml, substeps: usize) -> R<SimSettings> {
+/// Simulation settings; the log is taken at servo ticks of `servo_period_s`.
+pub fn simulation(s: &SimulationToml, substeps: usize, servo_period_s: f64) -> R<SimSettings> {
     let p = KeyPath::of(&["simulation"]);
     let fidelity = match s.fidelity.as_str() {
         "reduced" => Fidelity::Reduced,
@@ -559,9 +574,26 @@ pub fn simulation(s: &SimulationToml, substeps: usize) -> R<SimSettings> {
     Ok(SimSettings {
         fidelity,
         plant_substeps: substeps,
-        log_rate_hz: pos(s.log_rate_hz, &p.key("log_rate_hz"), "a rate")?,
+        log_rate_hz: log_rate(s.log_rate_hz, servo_period_s, &p.key("log_rate_hz"))?,
         seed: s.seed,
     })
+}
+
+/// A log rate above 0 and at most the servo rate (the run's own check, made here where the
+/// error can name the key).
+fn log_rate(rate: f64, servo_period_s: f64, path: &KeyPath) -> R<f64> {
+    let servo_hz = 1.0 / servo_period_s;
+    if rate > 0.0 && rate <= servo_hz {
+        return Ok(rate);
+    }
+    Err(Invalid::new(
+        path.clone(),
+        format!(
+            "{} is out of range; a log rate in Hz above 0 and up to the servo rate, {} (1 / controller.servo_period_us), is accepted",
+            typed(rate),
+            (servo_hz * 1e6).round() / 1e6
+        ),
+    ))
 }
 
 fn ballbar_spec(b: Option<&BallbarToml>) -> R<BallbarSpec> {

@@ -915,6 +915,92 @@ fn laser_values_it_cannot_have_are_refused_at_their_keys() {
     parse(&text, "s.toml", None).unwrap();
 }
 
+/// The log rate is checked at load, as the run checks it; controller limits near zero, which
+/// stretched a program beyond the interpolator and were blamed on [job], and a phase of the
+/// ambient beyond any period are refused at their keys.
+#[test]
+fn log_rate_controller_limits_and_ambient_phase_are_refused_at_their_keys() {
+    let log = "a log rate in Hz above 0 and up to the servo rate, 8000 (1 / controller.servo_period_us), is accepted";
+    let accel = "an acceleration (m/s²) from 0.01 to 1000 is accepted";
+    for (replace, by, key, accepted) in [
+        (
+            "log_rate_hz = 1000.0",
+            "log_rate_hz = 1e308",
+            "simulation.log_rate_hz",
+            log,
+        ),
+        (
+            "log_rate_hz = 1000.0",
+            "log_rate_hz = 8001",
+            "simulation.log_rate_hz",
+            log,
+        ),
+        (
+            "log_rate_hz = 1000.0",
+            "log_rate_hz = 0.0",
+            "simulation.log_rate_hz",
+            log,
+        ),
+        (
+            "path_jerk_m_s3 = 20.0",
+            "path_jerk_m_s3 = 1e-300",
+            "controller.path_jerk_m_s3",
+            "a jerk (m/s³) from 0.1 to 1000000 is accepted",
+        ),
+        (
+            "path_jerk_m_s3 = 20.0",
+            "path_jerk_m_s3 = 1e5",
+            "controller.path_jerk_m_s3",
+            "is shorter than one interpolation period (0.001 s)",
+        ),
+        (
+            "path_accel_m_s2 = 2.0",
+            "path_accel_m_s2 = 1e-300",
+            "controller.path_accel_m_s2",
+            accel,
+        ),
+        (
+            "axis_accel_m_s2 = [5.0, 5.0, 5.0]",
+            "axis_accel_m_s2 = [1e-300, 5.0, 5.0]",
+            "controller.axis_accel_m_s2[0]",
+            accel,
+        ),
+        (
+            "rapid_mm_min = 30000.0",
+            "rapid_mm_min = 1e308",
+            "controller.rapid_mm_min",
+            "a rapid rate (mm/min) from 1 to 1000000 is accepted",
+        ),
+        (
+            "max_feed_mm_min = 10000.0",
+            "max_feed_mm_min = 1e-300",
+            "controller.max_feed_mm_min",
+            "a feed (mm/min) from 1 to 1000000 is accepted",
+        ),
+        (
+            "corner_tolerance_um = 10.0",
+            "corner_tolerance_um = 1e308",
+            "controller.corner_tolerance_um",
+            "a tolerance (µm) from 0.001 to 10000 is accepted",
+        ),
+        (
+            "phase_h = 0.0",
+            "phase_h = 1e300",
+            "machine.thermal.ambient.phase_h",
+            "1e300 is out of range; a phase in h from -10000 to 10000 is accepted",
+        ),
+    ] {
+        assert_refused(&with(replace, by), by, key, accepted);
+    }
+    // At the servo rate the log is accepted.
+    parse(
+        &with("log_rate_hz = 1000.0", "log_rate_hz = 8000"),
+        "s.toml",
+        None,
+    )
+    .unwrap();
+}
+
 /// Table errors name the file's line, counting blank and `#` lines the csv reader skips; a
 /// column given twice is refused naming both.
 #[test]
