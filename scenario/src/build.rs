@@ -156,12 +156,6 @@ fn execution(
         return Ok(None);
     };
     let (controller, substeps) = dynamics::controller(c)?;
-    let default = dynamics::SimulationToml {
-        fidelity: "reduced".into(),
-        seed: 0,
-        log_rate_hz: 1000.0,
-    };
-    let settings = dynamics::simulation(raw.simulation.as_ref().unwrap_or(&default), substeps)?;
     // A step beyond a drive's stability limit is refused here, where the error can name the
     // file and line of the key as well as the largest stable step.
     vmt_sim::simulate::check_step(&axes, controller.servo_period_s, substeps).map_err(|e| {
@@ -181,6 +175,17 @@ fn execution(
             e.to_string(),
         )
     })?;
+    // After the step and the loops, in the order the run checks them.
+    let default = dynamics::SimulationToml {
+        fidelity: "reduced".into(),
+        seed: 0,
+        log_rate_hz: 1000.0,
+    };
+    let settings = dynamics::simulation(
+        raw.simulation.as_ref().unwrap_or(&default),
+        substeps,
+        controller.servo_period_s,
+    )?;
     let tool = machine.volumetric.kinematics.tool_offset;
     let program_file = match (job, base_dir) {
         (dynamics::JobToml::Program { program }, Some(dir)) => {
@@ -216,8 +221,9 @@ fn execution(
 
 /// A test's feed and its instruments' sample rates within what the controller can give:
 /// a controller clamps a programmed feed to its maximum, so a ball-bar or positioning test
-/// above it would run slower than the feed it is labelled (and diagnosed) with; a ball bar is
-/// sampled at servo ticks, so it cannot be sampled faster than the servo rate.
+/// above it would run slower than the feed it is labelled (and diagnosed) with; a ball bar and
+/// a laser are sampled at servo ticks, so they cannot be sampled faster than the servo rate,
+/// and a laser's averaging window must hold at least one of its samples.
 fn check_test_rates(
     job: &vmt_sim::simulate::Job,
     kind: &crate::dynamics::JobToml,
@@ -268,6 +274,28 @@ fn check_test_rates(
             );
             let key = KeyPath::of(&["instruments", "ballbar", "sample_rate_hz"]);
             return Err(Invalid::new(key, msg).into());
+        }
+    }
+    if let Some(l) = &job.laser {
+        let laser = KeyPath::of(&["instruments", "laser"]);
+        let rate = l.spec.sample_rate_hz;
+        if rate > servo_hz {
+            let msg = format!(
+                "{} Hz is not accepted: the laser is sampled at servo ticks, at most {servo_hz} Hz (1 / controller.servo_period_us)",
+                typed(rate)
+            );
+            return Err(Invalid::new(laser.key("sample_rate_hz"), msg).into());
+        }
+        // The sampled ticks are the sample period rounded to whole servo periods.
+        let every = l.spec.sample_every(controller.servo_period_s);
+        let interval_s = user(every as f64 * controller.servo_period_s);
+        if l.spec.averaging_s < interval_s {
+            let msg = format!(
+                "{} s is not accepted: the averaging window holds no sample; the laser samples every {interval_s} s (every {every} servo ticks at instruments.laser.sample_rate_hz = {} Hz), so at least {interval_s} s is accepted",
+                typed(l.spec.averaging_s),
+                typed(rate)
+            );
+            return Err(Invalid::new(laser.key("averaging_s"), msg).into());
         }
     }
     Ok(())
@@ -361,6 +389,15 @@ fn finite(v: f64, path: &KeyPath, accepted: &str) -> std::result::Result<f64, In
     }
 }
 
+/// `v` as typed: 1e306, not as 307 digits.
+pub(crate) fn typed(v: f64) -> String {
+    if v != 0.0 && !(1e-4..1e6).contains(&v.abs()) {
+        format!("{v:e}")
+    } else {
+        v.to_string()
+    }
+}
+
 pub(crate) fn in_range(
     v: f64,
     lo: f64,
@@ -373,20 +410,57 @@ pub(crate) fn in_range(
     if (lo..=hi).contains(&v) {
         Ok(v)
     } else {
-        // 1e306 as typed, not as 307 digits.
-        let shown = if v != 0.0 && !(1e-4..1e6).contains(&v.abs()) {
-            format!("{v:e}")
-        } else {
-            v.to_string()
-        };
         Err(Invalid::new(
             path.clone(),
-            format!("{shown} is out of range; {accepted}"),
+            format!("{} is out of range; {accepted}", typed(v)),
         ))
     }
 }
 
-fn positive(v: f64, hi: f64, path: &KeyPath, what: &str) -> std::result::Result<f64, Invalid> {
+/// [`in_range`] with both ends excluded.
+pub(crate) fn in_open_range(
+    v: f64,
+    lo: f64,
+    hi: f64,
+    path: &KeyPath,
+    what: &str,
+) -> std::result::Result<f64, Invalid> {
+    let accepted = format!("{what} above {lo} and below {hi} is accepted");
+    let v = finite(v, path, &accepted)?;
+    if v > lo && v < hi {
+        Ok(v)
+    } else {
+        Err(Invalid::new(
+            path.clone(),
+            format!("{} is out of range; {accepted}", typed(v)),
+        ))
+    }
+}
+
+/// A whole number (a count, a length of a list) within `lo..=hi`.
+pub(crate) fn count_in_range(
+    n: usize,
+    lo: usize,
+    hi: usize,
+    path: &KeyPath,
+    what: &str,
+) -> std::result::Result<usize, Invalid> {
+    if (lo..=hi).contains(&n) {
+        Ok(n)
+    } else {
+        Err(Invalid::new(
+            path.clone(),
+            format!("{n} is out of range; {what} from {lo} to {hi} is accepted"),
+        ))
+    }
+}
+
+pub(crate) fn positive(
+    v: f64,
+    hi: f64,
+    path: &KeyPath,
+    what: &str,
+) -> std::result::Result<f64, Invalid> {
     let v = in_range(v, 0.0, hi, path, what)?;
     if v > 0.0 {
         Ok(v)
@@ -853,7 +927,8 @@ fn ambient(a: &AmbientToml, p: &KeyPath) -> std::result::Result<Ambient, Invalid
             mean_c: in_range(*mean_c, -50.0, 80.0, &p.key("mean_c"), "°C")?,
             amplitude_k: in_range(*amplitude_k, 0.0, 50.0, &p.key("amplitude_k"), "K")?,
             period_s: positive(*period_h, 1e4, &p.key("period_h"), "a period in h")? * H,
-            phase_s: finite(*phase_h, &p.key("phase_h"), "a phase in h")? * H,
+            // Within the longest period accepted: a phase beyond it is a wrong unit.
+            phase_s: in_range(*phase_h, -1e4, 1e4, &p.key("phase_h"), "a phase in h")? * H,
         },
         AmbientToml::Table { points_h_c } => {
             let pp = p.key("points_h_c");

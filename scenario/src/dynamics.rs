@@ -1,7 +1,7 @@
 //! Scenario sections for executing jobs: each axis' drive and servo, the controller, the
 //! simulation settings, the job and the ball bar.
 
-use crate::build::{BuildError, in_range};
+use crate::build::{BuildError, count_in_range, in_range, typed};
 use crate::error::{Invalid, KeyPath};
 use crate::schema::Numbers;
 use nalgebra::Vector3;
@@ -266,40 +266,44 @@ fn finite3(v: &Numbers<3>, path: &KeyPath) -> R<Vector3<f64>> {
     }
 }
 
-fn nonneg(v: f64, path: &KeyPath, what: &str) -> R<f64> {
-    if v.is_finite() && v >= 0.0 {
-        Ok(v)
-    } else {
-        Err(Invalid::new(
-            path.clone(),
-            format!("{v} is not accepted; {what} must be a finite number >= 0"),
-        ))
-    }
-}
+/// Largest friction force accepted, N: ten tonnes moving at a friction coefficient of 0.1.
+const MAX_FRICTION_N: f64 = 1e5;
 
 fn friction(f: &FrictionToml, p: &KeyPath) -> R<LuGreParams> {
+    // Generous bounds around guideways and screws (bristles of 1 to 100 N/µm, Stribeck
+    // velocities of 0.1 to 10 mm/s, viscous friction of hundreds of N·s/m): beyond them the
+    // traces span millimetres or overflow.
+    let force = |v: f64, k: &str| in_range(v, 0.0, MAX_FRICTION_N, &p.key(k), "a force (N)");
     let out = LuGreParams {
-        sigma0_n_per_m: pos(
+        sigma0_n_per_m: in_range(
             f.bristle_stiffness_n_per_um,
+            0.01,
+            1e5,
             &p.key("bristle_stiffness_n_per_um"),
-            "a bristle stiffness",
+            "a bristle stiffness (N/µm)",
         )? * 1e6,
-        sigma1_n_s_per_m: nonneg(
+        sigma1_n_s_per_m: in_range(
             f.bristle_damping_n_s_per_m,
+            0.0,
+            1e8,
             &p.key("bristle_damping_n_s_per_m"),
-            "a damping",
+            "a damping (N·s/m)",
         )?,
-        sigma2_n_s_per_m: nonneg(
+        sigma2_n_s_per_m: in_range(
             f.viscous_n_s_per_m,
+            0.0,
+            1e6,
             &p.key("viscous_n_s_per_m"),
-            "a viscous coefficient",
+            "a viscous coefficient (N·s/m)",
         )?,
-        coulomb_n: nonneg(f.coulomb_n, &p.key("coulomb_n"), "a Coulomb force")?,
-        static_n: nonneg(f.static_n, &p.key("static_n"), "a static force")?,
-        stribeck_m_s: pos(
+        coulomb_n: force(f.coulomb_n, "coulomb_n")?,
+        static_n: force(f.static_n, "static_n")?,
+        stribeck_m_s: in_range(
             f.stribeck_mm_s,
+            0.001,
+            1000.0,
             &p.key("stribeck_mm_s"),
-            "a Stribeck velocity",
+            "a Stribeck velocity (mm/s)",
         )? * 1e-3,
         stribeck_exponent: pos(
             f.stribeck_exponent,
@@ -307,7 +311,9 @@ fn friction(f: &FrictionToml, p: &KeyPath) -> R<LuGreParams> {
             "a Stribeck exponent",
         )?,
     };
-    out.check().map_err(|m| Invalid::new(p.clone(), m))?;
+    // All within range, what is left is the static force below the Coulomb force.
+    out.check()
+        .map_err(|m| Invalid::new(p.key("static_n"), m))?;
     Ok(out)
 }
 
@@ -323,7 +329,13 @@ pub fn drive(d: &DriveToml, moving_mass_kg: f64, p: &KeyPath) -> R<DriveParams> 
                 )
             })?;
             Feedback::LinearScale {
-                resolution_m: pos(r, &p.key("scale_resolution_nm"), "a resolution")? * 1e-9,
+                resolution_m: in_range(
+                    r,
+                    0.001,
+                    10_000.0,
+                    &p.key("scale_resolution_nm"),
+                    "a resolution (nm)",
+                )? * 1e-9,
             }
         }
         other => {
@@ -365,24 +377,46 @@ pub fn drive(d: &DriveToml, moving_mass_kg: f64, p: &KeyPath) -> R<DriveParams> 
                 &p.key("screw_damping_n_s_per_m"),
                 "a damping (N·s/m)",
             )?,
-            backlash_m: nonneg(d.backlash_um, &p.key("backlash_um"), "a backlash")? * 1e-6,
+            // Worn screws reach tens of µm; a millimetre is beyond any drive.
+            backlash_m: in_range(
+                d.backlash_um,
+                0.0,
+                1000.0,
+                &p.key("backlash_um"),
+                "a backlash (µm)",
+            )? * 1e-6,
             cyclic_m: cyclic(d.screw_cyclic_um, &p.key("screw_cyclic_um"))?,
         },
         carriage_mass_kg: moving_mass_kg,
         guide_friction: friction(&d.guide_friction, &p.key("guide_friction"))?,
         screw_friction: friction(&d.screw_friction, &p.key("screw_friction"))?,
-        encoder_counts_per_rev: pos(
+        encoder_counts_per_rev: encoder_counts(
             d.encoder_counts_per_rev,
             &p.key("encoder_counts_per_rev"),
-            "a count",
         )?,
-        torque_constant_n_m_per_a: pos(
+        torque_constant_n_m_per_a: in_range(
             d.torque_constant_n_m_per_a,
+            0.001,
+            1000.0,
             &p.key("torque_constant_n_m_per_a"),
-            "a torque constant",
+            "a torque constant (N·m/A)",
         )?,
         feedback,
     })
+}
+
+/// Encoder counts per motor revolution: a whole number from a single-line quadrature encoder's
+/// 4 to a 32-bit absolute encoder's 2^32.
+fn encoder_counts(v: f64, path: &KeyPath) -> R<f64> {
+    const WHAT: &str = "a whole number of counts per revolution";
+    let counts = in_range(v, 4.0, 4_294_967_296.0, path, WHAT)?;
+    if counts.fract() != 0.0 {
+        return Err(Invalid::new(
+            path.clone(),
+            format!("{counts} is not accepted; {WHAT} from 4 to 4294967296 is accepted"),
+        ));
+    }
+    Ok(counts)
 }
 
 /// The screw's periodic lead error, µm -> m: finite, and under a tenth of a millimetre (a
@@ -454,26 +488,35 @@ pub fn servo(s: &ServoToml, drive: &DriveParams, p: &KeyPath) -> R<ServoParams> 
 pub fn controller(c: &ControllerToml) -> R<(InterpolatorConfig, usize)> {
     let p = KeyPath::of(&["controller"]);
     let mm_min = 1.0 / 60_000.0;
+    // Generous bounds around machine tools (rapids up to 120 m/min, accelerations of 1 to
+    // 50 m/s², jerks of 10 to 10^4 m/s³, corner tolerances of µm to tenths of a mm): a limit
+    // near zero stretches a program beyond the interpolator, which would be refused at [job].
+    let accel = |v: f64, key: KeyPath| in_range(v, 0.01, 1000.0, &key, "an acceleration (m/s²)");
     let mut axis_accel = [0.0; 3];
     for (i, (slot, v)) in axis_accel.iter_mut().zip(c.axis_accel_m_s2.0).enumerate() {
-        *slot = pos(v, &p.key("axis_accel_m_s2").index(i), "an acceleration")?;
+        *slot = accel(v, p.key("axis_accel_m_s2").index(i))?;
     }
-    let rapid = pos(c.rapid_mm_min, &p.key("rapid_mm_min"), "a rapid rate")? * mm_min;
+    let speed = |v: f64, key: &str, what: &str| in_range(v, 1.0, 1e6, &p.key(key), what);
+    let rapid = speed(c.rapid_mm_min, "rapid_mm_min", "a rapid rate (mm/min)")? * mm_min;
     let limits = Limits {
         rapid_m_s: rapid,
-        max_feed_m_s: pos(c.max_feed_mm_min, &p.key("max_feed_mm_min"), "a feed")? * mm_min,
-        path_accel_m_s2: pos(
-            c.path_accel_m_s2,
-            &p.key("path_accel_m_s2"),
-            "an acceleration",
+        max_feed_m_s: speed(c.max_feed_mm_min, "max_feed_mm_min", "a feed (mm/min)")? * mm_min,
+        path_accel_m_s2: accel(c.path_accel_m_s2, p.key("path_accel_m_s2"))?,
+        path_jerk_m_s3: in_range(
+            c.path_jerk_m_s3,
+            0.1,
+            1e6,
+            &p.key("path_jerk_m_s3"),
+            "a jerk (m/s³)",
         )?,
-        path_jerk_m_s3: pos(c.path_jerk_m_s3, &p.key("path_jerk_m_s3"), "a jerk")?,
         axis_velocity_m_s: [rapid; 3],
         axis_accel_m_s2: axis_accel,
-        corner_tolerance_m: pos(
+        corner_tolerance_m: in_range(
             c.corner_tolerance_um,
+            0.001,
+            10_000.0,
             &p.key("corner_tolerance_um"),
-            "a tolerance",
+            "a tolerance (µm)",
         )? * 1e-6,
     };
     let config = InterpolatorConfig {
@@ -494,9 +537,15 @@ pub fn controller(c: &ControllerToml) -> R<(InterpolatorConfig, usize)> {
         )? * 1e-6,
         exact_stop: c.exact_stop,
     };
-    config
-        .validate()
-        .map_err(|e| Invalid::new(p.clone(), e.to_string()))?;
+    config.validate().map_err(|e| {
+        use vmt_sim::interpolator::InterpolatorError as E;
+        let key = match e {
+            E::JerkWindowTooShort { .. } => p.key("path_jerk_m_s3"),
+            E::ServoPeriodNotDivisor { .. } => p.key("servo_period_us"),
+            _ => p.clone(),
+        };
+        Invalid::new(key, e.to_string())
+    })?;
     if !(1..=64).contains(&c.plant_substeps) {
         return Err(Invalid::new(
             p.key("plant_substeps"),
@@ -509,8 +558,8 @@ pub fn controller(c: &ControllerToml) -> R<(InterpolatorConfig, usize)> {
     Ok((config, c.plant_substeps))
 }
 
-/// Simulation settings.
-pub fn simulation(s: &SimulationToml, substeps: usize) -> R<SimSettings> {
+/// Simulation settings; the log is taken at servo ticks of `servo_period_s`.
+pub fn simulation(s: &SimulationToml, substeps: usize, servo_period_s: f64) -> R<SimSettings> {
     let p = KeyPath::of(&["simulation"]);
     let fidelity = match s.fidelity.as_str() {
         "reduced" => Fidelity::Reduced,
@@ -525,9 +574,26 @@ pub fn simulation(s: &SimulationToml, substeps: usize) -> R<SimSettings> {
     Ok(SimSettings {
         fidelity,
         plant_substeps: substeps,
-        log_rate_hz: pos(s.log_rate_hz, &p.key("log_rate_hz"), "a rate")?,
+        log_rate_hz: log_rate(s.log_rate_hz, servo_period_s, &p.key("log_rate_hz"))?,
         seed: s.seed,
     })
+}
+
+/// A log rate above 0 and at most the servo rate (the run's own check, made here where the
+/// error can name the key).
+fn log_rate(rate: f64, servo_period_s: f64, path: &KeyPath) -> R<f64> {
+    let servo_hz = 1.0 / servo_period_s;
+    if rate > 0.0 && rate <= servo_hz {
+        return Ok(rate);
+    }
+    Err(Invalid::new(
+        path.clone(),
+        format!(
+            "{} is out of range; a log rate in Hz above 0 and up to the servo rate, {} (1 / controller.servo_period_us), is accepted",
+            typed(rate),
+            (servo_hz * 1e6).round() / 1e6
+        ),
+    ))
 }
 
 fn ballbar_spec(b: Option<&BallbarToml>) -> R<BallbarSpec> {
@@ -546,8 +612,15 @@ fn ballbar_spec(b: Option<&BallbarToml>) -> R<BallbarSpec> {
         }
     };
     Ok(BallbarSpec {
-        resolution_m: nonneg(b.resolution_um, &p.key("resolution_um"), "a resolution")? * 1e-6,
-        noise_m: nonneg(b.noise_um, &p.key("noise_um"), "a noise")? * 1e-6,
+        // A ball bar's range is ±1 mm; it resolves 0.1 µm with noise well below a micrometre.
+        resolution_m: in_range(
+            b.resolution_um,
+            0.0,
+            100.0,
+            &p.key("resolution_um"),
+            "a resolution (µm)",
+        )? * 1e-6,
+        noise_m: in_range(b.noise_um, 0.0, 100.0, &p.key("noise_um"), "a noise (µm)")? * 1e-6,
         sample_rate_hz: pos(b.sample_rate_hz, &p.key("sample_rate_hz"), "a sample rate")?,
         setup_eccentricity_m: finite3(&b.setup_eccentricity_um, &p.key("setup_eccentricity_um"))?
             * 1e-6,
@@ -574,36 +647,81 @@ fn laser_spec(l: Option<&LaserToml>) -> R<LaserSpec> {
         return Ok(LaserSpec::default());
     };
     let p = KeyPath::of(&["instruments", "laser"]);
-    let finite = |v: f64, k: &str| -> R<f64> {
-        if v.is_finite() {
-            Ok(v)
-        } else {
-            Err(Invalid::new(
-                p.key(k),
-                format!("{v} is not accepted; a finite number"),
-            ))
-        }
-    };
+    let range =
+        |v: f64, k: &str, (lo, hi): (f64, f64), what: &str| in_range(v, lo, hi, &p.key(k), what);
+    // Physical ranges: interferometers resolve 0.001 to 10 nm with tens of nm of noise per
+    // sample and measure up to 80 m; a weather station off by more than 30 K, 300 hPa (sea
+    // level against 2000 m) or the whole humidity scale, or a material sensor off by more than
+    // 30 K, or air drifting by more than 10 K/h, is a wrong unit or no sensor at all.
     Ok(LaserSpec {
-        resolution_m: nonneg(l.resolution_nm, &p.key("resolution_nm"), "a resolution")? * 1e-9,
-        noise_m: nonneg(l.noise_nm, &p.key("noise_nm"), "a noise")? * 1e-9,
-        sample_rate_hz: pos(l.sample_rate_hz, &p.key("sample_rate_hz"), "a sample rate")?,
+        resolution_m: range(
+            l.resolution_nm,
+            "resolution_nm",
+            (0.0, 1000.0),
+            "a resolution (nm)",
+        )? * 1e-9,
+        noise_m: range(l.noise_nm, "noise_nm", (0.0, 1000.0), "a noise (nm)")? * 1e-9,
+        sample_rate_hz: laser_rate(l.sample_rate_hz, &p.key("sample_rate_hz"))?,
         averaging_s: pos(l.averaging_s, &p.key("averaging_s"), "an averaging time")?,
-        air_temperature_error_k: finite(l.air_temperature_error_k, "air_temperature_error_k")?,
-        air_pressure_error_hpa: finite(l.air_pressure_error_hpa, "air_pressure_error_hpa")?,
-        humidity_error_percent: finite(l.humidity_error_percent, "humidity_error_percent")?,
-        material_temperature_error_k: finite(
+        air_temperature_error_k: range(
+            l.air_temperature_error_k,
+            "air_temperature_error_k",
+            (-30.0, 30.0),
+            "a temperature error (K)",
+        )?,
+        air_pressure_error_hpa: range(
+            l.air_pressure_error_hpa,
+            "air_pressure_error_hpa",
+            (-300.0, 300.0),
+            "a pressure error (hPa)",
+        )?,
+        humidity_error_percent: range(
+            l.humidity_error_percent,
+            "humidity_error_percent",
+            (-100.0, 100.0),
+            "a humidity error (%RH)",
+        )?,
+        material_temperature_error_k: range(
             l.material_temperature_error_k,
             "material_temperature_error_k",
+            (-30.0, 30.0),
+            "a temperature error (K)",
         )?,
-        material_alpha_per_k: nonneg(
+        // Invar near 0, steel 11.5e-6, aluminium 23e-6.
+        material_alpha_per_k: range(
             l.material_alpha_per_k,
-            &p.key("material_alpha_per_k"),
-            "an expansion coefficient",
+            "material_alpha_per_k",
+            (0.0, 5e-5),
+            "an expansion coefficient (1/K)",
         )?,
-        dead_path_m: nonneg(l.dead_path_mm, &p.key("dead_path_mm"), "a dead path")? * 1e-3,
-        air_drift_k_per_s: finite(l.air_drift_k_per_h, "air_drift_k_per_h")? / 3600.0,
+        dead_path_m: range(
+            l.dead_path_mm,
+            "dead_path_mm",
+            (0.0, 100_000.0),
+            "a dead path (mm)",
+        )? * 1e-3,
+        air_drift_k_per_s: range(
+            l.air_drift_k_per_h,
+            "air_drift_k_per_h",
+            (-10.0, 10.0),
+            "an air temperature drift (K/h)",
+        )? / 3600.0,
     })
+}
+
+/// A laser's sample rate: interferometers sample at tens of Hz to tens of kHz; the upper
+/// bound, the servo rate, is checked with the controller.
+fn laser_rate(rate: f64, path: &KeyPath) -> R<f64> {
+    if rate.is_finite() && rate >= 1.0 {
+        return Ok(rate);
+    }
+    Err(Invalid::new(
+        path.clone(),
+        format!(
+            "{} is out of range; a sample rate in Hz from 1 to the servo rate (1 / controller.servo_period_us) is accepted",
+            typed(rate)
+        ),
+    ))
 }
 
 fn plane_of(name: &str, path: KeyPath) -> R<Plane> {
@@ -636,6 +754,14 @@ pub fn job(
             directions,
         } => {
             let plane = plane_of(plane, p.key("plane"))?;
+            // Each direction is a whole circle in the generated program and its traces.
+            if directions.len() > MAX_DIRECTIONS {
+                let msg = format!(
+                    "{} directions are not accepted; a list of up to {MAX_DIRECTIONS} directions (cw, ccw) is accepted",
+                    directions.len()
+                );
+                return Err(Invalid::new(p.key("directions"), msg).into());
+            }
             let dirs = directions
                 .iter()
                 .enumerate()
@@ -724,6 +850,18 @@ fn program_job(
     })
 }
 
+/// Most circles of one ball-bar job.
+const MAX_DIRECTIONS: usize = 8;
+
+/// Most targets and runs of an ISO 230-2 job, bounded before its program (two dwells per target
+/// and run) is generated. The standard asks for 5 runs over at least 5 targets per metre: a 5 m
+/// axis at 10 mm steps has 500 targets.
+const MAX_TARGETS: usize = 1000;
+const MAX_RUNS: usize = 100;
+
+/// Most steps of a Kwon job: the seven, each up to four times.
+const MAX_KWON_STEPS: usize = 7 * 4;
+
 /// The ISO 230-2 targets: `targets_mm`, or `count` evenly spaced over `range_mm`, m.
 fn targets(
     list: &Option<Vec<f64>>,
@@ -732,7 +870,16 @@ fn targets(
     p: &KeyPath,
 ) -> R<Vec<f64>> {
     let mm = match (list, range, count) {
-        (Some(t), None, None) => t.clone(),
+        (Some(t), None, None) => {
+            if t.len() > MAX_TARGETS {
+                let msg = format!(
+                    "{} targets are not accepted; a list of up to {MAX_TARGETS} targets is accepted",
+                    t.len()
+                );
+                return Err(Invalid::new(p.key("targets_mm"), msg));
+            }
+            t.clone()
+        }
         (None, Some([a, b]), Some(n)) => {
             if !(a.is_finite() && b.is_finite() && b > a) {
                 return Err(Invalid::new(
@@ -740,16 +887,15 @@ fn targets(
                     format!("[{a}, {b}] is not accepted; an increasing pair of finite numbers"),
                 ));
             }
-            if *n < 2 {
-                return Err(Invalid::new(
-                    p.key("count"),
-                    format!(
-                        "{n} is not accepted; at least 2 targets (ISO 230-2 asks for 5 per metre, at least 5)"
-                    ),
-                ));
-            }
-            (0..*n)
-                .map(|i| a + (b - a) * i as f64 / (*n - 1) as f64)
+            let n = count_in_range(
+                *n,
+                2,
+                MAX_TARGETS,
+                &p.key("count"),
+                "a number of targets (ISO 230-2 asks for 5 per metre, at least 5)",
+            )?;
+            (0..n)
+                .map(|i| a + (b - a) * i as f64 / (n - 1) as f64)
                 .collect()
         }
         _ => {
@@ -786,12 +932,13 @@ fn positioning_job(j: &PositioningToml, instruments: &InstrumentsToml) -> R<Job>
         let msg = format!("`{upper}` is not accepted; X, Y or Z");
         return Err(Invalid::new(p.key("axis"), msg));
     };
-    if *runs < 2 {
-        return Err(Invalid::new(
-            p.key("runs"),
-            format!("{runs} is not accepted; at least 2 runs (ISO 230-2 asks for 5)"),
-        ));
-    }
+    count_in_range(
+        *runs,
+        2,
+        MAX_RUNS,
+        &p.key("runs"),
+        "a number of runs (ISO 230-2 asks for 5)",
+    )?;
     let mut line = Vector3::zeros();
     let others: Vec<usize> = (0..3).filter(|&i| i != axis.index()).collect();
     for (k, (&i, v)) in others.iter().zip(beam_line_mm.0).enumerate() {
@@ -857,6 +1004,13 @@ fn kwon_job(pivot_mm: &[f64; 3], steps: &[u8], instruments: &InstrumentsToml) ->
             p.key("steps"),
             "give at least one step, 1 to 7",
         ));
+    }
+    if steps.len() > MAX_KWON_STEPS {
+        let msg = format!(
+            "{} steps are not accepted; a list of up to {MAX_KWON_STEPS} steps (each of 1 to 7) is accepted",
+            steps.len()
+        );
+        return Err(Invalid::new(p.key("steps"), msg));
     }
     let spec = ballbar_spec(instruments.ballbar.as_ref())?;
     let mut text = String::new();

@@ -3,6 +3,7 @@
 //! milling, cut step) and `[instruments.accelerometer]`. Engineering units in the keys are
 //! converted to SI here. See `scenarios/milling_slot.toml`.
 
+use crate::build::{count_in_range, in_open_range, in_range, positive};
 use crate::error::{Invalid, KeyPath};
 use serde::Deserialize;
 use std::collections::BTreeMap;
@@ -74,32 +75,64 @@ pub fn tool(
         ));
     };
     let p = KeyPath::of(&["tools", name]);
+    // Generous bounds around milling tools (micro end mills of a tenth of a millimetre to face
+    // mills of a few hundred, run-outs of a few µm): every tooth is computed at every cut step.
+    let mm = |v: f64, k: &str, what: &str| positive(v, 1000.0, &p.key(k), what);
     let mill = EndMill {
-        diameter: t.diameter_mm * 1e-3,
-        teeth: t.teeth,
+        diameter: mm(t.diameter_mm, "diameter_mm", "a diameter in mm")? * 1e-3,
+        teeth: count_in_range(t.teeth, 1, 100, &p.key("teeth"), "a number of teeth")?,
         helix: t.helix_deg.to_radians(),
-        flute_length: t.flute_length_mm * 1e-3,
-        runout: t.runout_um * 1e-6,
+        flute_length: mm(t.flute_length_mm, "flute_length_mm", "a flute length in mm")? * 1e-3,
+        runout: in_range(
+            t.runout_um,
+            0.0,
+            1000.0,
+            &p.key("runout_um"),
+            "a run-out in µm",
+        )? * 1e-6,
         runout_angle: t.runout_angle_deg.to_radians(),
     };
-    mill.validate().map_err(|e| located(&p, &e, "teeth"))?;
-    let modes = |list: &[ModeToml]| -> Vec<Mode> {
-        list.iter()
-            .map(|m| Mode {
-                natural_frequency_hz: m.frequency_hz,
-                damping_ratio: m.damping_ratio,
-                stiffness: m.stiffness_n_per_um * 1e6,
-            })
-            .collect()
-    };
+    // The rest is checked above at its key; the model checks the helix.
+    mill.validate()
+        .map_err(|e| Invalid::new(p.key("helix_deg"), e.to_string()))?;
     let dynamics = ToolDynamics {
-        x: modes(&t.modes_x),
-        y: modes(&t.modes_y),
+        x: modes(&t.modes_x, &p.key("modes_x"))?,
+        y: modes(&t.modes_y, &p.key("modes_y"))?,
     };
     dynamics
         .validate()
         .map_err(|e| mode_error(&p, &e, t.modes_x.len()))?;
     Ok(Tool { mill, dynamics })
+}
+
+/// Highest natural frequency of a tool-point mode, Hz: tool points ring at hundreds of Hz to
+/// tens of kHz, and the default cut step (20 per period of the highest mode) shrinks with it.
+const MAX_MODE_HZ: f64 = 1e5;
+
+/// The tool point's modes along one direction at `path` (`modes_x` or `modes_y`).
+fn modes(list: &[ModeToml], path: &KeyPath) -> Result<Vec<Mode>, Invalid> {
+    list.iter()
+        .enumerate()
+        .map(|(i, m)| {
+            let p = path.index(i);
+            Ok(Mode {
+                natural_frequency_hz: positive(
+                    m.frequency_hz,
+                    MAX_MODE_HZ,
+                    &p.key("frequency_hz"),
+                    "a natural frequency in Hz",
+                )?,
+                damping_ratio: m.damping_ratio,
+                // Up to 10^6 N/µm: the shipped "rigid" direction is 10^4 N/µm.
+                stiffness: positive(
+                    m.stiffness_n_per_um,
+                    1e6,
+                    &p.key("stiffness_n_per_um"),
+                    "a stiffness in N/µm",
+                )? * 1e6,
+            })
+        })
+        .collect()
 }
 
 /// The material's coefficients in SI.
@@ -149,22 +182,6 @@ pub fn cut(
         Invalid::new(p.key(key), e.to_string())
     })?;
     Ok(cut)
-}
-
-fn located(p: &KeyPath, e: &CuttingError, default_key: &str) -> Invalid {
-    let key = match e {
-        CuttingError::ZeroTeeth => "teeth",
-        CuttingError::HelixOutOfRange { .. } => "helix_deg",
-        CuttingError::NotPositive { name, .. } | CuttingError::Negative { name, .. } => match *name
-        {
-            "tool diameter" => "diameter_mm",
-            "flute length" => "flute_length_mm",
-            "run-out" => "runout_um",
-            _ => default_key,
-        },
-        _ => default_key,
-    };
-    Invalid::new(p.key(key), e.to_string())
 }
 
 /// Points a mode error at `modes_x[i]` or `modes_y[i]` (the model numbers X modes first).
@@ -255,16 +272,84 @@ fn range_g() -> f64 {
     50.0
 }
 
-fn accelerometer(a: Option<&AccelerometerToml>) -> AccelerometerParams {
-    a.map_or_else(AccelerometerParams::default, |a| AccelerometerParams {
-        sample_rate_hz: a.sample_rate_hz,
-        participation: a.participation.clone(),
-        resonance_hz: a.resonance_hz,
-        resonance_damping: a.resonance_damping,
-        anti_alias_hz: a.anti_alias_hz,
-        noise_rms: a.noise_m_s2,
-        adc_bits: a.adc_bits,
-        adc_range: a.adc_range_g * 9.80665,
+/// The sensors, for a tool of `modes` modes (X, then Y).
+fn accelerometer(
+    a: Option<&AccelerometerToml>,
+    modes: usize,
+) -> Result<AccelerometerParams, Invalid> {
+    let Some(a) = a else {
+        return Ok(AccelerometerParams::default());
+    };
+    let p = KeyPath::of(&["instruments", "accelerometer"]);
+    // Up to 1 MHz: the cut step divides the sample period (1 µs at 1 MHz), and vibration
+    // acquisition samples at tens to hundreds of kHz.
+    let fs = in_range(
+        a.sample_rate_hz,
+        100.0,
+        1e6,
+        &p.key("sample_rate_hz"),
+        "a sample rate in Hz",
+    )?;
+    let n = a.participation.len();
+    if n != 0 && n != modes {
+        let msg = format!(
+            "{n} participation factors are not accepted; none (0.2 for every mode) or one per mode of the tool, {modes} here (the X modes, then the Y modes)"
+        );
+        return Err(Invalid::new(p.key("participation"), msg));
+    }
+    let participation = a
+        .participation
+        .iter()
+        .enumerate()
+        .map(|(i, &k)| {
+            // A fraction of the tool point's motion; ten times it is no housing.
+            let what = "a participation factor";
+            in_range(k, -10.0, 10.0, &p.key("participation").index(i), what)
+        })
+        .collect::<Result<_, _>>()?;
+    Ok(AccelerometerParams {
+        sample_rate_hz: fs,
+        participation,
+        // A mounted sensor's contact resonance: about 2 kHz held by a magnet to 100 kHz on a
+        // stud.
+        resonance_hz: in_range(
+            a.resonance_hz,
+            100.0,
+            1e6,
+            &p.key("resonance_hz"),
+            "a resonance in Hz",
+        )?,
+        resonance_damping: in_open_range(
+            a.resonance_damping,
+            0.0,
+            1.0,
+            &p.key("resonance_damping"),
+            "a damping ratio",
+        )?,
+        anti_alias_hz: in_open_range(
+            a.anti_alias_hz,
+            0.0,
+            fs / 2.0,
+            &p.key("anti_alias_hz"),
+            "an anti-alias corner in Hz (below half of sample_rate_hz)",
+        )?,
+        // Up to 100 g of noise: beyond any sensor's range.
+        noise_rms: in_range(
+            a.noise_m_s2,
+            0.0,
+            1000.0,
+            &p.key("noise_m_s2"),
+            "a noise RMS in m/s²",
+        )?,
+        adc_bits: count_in_range(
+            a.adc_bits as usize,
+            1,
+            32,
+            &p.key("adc_bits"),
+            "a resolution in bits",
+        )? as u32,
+        // Shock accelerometers reach 100 000 g.
+        adc_range: positive(a.adc_range_g, 1e5, &p.key("adc_range_g"), "a range in g")? * 9.80665,
     })
 }
 
@@ -287,11 +372,23 @@ pub fn milling_job(
     let Tool { mill, dynamics } = tool(tools, &j.tool, &p.key("tool"))?;
     let coefficients = coefficients(&j.material, &p.key("material"))?;
     let cut = cut(j.axial_depth_mm, j.radial_depth_mm, &j.direction, &mill, &p)?;
-    let accelerometer = accelerometer(sensors);
+    let accelerometer = accelerometer(sensors, dynamics.x.len() + dynamics.y.len())?;
     let step_s = match j.step_us {
-        Some(us) => us * 1e-6,
+        // At least 0.1 µs: 20 steps per period of the highest mode accepted (100 kHz) are
+        // 0.5 µs; finer steps resolve nothing more and only make the run last hours. At most
+        // 10 ms, the period of the slowest sample rate, which the step must divide.
+        Some(us) => in_range(us, 0.1, 10_000.0, &p.key("step_us"), "a cut step in µs")? * 1e-6,
         None => default_step(&dynamics, accelerometer.sample_rate_hz),
     };
+    // From one sample (what a supervisor needs to see anything) to 10 s (a supervisor that
+    // looks less often cannot act on a cut).
+    let window_ms = in_range(
+        j.supervisor_window_ms,
+        1e3 / accelerometer.sample_rate_hz,
+        10_000.0,
+        &p.key("supervisor_window_ms"),
+        "a supervisor window in ms (at least one accelerometer sample)",
+    )?;
     let setup = MillingSetup {
         tool: mill,
         coefficients,
@@ -303,30 +400,26 @@ pub fn milling_job(
         step_s,
         seed,
     };
-    // The feed per tooth comes from the program; a placeholder passes the other checks.
+    // The feed per tooth comes from the program; a placeholder within the tool's radius passes
+    // the other checks.
     MillingSetup {
-        feed_per_tooth: 1e-4,
+        feed_per_tooth: 0.01 * mill.diameter,
         ..setup.clone()
     }
     .validate()
     .map_err(|e| {
         let key = match e {
-            MillingError::StepTooCoarse { .. } | MillingError::StepNotFraction { .. } => "step_us",
-            _ => "tool",
+            MillingError::StepTooCoarse { .. } | MillingError::StepNotFraction { .. } => {
+                p.key("step_us")
+            }
+            MillingError::Cutting(_) => p.key("tool"),
+            // The sensors' values are checked at their keys above.
+            _ => KeyPath::of(&["instruments", "accelerometer"]),
         };
-        Invalid::new(p.key(key), e.to_string())
+        Invalid::new(key, e.to_string())
     })?;
-    if !(j.supervisor_window_ms.is_finite() && j.supervisor_window_ms > 0.0) {
-        return Err(Invalid::new(
-            p.key("supervisor_window_ms"),
-            format!(
-                "{} is not accepted; a positive number of ms",
-                j.supervisor_window_ms
-            ),
-        ));
-    }
     Ok(MillingJob {
         setup,
-        supervisor_window_s: j.supervisor_window_ms * 1e-3,
+        supervisor_window_s: window_ms * 1e-3,
     })
 }

@@ -34,26 +34,51 @@ pub fn read(
         "a compensation table for {axis} has the columns {} (mm, then µm for EX{axis}/EY{axis}/EZ{axis} and µrad for EA{axis}/EB{axis}/EC{axis})",
         names.join(", ")
     );
+    let bytes =
+        std::fs::read(path).map_err(|e| fail(None, format!("cannot read the table: {e}")))?;
     let mut reader = csv::ReaderBuilder::new()
         .trim(csv::Trim::All)
         .comment(Some(b'#'))
-        .from_path(path)
-        .map_err(|e| fail(None, format!("cannot read the table: {e}")))?;
+        .from_reader(bytes.as_slice());
     let header = reader
         .headers()
         .map_err(|e| fail(Some((1, 1)), format!("cannot read the header: {e}")))?
         .clone();
+    let header_line = record_line(&bytes, header.position()).unwrap_or(1);
     let mut columns = [0usize; 7];
     for (slot, name) in columns.iter_mut().zip(&names) {
-        *slot = header
-            .iter()
-            .position(|h| h.eq_ignore_ascii_case(name))
-            .ok_or_else(|| fail(Some((1, 1)), format!("missing column {name}; {layout}")))?;
+        let mut at = (0..header.len()).filter(|&i| header[i].eq_ignore_ascii_case(name));
+        *slot = at.next().ok_or_else(|| {
+            fail(
+                Some((header_line, 1)),
+                format!("missing column {name}; {layout}"),
+            )
+        })?;
+        if let Some(again) = at.next() {
+            return Err(fail(
+                Some((header_line, again + 1)),
+                format!(
+                    "column {name} is given twice, as columns {} and {}; give each column once: {layout}",
+                    *slot + 1,
+                    again + 1
+                ),
+            ));
+        }
     }
     let mut rows: Vec<[f64; 7]> = Vec::new();
     for record in reader.records() {
-        let record = record.map_err(|e| fail(None, format!("malformed row: {e}")))?;
-        let line = record.position().map_or(0, |p| p.line() as usize);
+        let record = record.map_err(|e| {
+            let line = record_line(&bytes, e.position());
+            // The csv crate's own message names the line before any blank or comment lines.
+            let message = match e.kind() {
+                csv::ErrorKind::UnequalLengths {
+                    expected_len, len, ..
+                } => format!("malformed row: {len} fields, the rows before have {expected_len}"),
+                _ => format!("malformed row: {e}"),
+            };
+            fail(line.map(|l| (l, 1)), message)
+        })?;
+        let line = record_line(&bytes, record.position()).unwrap_or(0);
         let mut row = [0.0; 7];
         for (k, (&c, name)) in columns.iter().zip(&names).enumerate() {
             let text = record.get(c).unwrap_or("");
@@ -124,4 +149,33 @@ pub fn read(
         out[k] = ErrorFunction::Table(table);
     }
     Ok(out)
+}
+
+/// The 1-based line of the record the csv reader placed at `pos` in `bytes`: the reader records
+/// a row's position before it skips the blank and `#` lines in front of it, so those are counted
+/// here (as vmt-tools' reader of traces does for blank lines).
+fn record_line(bytes: &[u8], pos: Option<&csv::Position>) -> Option<usize> {
+    let pos = pos?;
+    let (mut line, mut b) = (pos.line() as usize, pos.byte() as usize);
+    loop {
+        let rest = bytes.get(b..).unwrap_or_default();
+        // A comment runs to the end of its line.
+        let text = if rest.first() == Some(&b'#') {
+            rest.iter()
+                .position(|&c| c == b'\n' || c == b'\r')
+                .unwrap_or(rest.len())
+        } else {
+            0
+        };
+        let end = &rest[text..];
+        let newline = if end.starts_with(b"\r\n") {
+            2
+        } else if end.starts_with(b"\n") || end.starts_with(b"\r") {
+            1
+        } else {
+            return Some(line);
+        };
+        b += text + newline;
+        line += 1;
+    }
 }

@@ -21,6 +21,38 @@ fn line_of(text: &str, needle: &str) -> usize {
     text.lines().position(|l| l.contains(needle)).unwrap() + 1
 }
 
+fn scenarios() -> std::path::PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenarios")
+}
+
+/// A shipped scenario (`scenarios/<name>`) with the first `replace` replaced by `by`.
+fn shipped_with(name: &str, replace: &str, by: &str) -> String {
+    let text = std::fs::read_to_string(scenarios().join(name)).unwrap();
+    assert!(
+        text.contains(replace),
+        "test edit `{replace}` not in {name}"
+    );
+    text.replacen(replace, by, 1)
+}
+
+/// Asserts that `text`, read from the scenarios' folder, is refused at `key` on the line of
+/// `at`, the message naming what is accepted.
+fn assert_refused(text: &str, at: &str, key: &str, accepted: &str) {
+    let e = parse(text, "s.toml", Some(&scenarios())).expect_err(at);
+    assert_eq!(e.key.as_deref(), Some(key), "{e}");
+    assert_eq!(e.position.map(|p| p.0), Some(line_of(text, at)), "{e}");
+    assert!(e.message.contains(accepted), "{e}");
+}
+
+/// [`assert_refused`] for edits `(replace, by, key, accepted)` of shipped scenario `name`; the
+/// refused value is on the last line of `by`.
+fn assert_edits_refused(name: &str, edits: &[(&str, &str, &str, &str)]) {
+    for (replace, by, key, accepted) in edits {
+        let text = shipped_with(name, replace, by);
+        assert_refused(&text, by.lines().last().unwrap(), key, accepted);
+    }
+}
+
 #[test]
 fn builtin_machine_loads_with_realistic_errors() {
     let s = builtin().unwrap();
@@ -454,4 +486,557 @@ fn a_test_feed_beyond_the_circles_acceleration_limit_is_refused() {
     let e = error_of(&text);
     assert_eq!(e.key.as_deref(), Some("job.feed_mm_min"), "{e}");
     assert!(e.message.contains("at most at 4929.5 mm/min"), "{e}");
+}
+
+/// An ISO 230-2 job's targets and runs, a ball-bar job's directions and a Kwon job's steps are
+/// bounded before their program is generated (10^8 targets or runs, or 150 circles, took all
+/// memory).
+#[test]
+fn test_programs_are_bounded_before_they_are_generated() {
+    let targets = "a number of targets (ISO 230-2 asks for 5 per metre, at least 5) from 2 to 1000 is accepted";
+    let runs = "a number of runs (ISO 230-2 asks for 5) from 2 to 100 is accepted";
+    let list: Vec<String> = (0..1001).map(|i| format!("{}.0", i + 1)).collect();
+    let list = format!("targets_mm = [{}]", list.join(", "));
+    assert_edits_refused(
+        "iso230_2_x.toml",
+        &[
+            ("count = 11", "count = 100000000", "job.count", targets),
+            ("count = 11", "count = 1001", "job.count", targets),
+            ("count = 11", "count = 1", "job.count", targets),
+            ("runs = 5", "runs = 100000000", "job.runs", runs),
+            ("runs = 5", "runs = 1", "job.runs", runs),
+            (
+                "range_mm = [25.0, 475.0]       # or targets_mm = [...] (ISO recommends uneven spacing)\ncount = 11",
+                &list,
+                "job.targets_mm",
+                "1001 targets are not accepted; a list of up to 1000 targets is accepted",
+            ),
+        ],
+    );
+    let cw = vec!["\"cw\""; 150].join(", ");
+    let text = with(
+        "directions = [\"cw\", \"ccw\"]",
+        &format!("directions = [{cw}]"),
+    );
+    assert_refused(
+        &text,
+        "directions = [",
+        "job.directions",
+        "150 directions are not accepted; a list of up to 8 directions (cw, ccw) is accepted",
+    );
+    assert_edits_refused(
+        "kwon_seven_step.toml",
+        &[(
+            "steps = [1, 2, 3, 4, 5, 6, 7]",
+            "steps = [1, 2, 3, 4, 5, 6, 7, 1, 2, 3, 4, 5, 6, 7, 1, 2, 3, 4, 5, 6, 7, 1, 2, 3, 4, 5, 6, 7, 1]",
+            "job.steps",
+            "29 steps are not accepted; a list of up to 28 steps (each of 1 to 7) is accepted",
+        )],
+    );
+}
+
+/// Milling values that hung or took all memory (a sample rate, cut step or mode frequency that
+/// makes the cut step tiny) or that no tool or sensor has are refused at their keys.
+#[test]
+fn milling_values_beyond_any_tool_or_sensor_are_refused_at_their_keys() {
+    let rate = "a sample rate in Hz from 100 to 1000000 is accepted";
+    let step = "a cut step in µs from 0.1 to 10000 is accepted";
+    let window = "a supervisor window in ms (at least one accelerometer sample) from 0.05 to 10000 is accepted";
+    assert_edits_refused(
+        "milling_slot.toml",
+        &[
+            (
+                "sample_rate_hz = 20000.0",
+                "sample_rate_hz = 1e308",
+                "instruments.accelerometer.sample_rate_hz",
+                rate,
+            ),
+            (
+                "sample_rate_hz = 20000.0",
+                "sample_rate_hz = 1e7",
+                "instruments.accelerometer.sample_rate_hz",
+                rate,
+            ),
+            (
+                "direction = \"down\"",
+                "direction = \"down\"\nstep_us = 1e-6",
+                "job.step_us",
+                step,
+            ),
+            (
+                "frequency_hz = 922.0",
+                "frequency_hz = 1e9",
+                "tools.T1.modes_x[0].frequency_hz",
+                "a natural frequency in Hz from 0 to 100000 is accepted",
+            ),
+            (
+                "stiffness_n_per_um = 1.340",
+                "stiffness_n_per_um = 0.0",
+                "tools.T1.modes_x[0].stiffness_n_per_um",
+                "a stiffness in N/µm must be > 0",
+            ),
+            (
+                "diameter_mm = 20.0",
+                "diameter_mm = 1e308",
+                "tools.T1.diameter_mm",
+                "a diameter in mm from 0 to 1000 is accepted",
+            ),
+            (
+                "flute_length_mm = 30.0",
+                "flute_length_mm = 1e308",
+                "tools.T1.flute_length_mm",
+                "a flute length in mm from 0 to 1000 is accepted",
+            ),
+            (
+                "teeth = 2",
+                "teeth = 1000",
+                "tools.T1.teeth",
+                "a number of teeth from 1 to 100 is accepted",
+            ),
+            (
+                "helix_deg = 0.0",
+                "helix_deg = 0.0\nrunout_um = 1e308",
+                "tools.T1.runout_um",
+                "a run-out in µm from 0 to 1000 is accepted",
+            ),
+            (
+                "noise_m_s2 = 0.05",
+                "noise_m_s2 = 1e308",
+                "instruments.accelerometer.noise_m_s2",
+                "a noise RMS in m/s² from 0 to 1000 is accepted",
+            ),
+            (
+                "supervisor_window_ms = 25.0",
+                "supervisor_window_ms = 1e308",
+                "job.supervisor_window_ms",
+                window,
+            ),
+            (
+                "supervisor_window_ms = 25.0",
+                "supervisor_window_ms = 1e-9",
+                "job.supervisor_window_ms",
+                window,
+            ),
+        ],
+    );
+    // The sensor's other values, which were all reported at job.tool, at their own keys.
+    assert_edits_refused(
+        "milling_slot.toml",
+        &[
+            (
+                "sample_rate_hz = 20000.0",
+                "sample_rate_hz = 1",
+                "instruments.accelerometer.sample_rate_hz",
+                rate,
+            ),
+            (
+                "noise_m_s2 = 0.05",
+                "noise_m_s2 = -1",
+                "instruments.accelerometer.noise_m_s2",
+                "-1 is out of range; a noise RMS in m/s² from 0 to 1000 is accepted",
+            ),
+            (
+                "noise_m_s2 = 0.05",
+                "noise_m_s2 = 0.05\nadc_bits = 0",
+                "instruments.accelerometer.adc_bits",
+                "0 is out of range; a resolution in bits from 1 to 32 is accepted",
+            ),
+            (
+                "noise_m_s2 = 0.05",
+                "noise_m_s2 = 0.05\nparticipation = [nan, 0.2]",
+                "instruments.accelerometer.participation[0]",
+                "NaN is not accepted; a participation factor from -10 to 10 is accepted",
+            ),
+            (
+                "noise_m_s2 = 0.05",
+                "noise_m_s2 = 0.05\nparticipation = [0.2]",
+                "instruments.accelerometer.participation",
+                "none (0.2 for every mode) or one per mode of the tool, 2 here",
+            ),
+            (
+                "noise_m_s2 = 0.05",
+                "noise_m_s2 = 0.05\nresonance_hz = 0",
+                "instruments.accelerometer.resonance_hz",
+                "a resonance in Hz from 100 to 1000000 is accepted",
+            ),
+            (
+                "noise_m_s2 = 0.05",
+                "noise_m_s2 = 0.05\nanti_alias_hz = 12000.0",
+                "instruments.accelerometer.anti_alias_hz",
+                "an anti-alias corner in Hz (below half of sample_rate_hz) above 0 and below 10000 is accepted",
+            ),
+            (
+                "direction = \"down\"",
+                "direction = \"down\"\nstep_us = nan",
+                "job.step_us",
+                step,
+            ),
+        ],
+    );
+}
+
+/// A micro end mill loads: the cut is checked with a feed per tooth within its radius.
+#[test]
+fn a_micro_end_mill_loads() {
+    let text = shipped_with(
+        "milling_slot.toml",
+        "diameter_mm = 20.0",
+        "diameter_mm = 0.1",
+    )
+    .replacen("axial_depth_mm = 0.5", "axial_depth_mm = 0.05", 1)
+    .replacen("radial_depth_mm = 20.0", "radial_depth_mm = 0.1", 1);
+    parse(&text, "s.toml", Some(&scenarios())).unwrap();
+}
+
+/// The ball bar's noise and resolution within its ±1 mm range (10^308 µm gave inf or all-zero
+/// traces).
+#[test]
+fn ballbar_noise_and_resolution_beyond_its_range_are_refused() {
+    for (replace, by, key, accepted) in [
+        (
+            "noise_um = 0.1",
+            "noise_um = 1e308",
+            "instruments.ballbar.noise_um",
+            "1e308 is out of range; a noise (µm) from 0 to 100 is accepted",
+        ),
+        (
+            "resolution_um = 0.1",
+            "resolution_um = 1e308",
+            "instruments.ballbar.resolution_um",
+            "1e308 is out of range; a resolution (µm) from 0 to 100 is accepted",
+        ),
+    ] {
+        assert_refused(&with(replace, by), by, key, accepted);
+    }
+}
+
+/// Drive values beyond any drive (traces spanning millimetres, NaN temperatures) and encoder
+/// counts that are not whole are refused at their keys; friction forces that were refused at
+/// the whole friction table are refused at theirs.
+#[test]
+fn drive_values_beyond_any_drive_are_refused_at_their_keys() {
+    let drive = "machine.axes.x.drive";
+    let backlash = "a backlash (µm) from 0 to 1000 is accepted";
+    let counts = "a whole number of counts per revolution from 4 to 4294967296 is accepted";
+    let force = "a force (N) from 0 to 100000 is accepted";
+    let friction = |k: &str| format!("{drive}.guide_friction.{k}");
+    for (replace, by, key, accepted) in [
+        (
+            "backlash_um = 1.0",
+            "backlash_um = 1e308",
+            format!("{drive}.backlash_um"),
+            backlash,
+        ),
+        (
+            "backlash_um = 1.0",
+            "backlash_um = 5000",
+            format!("{drive}.backlash_um"),
+            backlash,
+        ),
+        (
+            "encoder_counts_per_rev = 1048576",
+            "encoder_counts_per_rev = 1e308",
+            format!("{drive}.encoder_counts_per_rev"),
+            counts,
+        ),
+        (
+            "encoder_counts_per_rev = 1048576",
+            "encoder_counts_per_rev = 0.5",
+            format!("{drive}.encoder_counts_per_rev"),
+            counts,
+        ),
+        (
+            "encoder_counts_per_rev = 1048576",
+            "encoder_counts_per_rev = 1048576.5",
+            format!("{drive}.encoder_counts_per_rev"),
+            "1048576.5 is not accepted; a whole number of counts per revolution from 4 to 4294967296 is accepted",
+        ),
+        (
+            "torque_constant_n_m_per_a = 1.2",
+            "torque_constant_n_m_per_a = 1e-300",
+            format!("{drive}.torque_constant_n_m_per_a"),
+            "a torque constant (N·m/A) from 0.001 to 1000 is accepted",
+        ),
+        (
+            "feedback = \"motor_encoder\"",
+            "feedback = \"linear_scale\"\nscale_resolution_nm = 1e308",
+            format!("{drive}.scale_resolution_nm"),
+            "a resolution (nm) from 0.001 to 10000 is accepted",
+        ),
+        (
+            "static_n = 65.0",
+            "static_n = 1e308",
+            friction("static_n"),
+            force,
+        ),
+        (
+            "coulomb_n = 50.0",
+            "coulomb_n = 1e308",
+            friction("coulomb_n"),
+            force,
+        ),
+        (
+            "static_n = 65.0",
+            "static_n = 45.0",
+            friction("static_n"),
+            "the static force 45 N is below the Coulomb force 50 N",
+        ),
+        (
+            "viscous_n_s_per_m = 200.0",
+            "viscous_n_s_per_m = 1e308",
+            friction("viscous_n_s_per_m"),
+            "a viscous coefficient (N·s/m) from 0 to 1000000 is accepted",
+        ),
+        (
+            "bristle_damping_n_s_per_m = 3.0e4",
+            "bristle_damping_n_s_per_m = 1e308",
+            friction("bristle_damping_n_s_per_m"),
+            "a damping (N·s/m) from 0 to 100000000 is accepted",
+        ),
+        (
+            "bristle_stiffness_n_per_um = 20.0",
+            "bristle_stiffness_n_per_um = 1e308",
+            friction("bristle_stiffness_n_per_um"),
+            "a bristle stiffness (N/µm) from 0.01 to 100000 is accepted",
+        ),
+        (
+            "stribeck_mm_s = 1.0",
+            "stribeck_mm_s = 1e308",
+            friction("stribeck_mm_s"),
+            "a Stribeck velocity (mm/s) from 0.001 to 1000 is accepted",
+        ),
+    ] {
+        assert_refused(
+            &with(replace, by),
+            by.lines().last().unwrap(),
+            &key,
+            accepted,
+        );
+    }
+}
+
+/// The laser: a rate above the servo rate was clamped to it and an averaging window with no
+/// sample read 0; both are refused like the ball bar's rate. Its other values are bounded to
+/// what an interferometer and its sensors can be.
+#[test]
+fn laser_values_it_cannot_have_are_refused_at_their_keys() {
+    let laser = "instruments.laser";
+    let key = |k: &str| format!("{laser}.{k}");
+    let window = "the averaging window holds no sample";
+    for (replace, by, key, accepted) in [
+        (
+            "sample_rate_hz = 1000.0",
+            "sample_rate_hz = 1e308",
+            key("sample_rate_hz"),
+            "1e308 Hz is not accepted: the laser is sampled at servo ticks, at most 8000 Hz (1 / controller.servo_period_us)",
+        ),
+        (
+            "averaging_s = 1.0 ",
+            "averaging_s = 1e-9 ",
+            key("averaging_s"),
+            "1e-9 s is not accepted: the averaging window holds no sample; the laser samples every 0.001 s (every 8 servo ticks at instruments.laser.sample_rate_hz = 1000 Hz), so at least 0.001 s is accepted",
+        ),
+        (
+            "averaging_s = 1.0 ",
+            "averaging_s = 0.0009 ",
+            key("averaging_s"),
+            window,
+        ),
+        (
+            "sample_rate_hz = 1000.0",
+            "sample_rate_hz = 1e-9",
+            key("sample_rate_hz"),
+            "1e-9 is out of range; a sample rate in Hz from 1 to the servo rate (1 / controller.servo_period_us) is accepted",
+        ),
+        (
+            "resolution_nm = 1.0",
+            "resolution_nm = 1e308",
+            key("resolution_nm"),
+            "a resolution (nm) from 0 to 1000 is accepted",
+        ),
+        (
+            "noise_nm = 20.0",
+            "noise_nm = 1e308",
+            key("noise_nm"),
+            "a noise (nm) from 0 to 1000 is accepted",
+        ),
+        (
+            "dead_path_mm = 100.0",
+            "dead_path_mm = 1e308",
+            key("dead_path_mm"),
+            "a dead path (mm) from 0 to 100000 is accepted",
+        ),
+        (
+            "air_temperature_error_k = 0.5",
+            "air_temperature_error_k = 1e308",
+            key("air_temperature_error_k"),
+            "a temperature error (K) from -30 to 30 is accepted",
+        ),
+        (
+            "air_pressure_error_hpa = 0.0",
+            "air_pressure_error_hpa = 1e308",
+            key("air_pressure_error_hpa"),
+            "a pressure error (hPa) from -300 to 300 is accepted",
+        ),
+        (
+            "humidity_error_percent = 0.0",
+            "humidity_error_percent = 1e308",
+            key("humidity_error_percent"),
+            "a humidity error (%RH) from -100 to 100 is accepted",
+        ),
+        (
+            "material_temperature_error_k = 0.0",
+            "material_temperature_error_k = -1e308",
+            key("material_temperature_error_k"),
+            "a temperature error (K) from -30 to 30 is accepted",
+        ),
+        (
+            "material_alpha_per_k = 11.5e-6",
+            "material_alpha_per_k = 1e308",
+            key("material_alpha_per_k"),
+            "an expansion coefficient (1/K) from 0 to 0.00005 is accepted",
+        ),
+        (
+            "air_drift_k_per_h = 0.2",
+            "air_drift_k_per_h = 1e308",
+            key("air_drift_k_per_h"),
+            "an air temperature drift (K/h) from -10 to 10 is accepted",
+        ),
+    ] {
+        let text = shipped_with("iso230_2_x.toml", replace, by);
+        assert_refused(&text, by, &key, accepted);
+    }
+    // A window of one sample is accepted.
+    let text = shipped_with(
+        "iso230_2_x.toml",
+        "averaging_s = 1.0 ",
+        "averaging_s = 0.001 ",
+    );
+    parse(&text, "s.toml", None).unwrap();
+}
+
+/// The log rate is checked at load, as the run checks it; controller limits near zero, which
+/// stretched a program beyond the interpolator and were blamed on [job], and a phase of the
+/// ambient beyond any period are refused at their keys.
+#[test]
+fn log_rate_controller_limits_and_ambient_phase_are_refused_at_their_keys() {
+    let log = "a log rate in Hz above 0 and up to the servo rate, 8000 (1 / controller.servo_period_us), is accepted";
+    let accel = "an acceleration (m/s²) from 0.01 to 1000 is accepted";
+    for (replace, by, key, accepted) in [
+        (
+            "log_rate_hz = 1000.0",
+            "log_rate_hz = 1e308",
+            "simulation.log_rate_hz",
+            log,
+        ),
+        (
+            "log_rate_hz = 1000.0",
+            "log_rate_hz = 8001",
+            "simulation.log_rate_hz",
+            log,
+        ),
+        (
+            "log_rate_hz = 1000.0",
+            "log_rate_hz = 0.0",
+            "simulation.log_rate_hz",
+            log,
+        ),
+        (
+            "path_jerk_m_s3 = 20.0",
+            "path_jerk_m_s3 = 1e-300",
+            "controller.path_jerk_m_s3",
+            "a jerk (m/s³) from 0.1 to 1000000 is accepted",
+        ),
+        (
+            "path_jerk_m_s3 = 20.0",
+            "path_jerk_m_s3 = 1e5",
+            "controller.path_jerk_m_s3",
+            "is shorter than one interpolation period (0.001 s)",
+        ),
+        (
+            "path_accel_m_s2 = 2.0",
+            "path_accel_m_s2 = 1e-300",
+            "controller.path_accel_m_s2",
+            accel,
+        ),
+        (
+            "axis_accel_m_s2 = [5.0, 5.0, 5.0]",
+            "axis_accel_m_s2 = [1e-300, 5.0, 5.0]",
+            "controller.axis_accel_m_s2[0]",
+            accel,
+        ),
+        (
+            "rapid_mm_min = 30000.0",
+            "rapid_mm_min = 1e308",
+            "controller.rapid_mm_min",
+            "a rapid rate (mm/min) from 1 to 1000000 is accepted",
+        ),
+        (
+            "max_feed_mm_min = 10000.0",
+            "max_feed_mm_min = 1e-300",
+            "controller.max_feed_mm_min",
+            "a feed (mm/min) from 1 to 1000000 is accepted",
+        ),
+        (
+            "corner_tolerance_um = 10.0",
+            "corner_tolerance_um = 1e308",
+            "controller.corner_tolerance_um",
+            "a tolerance (µm) from 0.001 to 10000 is accepted",
+        ),
+        (
+            "phase_h = 0.0",
+            "phase_h = 1e300",
+            "machine.thermal.ambient.phase_h",
+            "1e300 is out of range; a phase in h from -10000 to 10000 is accepted",
+        ),
+    ] {
+        assert_refused(&with(replace, by), by, key, accepted);
+    }
+    // At the servo rate the log is accepted.
+    parse(
+        &with("log_rate_hz = 1000.0", "log_rate_hz = 8000"),
+        "s.toml",
+        None,
+    )
+    .unwrap();
+}
+
+/// Table errors name the file's line, counting blank and `#` lines the csv reader skips; a
+/// column given twice is refused naming both.
+#[test]
+fn table_errors_name_the_line_after_blank_and_comment_lines_and_duplicate_columns() {
+    let dir = tempfile::tempdir().unwrap();
+    for (rows, position, message) in [
+        (
+            "X,EXX,EYX,EZX,EAX,EBX,ECX\n0,0,0,0,0,0,0\n\n\n500,abc,1,1,1,1,1\n",
+            (5, 2),
+            "column EXX: `abc` is not a finite number",
+        ),
+        (
+            "# X table\nX,EXX,EYX,EZX,EAX,EBX,ECX\r\n# the start\r\n0,0,0,0,0,0,0\r\n\r\n# the end\r\n500,1,1,1,1,1,2e4\r\n",
+            (7, 7),
+            "ECX: 20000 µrad is beyond the accepted ±10000 µrad",
+        ),
+        (
+            "X,EXX,EYX,EZX,EAX,EBX,ECX\n0,0,0,0,0,0,0\n\n# short\n500,1,1,1,1,1\n",
+            (5, 1),
+            "malformed row: 6 fields, the rows before have 7",
+        ),
+        (
+            "# X table\nX,EXX,EYX,EZX,EAX,EBX\n0,0,0,0,0,0\n500,0,0,0,0,0\n",
+            (2, 1),
+            "missing column ECX",
+        ),
+        (
+            "X,EXX,EYX,EZX,EAX,EBX,ECX,exx\n0,0,0,0,0,0,0,1\n500,0,0,0,0,0,0,1\n",
+            (1, 8),
+            "column EXX is given twice, as columns 2 and 8; give each column once",
+        ),
+    ] {
+        let e = load(&write_scenario_with_table(dir.path(), rows)).unwrap_err();
+        assert!(e.file.ends_with("x.csv"), "{e}");
+        assert_eq!(e.key.as_deref(), Some("machine.errors.x.forward.table"));
+        assert_eq!(e.position, Some(position), "{rows:?}: {e}");
+        assert!(e.message.contains(message), "{e}");
+    }
 }

@@ -106,6 +106,12 @@ impl LaserSpec {
             + DN_DRH_PER_PERCENT * self.humidity_error_percent
             - self.material_alpha_per_k * self.material_temperature_error_k
     }
+
+    /// Servo ticks from one sample to the next: the laser is read at servo ticks, so its
+    /// sample period is rounded to whole servo periods of `servo_period_s`.
+    pub fn sample_every(&self, servo_period_s: f64) -> usize {
+        ((1.0 / self.sample_rate_hz) / servo_period_s).round() as usize
+    }
 }
 
 /// One measuring dwell of the program.
@@ -438,12 +444,9 @@ impl Laser {
             .chain([setup.datum_block])
             .map(|b| (end_of(b) - avg, end_of(b)))
             .collect::<Vec<_>>();
-        let every = ((1.0 / setup.spec.sample_rate_hz) / period_s)
-            .round()
-            .max(1.0) as usize;
         Self {
             rng: StdRng::seed_from_u64(seed),
-            every,
+            every: setup.spec.sample_every(period_s),
             sums: vec![Window::default(); windows.len()],
             datum_time_s: windows.last().map_or(0.0, |w| w.1),
             windows,
@@ -489,11 +492,20 @@ impl Laser {
 
     fn mean(&self, i: usize, f: impl Fn(&Window) -> f64) -> f64 {
         let w = &self.sums[i];
-        f(w) / w.n.max(1) as f64
+        f(w) / w.n as f64
     }
 
-    /// The readings and the truth of every measurement.
-    pub fn finish(self) -> (LaserRun, LaserTruth) {
+    /// The readings and the truth of every measurement; refused if an averaging window holds
+    /// no sample (a rate and averaging time that [`crate::simulate::simulate`] checks, or a
+    /// dwell that never ran), which would read as nothing rather than 0.
+    pub fn finish(self) -> Result<(LaserRun, LaserTruth), String> {
+        if let Some(i) = self.sums.iter().position(|w| w.n == 0) {
+            let (a, b) = self.windows[i];
+            return Err(format!(
+                "the laser's averaging window from {a:.4} to {b:.4} s holds no sample (a sample every {} servo ticks, averaging {} s)",
+                self.every, self.setup.spec.averaging_s
+            ));
+        }
         let test = &self.setup.test;
         let d = self.sums.len() - 1;
         let datum = test.datum_m();
@@ -532,7 +544,7 @@ impl Laser {
             line_mm: [line.x, line.y, line.z],
             readings,
         };
-        (run, truth)
+        Ok((run, truth))
     }
 }
 
@@ -584,6 +596,43 @@ mod tests {
         };
         assert!(bad.validate().is_err());
         assert!(PositioningTest { runs: 1, ..t }.validate().is_err());
+    }
+
+    /// An averaging window that got no sample is an error, not a reading of 0.
+    #[test]
+    fn an_averaging_window_without_a_sample_is_an_error() {
+        let t = test();
+        let (_, datum_block, measurements) = t.gcode();
+        let last = measurements.iter().map(|m| m.block).max().unwrap();
+        let times: Vec<(usize, f64, f64)> =
+            (0..=last).map(|b| (b, b as f64, b as f64 + 1.0)).collect();
+        let setup = LaserSetup {
+            spec: LaserSpec::default(),
+            test: t,
+            datum_block,
+            measurements,
+        };
+        let laser = |sample_datum: bool| {
+            let mut laser = Laser::new(&setup, &times, 1e-3, 1);
+            let p = Vector3::new(0.0, 0.1, 0.0);
+            for (i, m) in setup.measurements.iter().enumerate() {
+                laser.sample(i, m.block as f64 + 0.5, &p, &p);
+            }
+            if sample_datum {
+                let n = setup.measurements.len();
+                laser.sample(n, datum_block as f64 + 0.5, &p, &p);
+            }
+            laser
+        };
+        let e = laser(false).finish().unwrap_err();
+        let (a, b) = (datum_block as f64, datum_block as f64 + 1.0);
+        assert_eq!(
+            e,
+            format!(
+                "the laser's averaging window from {a:.4} to {b:.4} s holds no sample (a sample every 1 servo ticks, averaging 1 s)"
+            )
+        );
+        assert!(laser(true).finish().is_ok());
     }
 
     #[test]

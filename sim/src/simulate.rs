@@ -19,7 +19,7 @@
 
 use crate::ballbar::{Ballbar, BallbarSpec};
 use crate::interpolator::{Cursor, Interpolator, InterpolatorConfig, InterpolatorError, Setpoint};
-use crate::laser::{Laser, LaserSetup};
+use crate::laser::{Laser, LaserSetup, LaserSpec};
 use crate::nc::program::{ArcDirection, Plane, Program, Spindle};
 use crate::plant::{Fidelity, MultibodyPlant, Plant, PlantError, ReducedPlant, layout};
 use crate::replay::Replay;
@@ -231,6 +231,9 @@ pub fn simulate_with_replay(
             1.0 / period
         )));
     }
+    if let Some(l) = &job.laser {
+        check_laser(&l.spec, period)?;
+    }
     let start = job.program.start - tcp;
     let mut plant = build_plant(machine, axes, &start, settings.fidelity, h)?;
     let ticks = interpolator.servo_ticks();
@@ -297,7 +300,7 @@ pub fn simulate_with_replay(
         job,
         at_tests: &at_tests,
     };
-    Ok((recorder.finish(&truth, settings, scenario_toml), replay))
+    Ok((recorder.finish(&truth, settings, scenario_toml)?, replay))
 }
 
 /// The axes' direction states after they moved to `q` (a loop: `array::from_fn` leaves its
@@ -404,6 +407,26 @@ pub(crate) fn check_strokes(
                 max_mm: spec.max_m * 1e3,
             });
         }
+    }
+    Ok(())
+}
+
+/// Checks that the laser can be sampled at servo ticks of `period_s` (its rate at most the servo
+/// rate) and that its averaging window holds at least one sample.
+fn check_laser(spec: &LaserSpec, period_s: f64) -> Result<(), SimError> {
+    let rate = spec.sample_rate_hz;
+    if !(rate > 0.0 && rate <= 1.0 / period_s) {
+        return Err(SimError::Settings(format!(
+            "laser sample rate {rate} Hz: from 0 to the servo rate {} Hz is accepted",
+            1.0 / period_s
+        )));
+    }
+    let interval_s = spec.sample_every(period_s) as f64 * period_s;
+    if spec.averaging_s < interval_s * (1.0 - 1e-9) {
+        return Err(SimError::Settings(format!(
+            "laser averaging time {} s: it holds no sample at one sample every {interval_s} s; at least {interval_s} s is accepted",
+            spec.averaging_s
+        )));
     }
     Ok(())
 }
@@ -795,7 +818,12 @@ impl Recorder {
         Ok(None)
     }
 
-    fn finish(self, truth: &TruthInputs, settings: &SimSettings, scenario_toml: &str) -> Run {
+    fn finish(
+        self,
+        truth: &TruthInputs,
+        settings: &SimSettings,
+        scenario_toml: &str,
+    ) -> Result<Run, SimError> {
         let machine = truth.machine;
         let names = ["x", "y", "z"];
         let mut channels = Vec::new();
@@ -822,13 +850,17 @@ impl Recorder {
             times_s: self.times,
             channels,
         };
-        let laser = self.laser.map(Laser::finish);
+        let laser = self
+            .laser
+            .map(Laser::finish)
+            .transpose()
+            .map_err(SimError::Settings)?;
         let closing: Vec<Option<f64>> = self
             .closing
             .iter()
             .map(|c| c.map(|c| c.error_um()))
             .collect();
-        Run {
+        Ok(Run {
             scenario_name: machine.name.clone(),
             scenario_toml: scenario_toml.to_string(),
             seed: settings.seed,
@@ -838,7 +870,7 @@ impl Recorder {
             ballbar: self.traces,
             ground_truth: crate::truth::ground_truth(truth, &closing, laser.as_ref()),
             laser: laser.map(|(run, _)| run),
-        }
+        })
     }
 }
 

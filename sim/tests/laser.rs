@@ -44,13 +44,13 @@ fn test() -> PositioningTest {
     }
 }
 
-fn positioning_run(m: &Machine, axes: [AxisDynamics; 3], spec: LaserSpec) -> Run {
+fn positioning_job(spec: LaserSpec) -> Job {
     let t = test();
     let (text, datum_block, measurements) = t.gcode();
     let program = parse(&text, t.start_point()).unwrap();
     t.check_program(&program, datum_block, &measurements)
         .unwrap();
-    let job = Job {
+    Job {
         program,
         ballbar: Vec::new(),
         laser: Some(LaserSetup {
@@ -59,15 +59,20 @@ fn positioning_run(m: &Machine, axes: [AxisDynamics; 3], spec: LaserSpec) -> Run
             datum_block,
             measurements,
         }),
-    };
-    let settings = SimSettings {
-        fidelity: Fidelity::Reduced,
-        plant_substeps: 2,
-        log_rate_hz: 100.0,
-        seed: 11,
-    };
+    }
+}
+
+const SETTINGS: SimSettings = SimSettings {
+    fidelity: Fidelity::Reduced,
+    plant_substeps: 2,
+    log_rate_hz: 100.0,
+    seed: 11,
+};
+
+fn positioning_run(m: &Machine, axes: [AxisDynamics; 3], spec: LaserSpec) -> Run {
     let ipo = InterpolatorConfig::new(Limits::default());
-    simulate(m, &axes, &ipo, &job, &settings, "", &mut |_| {}).unwrap()
+    let job = positioning_job(spec);
+    simulate(m, &axes, &ipo, &job, &SETTINGS, "", &mut |_| {}).unwrap()
 }
 
 fn spec(air_temperature_error_k: f64) -> LaserSpec {
@@ -167,6 +172,45 @@ fn backlash_gives_the_reversal_value() {
     assert!((iso.b_um - seen).abs() < 0.05, "{} vs {seen}", iso.b_um);
     let truth = &run.ground_truth["laser"]["iso230_2_exact"]["b_um"];
     assert!((truth.as_f64().unwrap() - iso.b_um).abs() < 0.01);
+}
+
+/// A laser sampled faster than the servo ticks it is read at (it was clamped to the servo rate)
+/// or averaging over less than its sample interval (no sample: it read 0) is refused before
+/// the run.
+#[test]
+fn a_laser_faster_than_the_servo_or_with_an_empty_window_is_refused_before_the_run() {
+    let m = machine(0.0);
+    let axes = [
+        common::axis(250.0, 0.0, 33.0),
+        common::axis(450.0, 0.0, 33.0),
+        common::axis(180.0, 0.0, 33.0),
+    ];
+    let ipo = InterpolatorConfig::new(Limits::default());
+    for (spec, message) in [
+        (
+            LaserSpec {
+                sample_rate_hz: 10_000.0,
+                ..spec(0.0)
+            },
+            "laser sample rate 10000 Hz: from 0 to the servo rate 8000 Hz is accepted",
+        ),
+        (
+            LaserSpec {
+                averaging_s: 0.5e-3,
+                ..spec(0.0)
+            },
+            "laser averaging time 0.0005 s: it holds no sample at one sample every 0.001 s; at least 0.001 s is accepted",
+        ),
+    ] {
+        let mut started = false;
+        let job = positioning_job(spec);
+        let e = simulate(&m, &axes, &ipo, &job, &SETTINGS, "", &mut |_| {
+            started = true
+        })
+        .unwrap_err();
+        assert!(!started, "refused before the run");
+        assert_eq!(e.to_string(), message);
+    }
 }
 
 /// The shipped positioning scenario loads, and bad values are refused naming their key.
