@@ -129,7 +129,9 @@ fn growth_onset(d: &[f64], on: f64) -> Option<usize> {
 }
 
 /// Strongest spectral peak of (ux, uy) sampled at `fs` away from the multiples of each of
-/// `excluded` (Hz: the forcing frequencies, one per spindle speed of the segment), Hz.
+/// `excluded` (Hz: the forcing frequencies, one per spindle speed of the segment), Hz: the
+/// power of both axes (mean removed, Hann window, zero-padded to twice the length, real FFT)
+/// from 20 Hz to Nyquist, the peak placed between bins by a parabola through its neighbours.
 pub(crate) fn chatter_frequency(ux: &[f64], uy: &[f64], fs: f64, excluded: &[f64]) -> Option<f64> {
     let n = ux.len().min(uy.len());
     if n < 64 {
@@ -146,23 +148,33 @@ pub(crate) fn chatter_frequency(ux: &[f64], uy: &[f64], fs: f64, excluded: &[f64
             .map(|(a, w)| (a - m) * w)
             .collect::<Vec<_>>()
     };
-    let (x, y) = (prep(ux), prep(uy));
-    // Twice zero-padded resolution.
-    let df = fs / n as f64 / 2.0;
+    // Twice zero-padded resolution, by one real FFT per axis.
+    let m = 2 * n;
+    let df = fs / m as f64;
+    let fft = realfft::RealFftPlanner::<f64>::new().plan_fft_forward(m);
+    let power_of = |v: &[f64]| -> Vec<f64> {
+        let mut padded = vec![0.0; m];
+        padded[..n].copy_from_slice(v);
+        let mut spectrum = fft.make_output_vec();
+        // The lengths are the plan's own, so the transform cannot fail.
+        let _ = fft.process(&mut padded, &mut spectrum);
+        spectrum.iter().map(|c| c.norm_sqr()).collect()
+    };
+    let (px, py) = (power_of(&prep(ux)), power_of(&prep(uy)));
     let near_harmonic = |f: f64| {
         excluded.iter().filter(|&&e| e > 0.0).any(|&e| {
             let guard = 0.02 * e + 2.0 * fs / n as f64;
             (f - (f / e).round() * e).abs() < guard
         })
     };
-    let bins = ((fs / 2.0 - 20.0) / df) as usize;
-    let power: Vec<f64> = (0..bins)
-        .map(|b| 20.0 + b as f64 * df)
-        .map(|f| {
-            if near_harmonic(f) {
+    // From 20 Hz up to (not including) the Nyquist frequency.
+    let first = (20.0 / df).ceil() as usize;
+    let power: Vec<f64> = (first..m / 2)
+        .map(|k| {
+            if near_harmonic(k as f64 * df) {
                 0.0
             } else {
-                dft_power(&x, f / fs) + dft_power(&y, f / fs)
+                px[k] + py[k]
             }
         })
         .collect();
@@ -176,22 +188,7 @@ pub(crate) fn chatter_frequency(ux: &[f64], uy: &[f64], fs: f64, excluded: &[f64
     } else {
         0.0
     };
-    Some(20.0 + (k as f64 + shift) * df)
-}
-
-/// |Σ v_i·e^{-2πi·f·i}|² at the normalised frequency f (cycles per sample), by recurrence.
-fn dft_power(v: &[f64], f: f64) -> f64 {
-    let (s, c) = (std::f64::consts::TAU * f).sin_cos();
-    let (mut re, mut im) = (0.0, 0.0);
-    let (mut wr, mut wi) = (1.0, 0.0);
-    for &a in v {
-        re += a * wr;
-        im -= a * wi;
-        let t = wr * c - wi * s;
-        wi = wr * s + wi * c;
-        wr = t;
-    }
-    re * re + im * im
+    Some((first as f64 + k as f64 + shift) * df)
 }
 
 /// The chatter keys of the truth object.
