@@ -256,14 +256,12 @@ fn pos(v: f64, path: &KeyPath, what: &str) -> R<f64> {
     }
 }
 
-fn finite3(v: &Numbers<3>, path: &KeyPath) -> R<Vector3<f64>> {
-    match v.iter().find(|x| !x.is_finite()) {
-        None => Ok(Vector3::from(v.0)),
-        Some(x) => Err(Invalid::new(
-            path.clone(),
-            format!("{x} is not accepted; three finite numbers [x, y, z]"),
-        )),
+/// `v` when each of its three components lies within ±`max`; the error names the component.
+fn within3(v: &Numbers<3>, max: f64, path: &KeyPath, what: &str) -> R<Vector3<f64>> {
+    for (i, &x) in v.iter().enumerate() {
+        in_range(x, -max, max, &path.index(i), what)?;
     }
+    Ok(Vector3::from(v.0))
 }
 
 /// Largest friction force accepted, N: ten tonnes moving at a friction coefficient of 0.1.
@@ -622,10 +620,19 @@ fn ballbar_spec(b: Option<&BallbarToml>) -> R<BallbarSpec> {
         )? * 1e-6,
         noise_m: in_range(b.noise_um, 0.0, 100.0, &p.key("noise_um"), "a noise (µm)")? * 1e-6,
         sample_rate_hz: pos(b.sample_rate_hz, &p.key("sample_rate_hz"), "a sample rate")?,
-        setup_eccentricity_m: finite3(&b.setup_eccentricity_um, &p.key("setup_eccentricity_um"))?
-            * 1e-6,
-        setup_drift_m_per_s: finite3(&b.setup_drift_um_per_min, &p.key("setup_drift_um_per_min"))?
-            * (1e-6 / 60.0),
+        // Within the bar's ±1 mm range, and a drift that leaves it only after ten minutes.
+        setup_eccentricity_m: within3(
+            &b.setup_eccentricity_um,
+            1000.0,
+            &p.key("setup_eccentricity_um"),
+            "an offset of the pivot within the bar's range (µm)",
+        )? * 1e-6,
+        setup_drift_m_per_s: within3(
+            &b.setup_drift_um_per_min,
+            100.0,
+            &p.key("setup_drift_um_per_min"),
+            "a drift of the pivot (µm/min)",
+        )? * (1e-6 / 60.0),
         bar_temperature_c: within(
             b.bar_temperature_c,
             "bar_temperature_c",

@@ -705,8 +705,21 @@ fn ballbar_noise_and_resolution_beyond_its_range_are_refused() {
             "instruments.ballbar.resolution_um",
             "1e308 is out of range; a resolution (µm) from 0 to 100 is accepted",
         ),
+        (
+            "setup_eccentricity_um = [3.0, -2.0, 0.0]",
+            "setup_eccentricity_um = [3.0, -1e308, 0.0]",
+            "instruments.ballbar.setup_eccentricity_um[1]",
+            "-1e308 is out of range; an offset of the pivot within the bar's range (µm) from -1000 to 1000",
+        ),
+        (
+            "setup_eccentricity_um = [3.0, -2.0, 0.0]",
+            "setup_eccentricity_um = [3.0, -2.0, 0.0]\nsetup_drift_um_per_min = [0.0, 0.0, 101.0]",
+            "instruments.ballbar.setup_drift_um_per_min[2]",
+            "101 is out of range; a drift of the pivot (µm/min) from -100 to 100",
+        ),
     ] {
-        assert_refused(&with(replace, by), by, key, accepted);
+        let at = by.lines().last().unwrap();
+        assert_refused(&with(replace, by), at, key, accepted);
     }
 }
 
