@@ -179,7 +179,7 @@ fn execution(
     let default = dynamics::SimulationToml {
         fidelity: "reduced".into(),
         seed: 0,
-        log_rate_hz: 1000.0,
+        log_rate_hz: None,
     };
     let settings = dynamics::simulation(
         raw.simulation.as_ref().unwrap_or(&default),
@@ -265,9 +265,13 @@ fn check_test_rates(
             return Err(Invalid::new(feed_key.clone(), msg).into());
         }
     }
-    let servo_hz = user(1.0 / controller.servo_period_s);
+    // Compared exactly, as the run compares them (with its 1e-9 tolerance); rounded only in
+    // the message.
+    let exact_servo_hz = 1.0 / controller.servo_period_s;
+    let above_servo = |rate: f64| rate > exact_servo_hz * (1.0 + 1e-9);
+    let servo_hz = user(exact_servo_hz);
     for b in &job.ballbar {
-        if b.spec.sample_rate_hz > servo_hz {
+        if above_servo(b.spec.sample_rate_hz) {
             let msg = format!(
                 "{} Hz is not accepted: the ball bar is sampled at servo ticks, at most {servo_hz} Hz (1 / controller.servo_period_us)",
                 b.spec.sample_rate_hz
@@ -279,7 +283,7 @@ fn check_test_rates(
     if let Some(l) = &job.laser {
         let laser = KeyPath::of(&["instruments", "laser"]);
         let rate = l.spec.sample_rate_hz;
-        if rate > servo_hz {
+        if above_servo(rate) {
             let msg = format!(
                 "{} Hz is not accepted: the laser is sampled at servo ticks, at most {servo_hz} Hz (1 / controller.servo_period_us)",
                 typed(rate)
@@ -288,8 +292,9 @@ fn check_test_rates(
         }
         // The sampled ticks are the sample period rounded to whole servo periods.
         let every = l.spec.sample_every(controller.servo_period_s);
-        let interval_s = user(every as f64 * controller.servo_period_s);
-        if l.spec.averaging_s < interval_s {
+        let exact_interval_s = every as f64 * controller.servo_period_s;
+        let interval_s = user(exact_interval_s);
+        if l.spec.averaging_s < exact_interval_s * (1.0 - 1e-9) {
             let msg = format!(
                 "{} s is not accepted: the averaging window holds no sample; the laser samples every {interval_s} s (every {every} servo ticks at instruments.laser.sample_rate_hz = {} Hz), so at least {interval_s} s is accepted",
                 typed(l.spec.averaging_s),
@@ -337,6 +342,18 @@ fn check_generated_travel(
             );
             Err(invalid(KeyPath::of(&["job", key]), msg))
         }
+        Err(SimError::Interpolator(vmt_sim::interpolator::InterpolatorError::ProgramTooLong {
+            duration_s,
+            max_duration_s,
+            ..
+        })) => Err(invalid(
+            KeyPath::of(&["job"]),
+            format!(
+                "the test lasts about {duration_s:.0} s, longer than the {max_duration_s:.0} s \
+                 the interpolator holds: fewer targets, runs or steps, shorter dwells or a \
+                 higher feed"
+            ),
+        )),
         Err(e) => Err(invalid(KeyPath::of(&["job"]), e.to_string())),
     }
 }
@@ -1052,7 +1069,7 @@ fn thermal_run(run: &ThermalRunToml) -> std::result::Result<ThermalRunSpec, Inva
         let rpm = in_range(
             s.spindle_rpm,
             0.0,
-            100_000.0,
+            vmt_sim::nc::parse::MAX_SPINDLE_RPM,
             &p.key("spindle_rpm"),
             "a spindle speed in rpm",
         )?;

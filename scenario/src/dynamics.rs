@@ -94,8 +94,9 @@ pub struct SimulationToml {
     pub fidelity: String,
     #[serde(default)]
     pub seed: u64,
-    #[serde(default = "khz")]
-    pub log_rate_hz: f64,
+    /// Default: 1 kHz, or the servo rate when that is slower.
+    #[serde(default)]
+    pub log_rate_hz: Option<f64>,
 }
 
 fn reduced() -> String {
@@ -572,10 +573,16 @@ pub fn simulation(s: &SimulationToml, substeps: usize, servo_period_s: f64) -> R
     Ok(SimSettings {
         fidelity,
         plant_substeps: substeps,
-        log_rate_hz: log_rate(s.log_rate_hz, servo_period_s, &p.key("log_rate_hz"))?,
+        log_rate_hz: match s.log_rate_hz {
+            Some(rate) => log_rate(rate, servo_period_s, &p.key("log_rate_hz"))?,
+            None => DEFAULT_LOG_RATE_HZ.min(1.0 / servo_period_s),
+        },
         seed: s.seed,
     })
 }
+
+/// The log rate when none is given, Hz.
+const DEFAULT_LOG_RATE_HZ: f64 = 1000.0;
 
 /// A log rate above 0 and at most the servo rate (the run's own check, made here where the
 /// error can name the key).
@@ -694,11 +701,12 @@ fn laser_spec(l: Option<&LaserToml>) -> R<LaserSpec> {
             (-30.0, 30.0),
             "a temperature error (K)",
         )?,
-        // Invar near 0, steel 11.5e-6, aluminium 23e-6.
+        // Invar and CFRP near 0 (slightly negative), steel 11.5e-6, aluminium 23e-6: the range
+        // of the machine's own `expansion.alpha_per_k`.
         material_alpha_per_k: range(
             l.material_alpha_per_k,
             "material_alpha_per_k",
-            (0.0, 5e-5),
+            (-1e-5, 1e-4),
             "an expansion coefficient (1/K)",
         )?,
         dead_path_m: range(
@@ -862,8 +870,11 @@ const MAX_DIRECTIONS: usize = 8;
 
 /// Most targets and runs of an ISO 230-2 job, bounded before its program (two dwells per target
 /// and run) is generated. The standard asks for 5 runs over at least 5 targets per metre: a 5 m
-/// axis at 10 mm steps has 500 targets.
-const MAX_TARGETS: usize = 1000;
+/// axis at 1 mm steps has 5000 targets (the program's length is checked after).
+const MAX_TARGETS: usize = 10_000;
+/// The closest two targets may be, mm: what the evaluation accepts
+/// (`vmt_positioning::run::MIN_TARGET_SPACING_MM`, 1 µm).
+const MIN_TARGET_SPACING_MM: f64 = 1e-3;
 const MAX_RUNS: usize = 100;
 
 /// Most steps of a Kwon job: the seven, each up to four times.
@@ -912,10 +923,21 @@ fn targets(
             ));
         }
     };
-    if mm.len() < 2 || mm.iter().any(|v| !v.is_finite()) || mm.windows(2).any(|w| w[1] <= w[0]) {
+    if mm.len() < 2
+        || mm.iter().any(|v| !v.is_finite())
+        || mm.windows(2).any(|w| w[1] - w[0] < MIN_TARGET_SPACING_MM)
+    {
+        let key = if list.is_some() {
+            "targets_mm"
+        } else {
+            "count"
+        };
         return Err(Invalid::new(
-            p.key("targets_mm"),
-            "at least two finite target positions in increasing order (mm)",
+            p.key(key),
+            format!(
+                "at least two finite target positions in increasing order, at least \
+                 {MIN_TARGET_SPACING_MM} mm apart (mm)"
+            ),
         ));
     }
     Ok(mm.into_iter().map(|v| v * 1e-3).collect())
@@ -974,7 +996,14 @@ fn positioning_job(j: &PositioningToml, instruments: &InstrumentsToml) -> R<Job>
         line_m: line,
         runs: *runs,
         dwell_s: dwell,
-        feed_m_s: pos(*feed_mm_min, &p.key("feed_mm_min"), "a feed")? / 60_000.0,
+        // The feeds a test program may ask for (its F word has one decimal).
+        feed_m_s: in_range(
+            *feed_mm_min,
+            vmt_sim::nc::ballbar::FEED_RANGE_MM_MIN.0,
+            vmt_sim::nc::ballbar::FEED_RANGE_MM_MIN.1,
+            &p.key("feed_mm_min"),
+            "a feed in mm/min",
+        )? / 60_000.0,
         overrun_m: pos(*overrun_mm, &p.key("overrun_mm"), "an overrun")? * 1e-3,
     };
     test.validate().map_err(|m| Invalid::new(p.clone(), m))?;

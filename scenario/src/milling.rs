@@ -80,7 +80,8 @@ pub fn tool(
     let mm = |v: f64, k: &str, what: &str| positive(v, 1000.0, &p.key(k), what);
     let mill = EndMill {
         diameter: mm(t.diameter_mm, "diameter_mm", "a diameter in mm")? * 1e-3,
-        teeth: count_in_range(t.teeth, 1, 100, &p.key("teeth"), "a number of teeth")?,
+        // Up to slitting saws (a few hundred teeth).
+        teeth: count_in_range(t.teeth, 1, 500, &p.key("teeth"), "a number of teeth")?,
         helix: t.helix_deg.to_radians(),
         flute_length: mm(t.flute_length_mm, "flute_length_mm", "a flute length in mm")? * 1e-3,
         runout: in_range(
@@ -90,7 +91,14 @@ pub fn tool(
             &p.key("runout_um"),
             "a run-out in µm",
         )? * 1e-6,
-        runout_angle: t.runout_angle_deg.to_radians(),
+        runout_angle: in_range(
+            t.runout_angle_deg,
+            -360.0,
+            360.0,
+            &p.key("runout_angle_deg"),
+            "an angle of the run-out in deg",
+        )?
+        .to_radians(),
     };
     // The rest is checked above at its key; the model checks the helix.
     mill.validate()

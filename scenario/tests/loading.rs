@@ -1053,3 +1053,84 @@ fn table_errors_name_the_line_after_blank_and_comment_lines_and_duplicate_column
         assert!(e.message.contains(message), "{e}");
     }
 }
+
+/// A test job too long for the interpolator is refused at the job, without the line of a
+/// program its author never wrote; targets closer than the evaluation accepts are refused too.
+#[test]
+fn a_test_job_too_long_or_too_dense_is_refused_at_its_keys() {
+    let text = shipped_with("iso230_2_x.toml", "count = 11", "count = 5000").replacen(
+        "runs = 5",
+        "runs = 100",
+        1,
+    );
+    let e = parse(&text, "s.toml", Some(&scenarios())).expect_err("too long");
+    assert_eq!(e.key.as_deref(), Some("job"), "{e}");
+    assert_eq!(
+        e.position.map(|p| p.0),
+        Some(line_of(&text, "[job]")),
+        "{e}"
+    );
+    assert!(
+        e.message.contains("the test lasts about") && !e.message.contains("line"),
+        "{e}"
+    );
+    let text = shipped_with(
+        "iso230_2_x.toml",
+        "range_mm = [25.0, 475.0]",
+        "range_mm = [25.0, 25.5]",
+    )
+    .replacen("count = 11", "count = 1000", 1);
+    let e = parse(&text, "s.toml", Some(&scenarios())).expect_err("too dense");
+    assert_eq!(e.key.as_deref(), Some("job.count"), "{e}");
+    assert!(e.message.contains("at least 0.001 mm apart"), "{e}");
+    // A feed its program would write as F0.0.
+    let at = "feed_mm_min = 0.01";
+    let text = shipped_with("iso230_2_x.toml", "feed_mm_min = 3000.0", at);
+    assert_refused(
+        &text,
+        at,
+        "job.feed_mm_min",
+        "a feed in mm/min from 0.1 to 100000",
+    );
+}
+
+/// The laser's window is compared with its sample interval exactly, as the run compares them:
+/// three ticks of a 62.5 µs servo (187.5 µs, which rounds to 188 µs) are accepted.
+#[test]
+fn a_laser_window_of_whole_servo_ticks_is_accepted_exactly() {
+    let text = shipped_with(
+        "iso230_2_x.toml",
+        "servo_period_us = 125.0",
+        "servo_period_us = 62.5",
+    )
+    .replacen(
+        "sample_rate_hz = 1000.0",
+        "sample_rate_hz = 5333.333333333333",
+        1,
+    )
+    .replacen("averaging_s = 1.0 ", "averaging_s = 0.0001875 ", 1);
+    parse(&text, "s.toml", Some(&scenarios())).expect("a window of exactly one sample");
+    let shorter = text.replacen("averaging_s = 0.0001875 ", "averaging_s = 0.000187 ", 1);
+    let e = parse(&shorter, "s.toml", Some(&scenarios())).expect_err("no sample");
+    assert_eq!(
+        e.key.as_deref(),
+        Some("instruments.laser.averaging_s"),
+        "{e}"
+    );
+}
+
+/// Without a log rate the log follows the servo when the servo is slower than 1 kHz, rather
+/// than refusing a key the file does not have.
+#[test]
+fn the_default_log_rate_follows_a_slow_servo() {
+    let text = with("servo_period_us = 125.0", "servo_period_us = 1250.0")
+        .replacen("ipo_period_ms = 1.0", "ipo_period_ms = 2.5", 1)
+        .replacen("plant_substeps = 2 ", "plant_substeps = 20 ", 1)
+        .replacen("sample_rate_hz = 1000.0", "sample_rate_hz = 800.0", 1)
+        .replacen("log_rate_hz = 1000.0", "", 1);
+    let s = parse(&text, "s.toml", None).expect("a slow servo without a log rate");
+    let rate = s.execution.expect("a job").settings.log_rate_hz;
+    assert!((rate - 800.0).abs() < 1e-9, "{rate}");
+    let e = error_of(&text.replacen("[simulation]", "[simulation]\nlog_rate_hz = 1000.0", 1));
+    assert_eq!(e.key.as_deref(), Some("simulation.log_rate_hz"), "{e}");
+}

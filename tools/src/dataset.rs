@@ -78,13 +78,13 @@ pub fn run_seed(k: u64, i: u64) -> u64 {
     (z ^ (z >> 31)) >> 1
 }
 
-/// The id of run `i`: zero-padded so that names sort like numbers up to a million runs.
 /// The files of a complete run folder.
 const RUN_FILES: [&str; 3] = ["run.mcap", "scenario.toml", "labels.json"];
 
 /// The most runs of a dataset: their ids have six digits, so that they sort as numbers.
 pub const MAX_RUNS: u64 = 1_000_000;
 
+/// The id of run `i`: zero-padded so that names sort like numbers up to a million runs.
 fn run_id(i: u64) -> String {
     format!("{i:06}")
 }

@@ -315,6 +315,17 @@ fn writers_refuse_inconsistent_runs_without_panicking() {
     run.ballbar[0].times_s[5] = f64::NAN;
     let e = write_mcap(&run, &dir.path().join("y.mcap")).expect_err("NaN time");
     assert!(e.to_string().contains("sample 5"), "{e}");
+    // Named as the file asked for, not the partial one it was being written as.
+    assert!(
+        e.to_string().contains("y.mcap") && !e.to_string().contains("partial"),
+        "{e}"
+    );
+    let e = write_rrd(&run, &dir.path().join("y.rrd")).expect_err("NaN time");
+    assert!(
+        e.to_string().contains("y.rrd") && !e.to_string().contains("partial"),
+        "{e}"
+    );
+    assert!(!dir.path().join("y.mcap.partial").exists());
 
     let mut run = test_run();
     run.machine.topology = "WXXGZT".into();

@@ -57,10 +57,10 @@ fn value(f: &Finding) -> String {
 fn details(f: &Finding) -> String {
     f.details
         .iter()
-        // Whole numbers (counts, and widths on a whole-millisecond sample grid) without the
-        // decimals that would make a count read as a measurement.
+        // Counts (the keys without a unit suffix) as whole numbers, so that they do not read as
+        // measurements; measurements keep their decimals even when whole.
         .map(|(k, v)| {
-            if v.fract() == 0.0 && v.abs() < 1e15 {
+            if !k.contains('_') && v.fract() == 0.0 && v.abs() < 1e15 {
                 format!("{k} {v:.0}")
             } else {
                 format!("{k} {v:.3}")
@@ -170,7 +170,7 @@ mod tests {
     use super::*;
 
     #[test]
-    fn counts_print_as_whole_numbers_and_measurements_keep_their_decimals() {
+    fn counts_print_as_whole_numbers_and_measurements_keep_their_decimals_even_when_whole() {
         let f = Finding {
             key: "spike_x".into(),
             name: "Reversal spike X".into(),
@@ -188,7 +188,7 @@ mod tests {
         };
         assert_eq!(
             details(&f),
-            "width_ms 12, reversals 2, at_minus_x_end_um 3.237"
+            "width_ms 12.000, reversals 2, at_minus_x_end_um 3.237"
         );
     }
 }

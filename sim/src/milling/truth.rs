@@ -188,7 +188,9 @@ pub(crate) fn chatter_frequency(ux: &[f64], uy: &[f64], fs: f64, excluded: &[f64
     } else {
         0.0
     };
-    Some((first as f64 + k as f64 + shift) * df)
+    // Rounded to 1 µHz: the FFT's kernels differ between processors (AVX, SSE, scalar) in the
+    // last bits, and the truth must be the same bytes on every machine.
+    Some(((first as f64 + k as f64 + shift) * df * 1e6).round() / 1e6)
 }
 
 /// The chatter keys of the truth object.

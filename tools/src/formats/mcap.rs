@@ -83,7 +83,8 @@ const DIALECT: &str = "https://json-schema.org/draft/2020-12/schema";
 
 type McapWriter = Writer<BufWriter<File>>;
 
-/// Writes `run` to the MCAP file `path` (created or truncated): the topics and metadata listed in
+/// Writes `run` to the MCAP file `path` (written as `<path>.partial`
+/// and renamed when complete): the topics and metadata listed in
 /// the [module documentation](self), log and publish times in simulation nanoseconds.
 ///
 /// Fails when a stream or trace is inconsistent (a channel with more or fewer values than sample

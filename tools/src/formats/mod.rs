@@ -24,7 +24,7 @@ pub use self::rerun::write_rrd;
 /// `<path>.partial` until it is complete, then renamed to `path` in one step. A run interrupted
 /// while writing (Ctrl-C, a full disk, kill -9) leaves a `.partial` file, never a truncated
 /// `path` that looks finished, and a file from an earlier run stays whole until it is replaced.
-/// On an error the partial file is removed.
+/// On an error the partial file is removed, and the error names `path`, the file asked for.
 pub(crate) fn atomically(
     path: &Path,
     write: impl FnOnce(&Path) -> Result<(), CliError>,
@@ -34,10 +34,15 @@ pub(crate) fn atomically(
     let partial = std::path::PathBuf::from(partial);
     let done = write(&partial)
         .and_then(|()| std::fs::rename(&partial, path).map_err(|e| CliError::output(path, e)));
-    if done.is_err() {
+    done.map_err(|e| {
         let _ = std::fs::remove_file(&partial);
-    }
-    done
+        match e {
+            CliError::Output { path: p, message } if Path::new(&p) == partial => {
+                CliError::output(path, message)
+            }
+            e => e,
+        }
+    })
 }
 
 /// `text` as a lower-case name of ASCII letters, digits and single underscores, e.g.

@@ -100,7 +100,8 @@ pub const APPLICATION_ID: &str = "vmt";
 /// 18 850-row streams go in three blocks).
 const SERIES_BLOCK: usize = 8192;
 
-/// Writes `run` to the Rerun recording `path` (created or truncated) with the entities and the
+/// Writes `run` to the Rerun recording `path` (written as `<path>.partial`
+/// and renamed when complete) with the entities and the
 /// blueprint listed in the [module documentation](self); the timeline is `sim_time`.
 ///
 /// Fails when the topology is not one of the 24, when a stream or trace is inconsistent, when a
