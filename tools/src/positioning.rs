@@ -223,6 +223,7 @@ fn read_csv(bytes: &[u8], file: &str, axis: &str) -> Result<Option<PositioningRu
         let line = match &e {
             vmt_positioning::PositioningError::NotFinite { reading, .. }
             | vmt_positioning::PositioningError::TargetOutOfRange { reading, .. }
+            | vmt_positioning::PositioningError::TargetsTooClose { reading, .. }
             | vmt_positioning::PositioningError::Duplicate { reading, .. } => {
                 lines.get(*reading).copied()
             }

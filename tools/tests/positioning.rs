@@ -119,7 +119,7 @@ fn bad_laser_csvs_are_refused_naming_line_and_value() {
                     "target_mm,direction,run,deviation_um\n".to_string(),
                     |a, b| a + &b,
                 ),
-            "targets 0 mm and 0.0000001 mm are closer than 0.001 mm",
+            "laser.csv:3: reading 1: targets 0 mm and 0.0000001 mm are closer than 0.001 mm",
         ),
         (
             laser_csv().replacen("2,forward,0,", "1,forward,0,", 1),

@@ -53,9 +53,11 @@ pub enum PositioningError {
     },
     /// Two targets closer than a laser interferometer tells apart.
     #[error(
-        "targets {a_mm} mm and {b_mm} mm are closer than {MIN_TARGET_SPACING_MM} mm; targets are distinct positions along the axis"
+        "reading {reading}: targets {a_mm} mm and {b_mm} mm are closer than {MIN_TARGET_SPACING_MM} mm; targets are distinct positions along the axis"
     )]
     TargetsTooClose {
+        /// The first reading at the upper of the two targets.
+        reading: usize,
         /// The lower target, mm.
         a_mm: f64,
         /// The next one, mm.
@@ -155,6 +157,10 @@ impl PositioningRun {
             .find(|w| w[1] - w[0] < MIN_TARGET_SPACING_MM)
         {
             return Err(PositioningError::TargetsTooClose {
+                reading: readings
+                    .iter()
+                    .position(|r| r.target_mm == w[1])
+                    .unwrap_or(0),
                 a_mm: w[0],
                 b_mm: w[1],
             });

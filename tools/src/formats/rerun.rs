@@ -849,6 +849,18 @@ pub fn write_band_rrd(
     report: &str,
     axes: &[AxisBands<'_>],
 ) -> Result<(), CliError> {
+    atomically(path, |partial| {
+        write_band_file(partial, recording_id, report, axes)
+    })
+}
+
+/// [`write_band_rrd`] to `path` as it is written.
+fn write_band_file(
+    path: &Path,
+    recording_id: &str,
+    report: &str,
+    axes: &[AxisBands<'_>],
+) -> Result<(), CliError> {
     let err = |e: &dyn std::fmt::Display| CliError::output(path, e);
     let rec = rerun::RecordingStreamBuilder::new(APPLICATION_ID)
         .recording_id(recording_id)
