@@ -389,9 +389,6 @@ pub struct GapArgs {
 
 /// Runs `vmt gap`.
 pub fn command(a: &GapArgs) -> Result<(), CliError> {
-    if let Some(dir) = &a.out {
-        crate::out::output_dir(dir)?;
-    }
     let accelerometer = a
         .real
         .iter()
@@ -408,6 +405,10 @@ pub fn command(a: &GapArgs) -> Result<(), CliError> {
     }
     let csv = crate::diagnose::csv_setup(a.radius_mm, a.feed_mm_min, a.plane.as_deref())?;
     let measured = measured(&a.real, csv)?;
+    // After the arguments and files are read, before the model is simulated.
+    if let Some(dir) = &a.out {
+        crate::out::output_dir(dir)?;
+    }
     let report = analyse(&a.model, &a.real, &measured)?;
     if a.json {
         crate::outln!(
@@ -428,6 +429,9 @@ pub fn command(a: &GapArgs) -> Result<(), CliError> {
 
 fn vibration_command(a: &GapArgs) -> Result<(), CliError> {
     use crate::vibration_gap as vg;
+    if let Some(dir) = &a.out {
+        crate::out::output_dir(dir)?;
+    }
     let model = a.model.display().to_string();
     let g = vg::analyse(&a.model, &a.real)?;
     if a.json {

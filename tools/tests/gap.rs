@@ -141,6 +141,27 @@ fn measurements_of_another_test_are_refused_by_name() {
             && e.contains("given twice"),
         "{e}"
     );
+    // A file that cannot be read is refused before the output folder is made.
+    let out = dir.path().join("never");
+    let missing = dir.path().join("missing.csv");
+    let o = vmt(&[
+        "gap",
+        "--model",
+        model.to_str().unwrap(),
+        "--real",
+        missing.to_str().unwrap(),
+        "--radius-mm",
+        "50",
+        "--feed-mm-min",
+        "2000",
+        "--plane",
+        "XY",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(!o.status.success());
+    assert!(stderr(&o).contains("missing.csv"), "{}", stderr(&o));
+    assert!(!out.exists(), "a refused command made {}", out.display());
 }
 
 /// The shipped milling slot at 0.2 mm depth (a stable cut), with its NC program, in `dir`.
