@@ -207,6 +207,9 @@ fn execution(
     };
     let job_kind = job;
     let job = dynamics::job(job, &raw.instruments, tool, base_dir)?;
+    if let (Some(m), Some(file)) = (&milling, &program_file) {
+        check_program_cut(m, &job.program, file)?;
+    }
     check_test_rates(&job, job_kind, &controller)?;
     check_generated_travel(machine, &controller, &job, job_kind)?;
     Ok(Some(Execution {
@@ -304,6 +307,40 @@ fn check_test_rates(
         }
     }
     Ok(())
+}
+
+/// The milling program's first cutting block gives the feed per tooth F / (N·S) of the cut,
+/// checked here at its line as the run would check it (0 < f_t < tool radius).
+fn check_program_cut(
+    m: &vmt_sim::machining::MillingJob,
+    program: &vmt_sim::nc::program::Program,
+    file: &str,
+) -> Result<()> {
+    use vmt_sim::machining::cutting_block;
+    let Some((b, (feed_m_s, rpm))) = program
+        .blocks
+        .iter()
+        .find_map(|b| cutting_block(&b.motion, b.spindle).map(|c| (b, c)))
+    else {
+        let msg = "the milling program has no cutting block: a G1 feed move with the spindle \
+                   on clockwise (M3 S…)";
+        return Err(external(file, None, msg.to_string()));
+    };
+    let user = |x: f64| (x * 1e6).round() / 1e6;
+    let (teeth, radius) = (m.setup.tool.teeth as f64, m.setup.tool.diameter / 2.0);
+    let ft = feed_m_s * 60.0 / (teeth * rpm);
+    if ft > 0.0 && ft < radius {
+        return Ok(());
+    }
+    let msg = format!(
+        "the first cutting block's feed per tooth F / (N·S) = {} / ({teeth} × {}) = {} mm is \
+         not accepted: from 0 to the tool radius {} mm",
+        user(feed_m_s * 60_000.0),
+        user(rpm),
+        user(ft * 1e3),
+        user(radius * 1e3)
+    );
+    Err(external(file, Some((b.span.line, b.span.column)), msg))
 }
 
 /// The program a test job generates kept within the strokes, refused at the job's keys (the

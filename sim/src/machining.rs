@@ -56,7 +56,9 @@ struct CutPlan {
     spindle_rpm: f64,
 }
 
-fn cutting_block(motion: &Motion, spindle: Spindle) -> Option<(f64, f64)> {
+/// The feed (m/s) and spindle speed (rpm) of a block that cuts: a G1 feed move with the
+/// spindle on clockwise.
+pub fn cutting_block(motion: &Motion, spindle: Spindle) -> Option<(f64, f64)> {
     match (motion, spindle) {
         (Motion::Linear { feed, .. }, Spindle::Clockwise(rpm)) if rpm > 0.0 => Some((*feed, rpm)),
         _ => None,

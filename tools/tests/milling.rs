@@ -103,3 +103,30 @@ fn a_slot_below_the_limit_is_stable_and_not_flagged() {
     );
     assert!(!detect.contains("CHATTER"), "{detect}");
 }
+
+/// The feed per tooth of the program's first cutting block, and a program with none, are
+/// refused at load naming the program file (and its line), not when the cut starts.
+#[test]
+fn a_program_whose_cut_cannot_be_milled_is_refused_at_its_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = scenario(dir.path(), 0.2);
+    let nc = dir.path().join("milling/slot.nc");
+    let program = std::fs::read_to_string(&nc).unwrap();
+    let refused = |text: &str| {
+        std::fs::write(&nc, text).unwrap();
+        let out = dir.path().join("out");
+        let o = vmt(&["run", s.to_str().unwrap(), "--out", out.to_str().unwrap()]);
+        assert!(!o.status.success());
+        stderr(&o)
+    };
+    let e = refused(&program.replace("S15000", "S1"));
+    assert!(
+        e.contains("slot.nc:5:1: the first cutting block's feed per tooth F / (N·S) = 3000 / (2 × 1) = 1500 mm"),
+        "{e}"
+    );
+    let e = refused(&program.replace("G1 X210 F3000", "G0 X210"));
+    assert!(
+        e.contains("slot.nc: the milling program has no cutting block"),
+        "{e}"
+    );
+}
