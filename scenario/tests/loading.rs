@@ -685,7 +685,18 @@ fn a_micro_end_mill_loads() {
     )
     .replacen("axial_depth_mm = 0.5", "axial_depth_mm = 0.05", 1)
     .replacen("radial_depth_mm = 20.0", "radial_depth_mm = 0.1", 1);
-    parse(&text, "s.toml", Some(&scenarios())).unwrap();
+    // The tool itself is accepted; the shipped program's 0.1 mm per tooth is too coarse for
+    // it, and that is refused at the program's line, not at the tool.
+    let e = parse(&text, "s.toml", Some(&scenarios())).unwrap_err();
+    assert!(
+        e.file.ends_with("slot.nc") && e.position == Some((5, 1)),
+        "{e}"
+    );
+    assert!(
+        e.message
+            .contains("= 0.1 mm is not accepted: from 0 to the tool radius 0.05 mm"),
+        "{e}"
+    );
 }
 
 /// The ball bar's noise and resolution within its ±1 mm range (10^308 µm gave inf or all-zero
