@@ -233,7 +233,6 @@ fn check_test_rates(
     controller: &vmt_sim::interpolator::InterpolatorConfig,
 ) -> Result<()> {
     // Back in the units of the keys, rounded off the m/s conversion.
-    let user = |x: f64| (x * 1e6).round() / 1e6;
     let max_mm_min = user(controller.limits.max_feed_m_s * 60_000.0);
     let feed_key = match kind {
         crate::dynamics::JobToml::KwonSevenStep { .. } => KeyPath::of(&["job", "steps"]),
@@ -326,9 +325,8 @@ fn check_program_cut(
                    on clockwise (M3 S…)";
         return Err(external(file, None, msg.to_string()));
     };
-    let user = |x: f64| (x * 1e6).round() / 1e6;
-    let (teeth, radius) = (m.setup.tool.teeth as f64, m.setup.tool.diameter / 2.0);
-    let ft = feed_m_s * 60.0 / (teeth * rpm);
+    let (teeth, radius) = (m.setup.tool.teeth, m.setup.tool.diameter / 2.0);
+    let ft = vmt_sim::milling::feed_per_tooth(feed_m_s, teeth, rpm);
     if ft > 0.0 && ft < radius {
         return Ok(());
     }
@@ -443,6 +441,11 @@ fn finite(v: f64, path: &KeyPath, accepted: &str) -> std::result::Result<f64, In
     }
 }
 
+/// A computed value rounded to six decimals for a message, as a user would write it.
+fn user(x: f64) -> f64 {
+    (x * 1e6).round() / 1e6
+}
+
 /// `v` as typed: 1e306, not as 307 digits.
 pub(crate) fn typed(v: f64) -> String {
     if v != 0.0 && !(1e-4..1e6).contains(&v.abs()) {
@@ -460,15 +463,7 @@ pub(crate) fn in_range(
     what: &str,
 ) -> std::result::Result<f64, Invalid> {
     let accepted = format!("{what} from {lo} to {hi} is accepted");
-    let v = finite(v, path, &accepted)?;
-    if (lo..=hi).contains(&v) {
-        Ok(v)
-    } else {
-        Err(Invalid::new(
-            path.clone(),
-            format!("{} is out of range; {accepted}", typed(v)),
-        ))
-    }
+    within(v, (lo..=hi).contains(&v), path, &accepted)
 }
 
 /// [`in_range`] with both ends excluded.
@@ -480,8 +475,18 @@ pub(crate) fn in_open_range(
     what: &str,
 ) -> std::result::Result<f64, Invalid> {
     let accepted = format!("{what} above {lo} and below {hi} is accepted");
-    let v = finite(v, path, &accepted)?;
-    if v > lo && v < hi {
+    within(v, v > lo && v < hi, path, &accepted)
+}
+
+/// `v` if it is finite and `inside` its range; the errors say what is `accepted`.
+fn within(
+    v: f64,
+    inside: bool,
+    path: &KeyPath,
+    accepted: &str,
+) -> std::result::Result<f64, Invalid> {
+    let v = finite(v, path, accepted)?;
+    if inside {
         Ok(v)
     } else {
         Err(Invalid::new(

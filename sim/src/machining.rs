@@ -229,9 +229,9 @@ pub fn simulate_machining(
     check_step(axes, period, substeps)?;
     check_servo(axes, period)?;
     let plan = cut_plan(job, &ipo)?;
-    let teeth = milling.setup.tool.teeth.max(1) as f64;
+    let teeth = milling.setup.tool.teeth.max(1);
     let setup = MillingSetup {
-        feed_per_tooth: plan.feed_m_s * 60.0 / (teeth * plan.spindle_rpm),
+        feed_per_tooth: crate::milling::feed_per_tooth(plan.feed_m_s, teeth, plan.spindle_rpm),
         ..milling.setup.clone()
     };
     let process =

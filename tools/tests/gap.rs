@@ -7,6 +7,7 @@ mod python;
 
 use common::{stderr, vmt};
 use std::path::{Path, PathBuf};
+use std::process::Output;
 use vmt_ballbar::synthetic::{Errors, trace};
 use vmt_ballbar::{Plane, Sense, Trace};
 
@@ -55,6 +56,23 @@ fn traces(radius_mm: f64, e: &Errors) -> Vec<Trace> {
         .collect()
 }
 
+/// `vmt gap` of `model` against the ball-bar CSV files `real`, XY at `radius_mm` and
+/// 2000 mm/min, with `extra` arguments.
+fn gap_csv(model: &Path, real: &[&Path], radius_mm: &str, extra: &[&str]) -> Output {
+    let mut args = vec!["gap", "--model", model.to_str().unwrap(), "--real"];
+    args.extend(real.iter().map(|p| p.to_str().unwrap()));
+    args.extend([
+        "--radius-mm",
+        radius_mm,
+        "--feed-mm-min",
+        "2000",
+        "--plane",
+        "XY",
+    ]);
+    args.extend(extra);
+    vmt(&args)
+}
+
 #[test]
 fn a_servo_mismatch_in_hand_made_traces_is_found() {
     let dir = tempfile::tempdir().unwrap();
@@ -67,21 +85,7 @@ fn a_servo_mismatch_in_hand_made_traces_is_found() {
         ..Default::default()
     };
     let csv = write_csv(dir.path(), "trace.csv", &traces(50.0, &e));
-    let m = model.to_str().unwrap();
-    let o = vmt(&[
-        "gap",
-        "--model",
-        m,
-        "--real",
-        csv.to_str().unwrap(),
-        "--radius-mm",
-        "50",
-        "--feed-mm-min",
-        "2000",
-        "--plane",
-        "XY",
-        "--json",
-    ]);
+    let o = gap_csv(&model, &[&csv], "50", &["--json"]);
     assert!(o.status.success(), "{}", stderr(&o));
     let r: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     let first = &r["effects"][0];
@@ -97,19 +101,7 @@ fn measurements_of_another_test_are_refused_by_name() {
     let dir = tempfile::tempdir().unwrap();
     let model = model(dir.path());
     let csv = write_csv(dir.path(), "trace.csv", &traces(60.0, &Errors::default()));
-    let o = vmt(&[
-        "gap",
-        "--model",
-        model.to_str().unwrap(),
-        "--real",
-        csv.to_str().unwrap(),
-        "--radius-mm",
-        "60",
-        "--feed-mm-min",
-        "2000",
-        "--plane",
-        "XY",
-    ]);
+    let o = gap_csv(&model, &[&csv], "60", &[]);
     assert!(!o.status.success());
     let e = stderr(&o);
     assert!(
@@ -118,21 +110,7 @@ fn measurements_of_another_test_are_refused_by_name() {
     );
     // The job's own test given twice (the same file twice): named as such.
     let csv = write_csv(dir.path(), "trace50.csv", &traces(50.0, &Errors::default()));
-    let csv = csv.to_str().unwrap();
-    let o = vmt(&[
-        "gap",
-        "--model",
-        model.to_str().unwrap(),
-        "--real",
-        csv,
-        csv,
-        "--radius-mm",
-        "50",
-        "--feed-mm-min",
-        "2000",
-        "--plane",
-        "XY",
-    ]);
+    let o = gap_csv(&model, &[&csv, &csv], "50", &[]);
     assert!(!o.status.success());
     let e = stderr(&o);
     assert!(
@@ -144,21 +122,7 @@ fn measurements_of_another_test_are_refused_by_name() {
     // A file that cannot be read is refused before the output folder is made.
     let out = dir.path().join("never");
     let missing = dir.path().join("missing.csv");
-    let o = vmt(&[
-        "gap",
-        "--model",
-        model.to_str().unwrap(),
-        "--real",
-        missing.to_str().unwrap(),
-        "--radius-mm",
-        "50",
-        "--feed-mm-min",
-        "2000",
-        "--plane",
-        "XY",
-        "--out",
-        out.to_str().unwrap(),
-    ]);
+    let o = gap_csv(&model, &[&missing], "50", &["--out", out.to_str().unwrap()]);
     assert!(!o.status.success());
     assert!(stderr(&o).contains("missing.csv"), "{}", stderr(&o));
     assert!(!out.exists(), "a refused command made {}", out.display());

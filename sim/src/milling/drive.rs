@@ -130,7 +130,7 @@ fn run(
     let teeth = setup.tool.teeth.max(1);
     let feed_rate = drive.feed_rate(teeth);
     let setup = MillingSetup {
-        feed_per_tooth: feed_rate * 60.0 / (teeth as f64 * drive.spindle_rpm),
+        feed_per_tooth: super::feed_per_tooth(feed_rate, teeth, drive.spindle_rpm),
         ..setup.clone()
     };
     let mut process = CuttingProcess::new(&setup)?;

@@ -143,6 +143,12 @@ pub(crate) fn check(
     }
 }
 
+/// The feed per tooth f_t = F / (N·S), m, of a feed `feed_m_s` (m/s) with `teeth` teeth at
+/// `spindle_rpm` rev/min.
+pub fn feed_per_tooth(feed_m_s: f64, teeth: usize, spindle_rpm: f64) -> f64 {
+    feed_m_s * 60.0 / (teeth as f64 * spindle_rpm)
+}
+
 impl MillingSetup {
     /// Checks every parameter; the first one out of range is named.
     pub fn validate(&self) -> Result<(), MillingError> {
