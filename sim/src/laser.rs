@@ -535,16 +535,27 @@ impl Laser {
                 .chain_um
                 .push((relative(i, &|w| w.chain) - target) * 1e6);
         }
+        Ok((
+            LaserRun {
+                readings,
+                ..self.header()
+            },
+            truth,
+        ))
+    }
+
+    /// The test's run with no readings yet: axis, targets, runs and beam line.
+    pub fn header(&self) -> LaserRun {
+        let test = &self.setup.test;
         let mut line = test.line_m * 1e3;
         line[test.axis.index()] = 0.0;
-        let run = LaserRun {
+        LaserRun {
             axis: test.axis.to_string(),
             targets_mm: test.targets_m.iter().map(|t| t * 1e3).collect(),
             runs: test.runs,
             line_mm: [line.x, line.y, line.z],
-            readings,
-        };
-        Ok((run, truth))
+            readings: Vec::new(),
+        }
     }
 }
 

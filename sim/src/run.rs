@@ -106,3 +106,27 @@ pub struct Run {
     /// scored against).
     pub ground_truth: serde_json::Value,
 }
+
+/// Where a run's records go while its job runs, so that a long job need not hold them all in
+/// memory (a 17-minute job logged at 1 kHz has a million servo rows, about 220 MB) and what was
+/// recorded is on its way to disk before the job ends.
+pub trait LogSink {
+    /// Once, before the first block: the run as it starts, with its streams' channels but no
+    /// rows, its ball-bar traces with no samples, no laser readings and a `null` ground truth.
+    fn start(&mut self, run: &Run) -> Result<(), String>;
+
+    /// The records of the next stretch of the job; blocks follow each other in time (every
+    /// record of a block is later than every record of the one before).
+    fn block(&mut self, block: &LogBlock<'_>) -> Result<(), String>;
+}
+
+/// One block of a run's records for a [`LogSink`].
+#[derive(Clone, Copy, Debug)]
+pub struct LogBlock<'a> {
+    /// The streams, each holding only this block's rows.
+    pub streams: &'a [Stream],
+    /// The ball-bar traces as recorded so far.
+    pub ballbar: &'a [BallbarTrace],
+    /// For each trace, the samples new in this block.
+    pub new_samples: &'a [std::ops::Range<usize>],
+}

@@ -23,7 +23,7 @@ use crate::laser::{Laser, LaserSetup, LaserSpec};
 use crate::nc::program::{ArcDirection, Plane, Program, Spindle};
 use crate::plant::{Fidelity, MultibodyPlant, Plant, PlantError, ReducedPlant, layout};
 use crate::replay::Replay;
-use crate::run::{BallbarTrace, Channel, MachineSummary, Run, Stream};
+use crate::run::{BallbarTrace, Channel, LogBlock, LogSink, MachineSummary, Run, Stream};
 use crate::truth::TruthInputs;
 use nalgebra::Vector3;
 use std::ops::Range;
@@ -172,6 +172,9 @@ pub enum SimError {
     /// The thermal model refused a step.
     #[error("thermal model: {0}")]
     Thermal(String),
+    /// The [`LogSink`] of the run failed.
+    #[error("{0}")]
+    Log(String),
 }
 
 /// Thermal update interval during a job, s.
@@ -216,91 +219,169 @@ pub fn simulate_with_replay(
     progress: &mut dyn FnMut(f64),
     replayable: bool,
 ) -> Result<(Run, Option<Replay>), SimError> {
-    let interpolator = Interpolator::new(&job.program, ipo)?;
-    let tcp = machine.volumetric.kinematics.tool_offset;
-    check_strokes(machine, &interpolator, &job.program, &tcp)?;
-    let period = interpolator.servo_period_s();
-    let substeps = settings.plant_substeps.max(1);
-    let h = period / substeps as f64;
-    check_step(axes, period, substeps)?;
-    check_servo(axes, period)?;
-    if !(settings.log_rate_hz > 0.0 && settings.log_rate_hz <= 1.0 / period) {
-        return Err(SimError::Settings(format!(
-            "log rate {} Hz: from 0 to the servo rate {} Hz is accepted",
-            settings.log_rate_hz,
-            1.0 / period
-        )));
-    }
-    if let Some(l) = &job.laser {
-        check_laser(&l.spec, period)?;
-    }
-    let start = job.program.start - tcp;
-    let mut plant = build_plant(machine, axes, &start, settings.fidelity, h)?;
-    let ticks = interpolator.servo_ticks();
-    let mut recorder = Recorder::new(job, settings, period, &interpolator.block_times(), ticks);
-    let mut heat = HeatTracker::new(machine)?;
-    // Link and joint matrices of the current thermal state, rebuilt only when it changes.
-    let mut evaluator = machine.volumetric.evaluator(&heat.deformation);
-    let mut replay = replayable.then(|| Replay::new(heat.deformation, recorder.traces.len()));
-    // The thermal state at the middle of each circular test, for the truth's figures.
-    let midpoints = test_midpoints(job, &interpolator.block_times());
-    let mut at_midpoint = vec![heat.deformation; midpoints.len()];
-    let mut next_midpoint = 0;
-    let mut trackers =
-        Axis::ALL.map(|a| DirectionTracker::new(start[a.index()], Direction::Forward, 0.05e-6));
-    let mut cursor = Cursor::default();
-    for k in 0..ticks {
-        let Some(sp) = interpolator.setpoint_from(k, &mut cursor) else {
-            break;
-        };
-        let commands: [AxisCommand; 3] = std::array::from_fn(|i| AxisCommand {
-            position: sp.position[i] - tcp[i],
-            velocity: sp.velocity[i],
-            acceleration: sp.acceleration[i],
-        });
-        plant.control(&commands, period);
-        for _ in 0..substeps {
-            plant.step(h);
-        }
-        let carriages = plant.carriages();
-        let q = Vector3::from_fn(|i, _| carriages[i].position_m);
-        let direction = directions(&mut trackers, &q);
-        if heat.accumulate(&sp, &carriages.map(|c| c.velocity_m_s), period, machine)? {
-            evaluator = machine.volumetric.evaluator(&heat.deformation);
-            if let Some(r) = replay.as_mut() {
-                r.thermal_state(heat.deformation);
-            }
-        }
-        while next_midpoint < midpoints.len() && sp.time_s >= midpoints[next_midpoint] {
-            at_midpoint[next_midpoint] = heat.deformation;
-            next_midpoint += 1;
-        }
-        let state = AxisState {
-            position: q,
-            direction,
-        };
-        if let Some(j) = recorder.record(k, &sp, plant.as_ref(), &state, machine, &evaluator)?
-            && let Some(r) = replay.as_mut()
-        {
-            r.sample(j, sp.time_s, state);
-        }
-        if k.is_multiple_of((ticks / 100).max(1)) {
-            progress(k as f64 / ticks as f64);
-        }
-    }
-    progress(1.0);
-    recorder.end_closing(&evaluator);
-    let at_tests: Vec<VolumetricEvaluator> = at_midpoint
-        .iter()
-        .map(|d| machine.volumetric.evaluator(d))
-        .collect();
-    let truth = TruthInputs {
+    let job_run = JobRun {
         machine,
         axes,
+        ipo,
         job,
-        at_tests: &at_tests,
+        settings,
+        scenario_toml,
     };
-    Ok((recorder.finish(&truth, settings, scenario_toml)?, replay))
+    job_run.execute(progress, replayable, None)
+}
+
+/// [`simulate`] handing the run's records to `sink` while the job runs (see [`LogSink`]): the
+/// returned run has everything but the `servo` stream's rows, which went to the sink.
+#[allow(clippy::too_many_arguments)]
+pub fn simulate_logged(
+    machine: &Machine,
+    axes: &[AxisDynamics; 3],
+    ipo: &InterpolatorConfig,
+    job: &Job,
+    settings: &SimSettings,
+    scenario_toml: &str,
+    progress: &mut dyn FnMut(f64),
+    sink: &mut dyn LogSink,
+) -> Result<Run, SimError> {
+    let job_run = JobRun {
+        machine,
+        axes,
+        ipo,
+        job,
+        settings,
+        scenario_toml,
+    };
+    Ok(job_run.execute(progress, false, Some(sink))?.0)
+}
+
+/// What a job runs on.
+struct JobRun<'a> {
+    machine: &'a Machine,
+    axes: &'a [AxisDynamics; 3],
+    ipo: &'a InterpolatorConfig,
+    job: &'a Job,
+    settings: &'a SimSettings,
+    scenario_toml: &'a str,
+}
+
+impl JobRun<'_> {
+    fn execute(
+        &self,
+        progress: &mut dyn FnMut(f64),
+        replayable: bool,
+        mut sink: Option<&mut dyn LogSink>,
+    ) -> Result<(Run, Option<Replay>), SimError> {
+        let JobRun {
+            machine,
+            axes,
+            ipo,
+            job,
+            settings,
+            scenario_toml,
+        } = *self;
+        let interpolator = Interpolator::new(&job.program, ipo)?;
+        let tcp = machine.volumetric.kinematics.tool_offset;
+        check_strokes(machine, &interpolator, &job.program, &tcp)?;
+        let period = interpolator.servo_period_s();
+        let substeps = settings.plant_substeps.max(1);
+        let h = period / substeps as f64;
+        check_step(axes, period, substeps)?;
+        check_servo(axes, period)?;
+        if !(settings.log_rate_hz > 0.0 && settings.log_rate_hz <= 1.0 / period) {
+            return Err(SimError::Settings(format!(
+                "log rate {} Hz: from 0 to the servo rate {} Hz is accepted",
+                settings.log_rate_hz,
+                1.0 / period
+            )));
+        }
+        if let Some(l) = &job.laser {
+            check_laser(&l.spec, period)?;
+        }
+        let start = job.program.start - tcp;
+        let mut plant = build_plant(machine, axes, &start, settings.fidelity, h)?;
+        let ticks = interpolator.servo_ticks();
+        let mut recorder = Recorder::new(
+            job,
+            settings,
+            period,
+            &interpolator.block_times(),
+            ticks,
+            sink.is_some(),
+        );
+        if let Some(sink) = sink.as_deref_mut() {
+            sink.start(&recorder.opening(machine, settings, scenario_toml))
+                .map_err(SimError::Log)?;
+        }
+        let mut heat = HeatTracker::new(machine)?;
+        // Link and joint matrices of the current thermal state, rebuilt only when it changes.
+        let mut evaluator = machine.volumetric.evaluator(&heat.deformation);
+        let mut replay = replayable.then(|| Replay::new(heat.deformation, recorder.traces.len()));
+        // The thermal state at the middle of each circular test, for the truth's figures.
+        let midpoints = test_midpoints(job, &interpolator.block_times());
+        let mut at_midpoint = vec![heat.deformation; midpoints.len()];
+        let mut next_midpoint = 0;
+        let mut trackers =
+            Axis::ALL.map(|a| DirectionTracker::new(start[a.index()], Direction::Forward, 0.05e-6));
+        let mut cursor = Cursor::default();
+        for k in 0..ticks {
+            let Some(sp) = interpolator.setpoint_from(k, &mut cursor) else {
+                break;
+            };
+            let commands: [AxisCommand; 3] = std::array::from_fn(|i| AxisCommand {
+                position: sp.position[i] - tcp[i],
+                velocity: sp.velocity[i],
+                acceleration: sp.acceleration[i],
+            });
+            plant.control(&commands, period);
+            for _ in 0..substeps {
+                plant.step(h);
+            }
+            let carriages = plant.carriages();
+            let q = Vector3::from_fn(|i, _| carriages[i].position_m);
+            let direction = directions(&mut trackers, &q);
+            if heat.accumulate(&sp, &carriages.map(|c| c.velocity_m_s), period, machine)? {
+                evaluator = machine.volumetric.evaluator(&heat.deformation);
+                if let Some(r) = replay.as_mut() {
+                    r.thermal_state(heat.deformation);
+                }
+            }
+            while next_midpoint < midpoints.len() && sp.time_s >= midpoints[next_midpoint] {
+                at_midpoint[next_midpoint] = heat.deformation;
+                next_midpoint += 1;
+            }
+            let state = AxisState {
+                position: q,
+                direction,
+            };
+            if let Some(j) = recorder.record(k, &sp, plant.as_ref(), &state, machine, &evaluator)?
+                && let Some(r) = replay.as_mut()
+            {
+                r.sample(j, sp.time_s, state);
+            }
+            if let Some(sink) = sink.as_deref_mut() {
+                recorder.send(sink, LOG_BLOCK_ROWS)?;
+            }
+            if k.is_multiple_of((ticks / 100).max(1)) {
+                progress(k as f64 / ticks as f64);
+            }
+        }
+        progress(1.0);
+        if let Some(sink) = sink {
+            recorder.send(sink, 0)?;
+        }
+        recorder.end_closing(&evaluator);
+        let at_tests: Vec<VolumetricEvaluator> = at_midpoint
+            .iter()
+            .map(|d| machine.volumetric.evaluator(d))
+            .collect();
+        let truth = TruthInputs {
+            machine,
+            axes,
+            job,
+            at_tests: &at_tests,
+        };
+        Ok((recorder.finish(&truth, settings, scenario_toml)?, replay))
+    }
 }
 
 /// The axes' direction states after they moved to `q` (a loop: `array::from_fn` leaves its
@@ -636,13 +717,18 @@ const SERVO_CHANNELS: [(&str, &str); 8] = [
     ("screw_friction", "N"),
 ];
 
+/// Servo rows a run with a [`LogSink`] holds before it hands them on: small enough that a
+/// long job's log is never in memory whole, large enough to cost nothing per row.
+const LOG_BLOCK_ROWS: usize = 8192;
+
 /// Collects the streams and traces of a run.
 struct Recorder {
     log_every: usize,
     bar_every: usize,
-    times: Vec<f64>,
-    servo: Vec<Vec<f64>>,
-    tool: [Vec<f64>; 3],
+    /// The `servo` stream: rows since the last block handed to a sink (all rows without one).
+    servo: Stream,
+    /// Per trace, the samples handed to a sink so far.
+    sent: Vec<usize>,
     /// One bar per circular test.
     ballbar: Vec<Ballbar>,
     /// Test (index in `ballbar`) and program blocks of each trace's data arc.
@@ -677,13 +763,14 @@ impl Closing {
 
 impl Recorder {
     /// `block_times` as [`Interpolator::block_times`] gives them; `ticks` servo ticks to come
-    /// (the logs are allocated for them at once).
+    /// (the log is allocated for them at once, or for one block when `blocks`).
     fn new(
         job: &Job,
         settings: &SimSettings,
         period: f64,
         block_times: &[(usize, f64, f64)],
         ticks: usize,
+        blocks: bool,
     ) -> Self {
         let every = |rate_hz: f64| ((1.0 / rate_hz) / period).round().max(1.0) as usize;
         let log_every = every(settings.log_rate_hz);
@@ -711,13 +798,16 @@ impl Recorder {
             Laser::new(l, block_times, period, seed)
         });
         let logged = ticks.div_ceil(log_every);
-        let log = || Vec::with_capacity(logged);
+        let rows = if blocks {
+            logged.min(LOG_BLOCK_ROWS)
+        } else {
+            logged
+        };
         Self {
             log_every,
             bar_every,
-            times: log(),
-            servo: (0..SERVO_CHANNELS.len() * 3).map(|_| log()).collect(),
-            tool: std::array::from_fn(|_| log()),
+            servo: servo_stream(rows),
+            sent: vec![0; traces.len()],
             ballbar,
             data,
             closing: vec![None; traces.len()],
@@ -762,7 +852,7 @@ impl Recorder {
             l.sample(i, sp.time_s, &tool, &evaluator.tool_point(&commanded));
         }
         if log {
-            self.times.push(sp.time_s);
+            self.servo.times_s.push(sp.time_s);
             let carriages = plant.carriages();
             for i in 0..3 {
                 let d = plant.drive(i);
@@ -778,9 +868,11 @@ impl Recorder {
                     d.screw_friction_force_n,
                 ];
                 for (c, v) in values.into_iter().enumerate() {
-                    self.servo[c * 3 + i].push(v);
+                    self.servo.channels[c * 3 + i].values.push(v);
                 }
-                self.tool[i].push(tool[i]);
+                self.servo.channels[SERVO_CHANNELS.len() * 3 + i]
+                    .values
+                    .push(tool[i]);
             }
         }
         if bar
@@ -818,38 +910,66 @@ impl Recorder {
         Ok(None)
     }
 
+    /// The run as it starts: the `servo` stream's channels with no rows, the traces with no
+    /// samples, the laser test with no readings, no ground truth.
+    fn opening(&self, machine: &Machine, settings: &SimSettings, scenario_toml: &str) -> Run {
+        Run {
+            scenario_name: machine.name.clone(),
+            scenario_toml: scenario_toml.to_string(),
+            seed: settings.seed,
+            fidelity: settings.fidelity.name().into(),
+            machine: summary(machine),
+            streams: vec![servo_stream(0)],
+            ballbar: self
+                .traces
+                .iter()
+                .map(|t| BallbarTrace {
+                    times_s: Vec::new(),
+                    angle_deg: Vec::new(),
+                    deviation_um: Vec::new(),
+                    ..t.clone()
+                })
+                .collect(),
+            laser: self.laser.as_ref().map(Laser::header),
+            ground_truth: serde_json::Value::Null,
+        }
+    }
+
+    /// Hands the rows and trace samples recorded since the last block to `sink` once there
+    /// are `min_rows` servo rows or more, and forgets the rows.
+    fn send(&mut self, sink: &mut dyn LogSink, min_rows: usize) -> Result<(), SimError> {
+        if self.servo.times_s.len() < min_rows {
+            return Ok(());
+        }
+        let new_samples: Vec<Range<usize>> = self
+            .sent
+            .iter()
+            .zip(&self.traces)
+            .map(|(&from, t)| from..t.times_s.len())
+            .collect();
+        sink.block(&LogBlock {
+            streams: std::slice::from_ref(&self.servo),
+            ballbar: &self.traces,
+            new_samples: &new_samples,
+        })
+        .map_err(SimError::Log)?;
+        self.servo.times_s.clear();
+        for c in &mut self.servo.channels {
+            c.values.clear();
+        }
+        for (sent, r) in self.sent.iter_mut().zip(new_samples) {
+            *sent = r.end;
+        }
+        Ok(())
+    }
+
     fn finish(
         self,
         truth: &TruthInputs,
         settings: &SimSettings,
         scenario_toml: &str,
     ) -> Result<Run, SimError> {
-        let machine = truth.machine;
-        let names = ["x", "y", "z"];
-        let mut channels = Vec::new();
-        let mut servo = self.servo.into_iter();
-        for (name, unit) in SERVO_CHANNELS {
-            for axis in names {
-                channels.push(Channel {
-                    name: format!("{name}_{axis}"),
-                    unit: unit.into(),
-                    values: servo.next().unwrap_or_default(),
-                });
-            }
-        }
-        for (axis, values) in names.iter().zip(self.tool) {
-            channels.push(Channel {
-                name: format!("tool_{axis}"),
-                unit: "m".into(),
-                values,
-            });
-        }
-        let stream = Stream {
-            name: "servo".into(),
-            description: "axis commands, carriage positions, encoders, following errors, motor forces and currents, friction forces, tool point".into(),
-            times_s: self.times,
-            channels,
-        };
+        let opening = self.opening(truth.machine, settings, scenario_toml);
         let laser = self
             .laser
             .map(Laser::finish)
@@ -861,16 +981,33 @@ impl Recorder {
             .map(|c| c.map(|c| c.error_um()))
             .collect();
         Ok(Run {
-            scenario_name: machine.name.clone(),
-            scenario_toml: scenario_toml.to_string(),
-            seed: settings.seed,
-            fidelity: settings.fidelity.name().into(),
-            machine: summary(machine),
-            streams: vec![stream],
-            ballbar: self.traces,
             ground_truth: crate::truth::ground_truth(truth, &closing, laser.as_ref()),
             laser: laser.map(|(run, _)| run),
+            streams: vec![self.servo],
+            ballbar: self.traces,
+            ..opening
         })
+    }
+}
+
+/// The `servo` stream with no rows, room for `rows`: for each of [`SERVO_CHANNELS`] one channel
+/// per axis, then the tool point.
+fn servo_stream(rows: usize) -> Stream {
+    let axes = ["x", "y", "z"];
+    let channel = |name: String, unit: &str| Channel {
+        name,
+        unit: unit.into(),
+        values: Vec::with_capacity(rows),
+    };
+    let servo = SERVO_CHANNELS
+        .iter()
+        .flat_map(|(name, unit)| axes.map(|a| channel(format!("{name}_{a}"), unit)));
+    let tool = axes.map(|a| channel(format!("tool_{a}"), "m"));
+    Stream {
+        name: "servo".into(),
+        description: "axis commands, carriage positions, encoders, following errors, motor forces and currents, friction forces, tool point".into(),
+        times_s: Vec::with_capacity(rows),
+        channels: servo.chain(tool).collect(),
     }
 }
 

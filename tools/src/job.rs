@@ -6,6 +6,7 @@
 //! `ground_truth.json`.
 
 use crate::error::CliError;
+use crate::formats::live::RunFiles;
 use crate::formats::{mcap::write_mcap, rerun::write_rrd};
 use crate::plot::{self, Format};
 use indicatif::{ProgressBar, ProgressStyle};
@@ -13,8 +14,8 @@ use std::path::{Path, PathBuf};
 use vmt_scenario::Scenario;
 use vmt_sim::machining::simulate_machining;
 use vmt_sim::plant::Fidelity;
-use vmt_sim::run::Run;
-use vmt_sim::simulate::{SimError, simulate};
+use vmt_sim::run::{LogSink, Run};
+use vmt_sim::simulate::{SimError, simulate, simulate_logged};
 
 /// The files a run wrote.
 #[derive(Clone, Debug)]
@@ -29,6 +30,53 @@ pub fn execute(
     text: &str,
     fidelity: Option<Fidelity>,
     quiet: bool,
+) -> Result<Run, CliError> {
+    execute_into(scenario, text, fidelity, quiet, None)
+}
+
+/// [`execute`] and the run's files written into the folder `dir`: `run.mcap` and `run.rrd`
+/// while a job through the feed drives runs (see [`RunFiles`]; a milling run writes them
+/// afterwards), then the rest of [`write`]'s.
+pub fn execute_and_write(
+    scenario: &Scenario,
+    text: &str,
+    fidelity: Option<Fidelity>,
+    quiet: bool,
+    dir: &Path,
+) -> Result<(Run, Written), CliError> {
+    std::fs::create_dir_all(dir).map_err(|e| CliError::output(dir, e))?;
+    if scenario
+        .execution
+        .as_ref()
+        .is_some_and(|e| e.milling.is_some())
+    {
+        let run = execute(scenario, text, fidelity, quiet)?;
+        let written = write(&run, dir)?;
+        return Ok((run, written));
+    }
+    let mut files = RunFiles::new(dir);
+    let run = execute_into(scenario, text, fidelity, quiet, Some(&mut files));
+    let mut written = match run {
+        Ok(ref r) => files.finish(Some(r))?,
+        Err(e) => {
+            // A writer's own error explains a simulation stopped by it.
+            files.finish(None)?;
+            return Err(e);
+        }
+    };
+    let run = run?;
+    written.extend(write_others(&run, dir)?);
+    Ok((run, Written { files: written }))
+}
+
+/// [`execute`] with the records handed to `sink` as the job runs, if there is one (not for a
+/// milling job).
+fn execute_into(
+    scenario: &Scenario,
+    text: &str,
+    fidelity: Option<Fidelity>,
+    quiet: bool,
+    sink: Option<&mut dyn LogSink>,
 ) -> Result<Run, CliError> {
     let Some(exec) = &scenario.execution else {
         return Err(CliError::Argument(
@@ -69,15 +117,27 @@ pub fn execute(
             None,
             &mut progress,
         ),
-        None => simulate(
-            &scenario.machine,
-            &exec.axes,
-            &exec.controller,
-            &exec.job,
-            &settings,
-            text,
-            &mut progress,
-        ),
+        None => match sink {
+            Some(sink) => simulate_logged(
+                &scenario.machine,
+                &exec.axes,
+                &exec.controller,
+                &exec.job,
+                &settings,
+                text,
+                &mut progress,
+                sink,
+            ),
+            None => simulate(
+                &scenario.machine,
+                &exec.axes,
+                &exec.controller,
+                &exec.job,
+                &settings,
+                text,
+                &mut progress,
+            ),
+        },
     }
     .map_err(|e| match (&e, &exec.program_file) {
         (SimError::Stroke { line, .. }, Some(file)) => {
@@ -123,6 +183,14 @@ pub fn write(run: &Run, dir: &Path) -> Result<Written, CliError> {
     let rrd = dir.join("run.rrd");
     write_rrd(run, &rrd)?;
     files.push(rrd);
+    files.extend(write_others(run, dir)?);
+    Ok(Written { files })
+}
+
+/// Writes the files of the run but `run.mcap` and `run.rrd` into `dir`: the polar plot, the
+/// ISO 230-2 figures and the ground truth.
+fn write_others(run: &Run, dir: &Path) -> Result<Vec<PathBuf>, CliError> {
+    let mut files = Vec::new();
     if !run.ballbar.is_empty() {
         let polar = dir.join("ballbar_polar.png");
         plot::draw_polar(
@@ -145,7 +213,7 @@ pub fn write(run: &Run, dir: &Path) -> Result<Written, CliError> {
         serde_json::to_string_pretty(&run.ground_truth).map_err(|e| CliError::output(&truth, e))?;
     std::fs::write(&truth, text).map_err(|e| CliError::output(&truth, e))?;
     files.push(truth);
-    Ok(Written { files })
+    Ok(files)
 }
 
 /// One line per ball-bar trace: radial span (max - min of the deviation, the ISO 230-4 radial

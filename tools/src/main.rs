@@ -390,8 +390,8 @@ fn run_job(args: RunArgs) -> Result<(), CliError> {
         }
     };
     vmt_tools::out::output_dir(&args.out)?;
-    let run = vmt_tools::job::execute(&scenario, &text, fidelity, args.quiet)?;
-    let written = vmt_tools::job::write(&run, &args.out)?;
+    let (run, written) =
+        vmt_tools::job::execute_and_write(&scenario, &text, fidelity, args.quiet, &args.out)?;
     vmt_tools::outln!(
         "{} ({} plant, seed {})",
         run.scenario_name,

@@ -254,14 +254,16 @@ fn mcap_reads_back_with_python_mcap() {
         Some(run.ballbar[0].deviation_um[0])
     );
 
-    // Clock: simulation time in ns, messages in time order; chunks zstd-compressed.
+    // Clock: simulation time in ns, the streams' and traces' messages in time order, then the
+    // ground truth (known when the job ends); chunks zstd-compressed.
     assert_eq!(s["first_log_time_ns"], 0);
     assert_eq!(
         s["last_log_time_ns"],
         ns(*servo.times_s.last().expect("times"))
     );
     assert_eq!(s["statistics"]["message_end_time"], s["last_log_time_ns"]);
-    assert_eq!(s["file_order_is_time_order"], true);
+    assert_eq!(s["streams_in_time_order"], true);
+    assert_eq!(s["topics_after_streams"], json!(["/ground_truth"]));
     assert_eq!(s["chunk_compressions"], json!(["zstd"]));
 
     // Metadata and ground truth.
@@ -547,7 +549,11 @@ fn laser_readings_are_written_to_mcap_and_rrd() {
         first["deviation_um"].as_f64(),
         Some(laser.readings[0].deviation_um)
     );
-    assert_eq!(s["file_order_is_time_order"], true);
+    assert_eq!(s["streams_in_time_order"], true);
+    assert_eq!(
+        s["topics_after_streams"],
+        json!(["/laser", "/ground_truth"])
+    );
 
     let rrd = dir.path().join("laser.rrd");
     write_rrd(&run, &rrd).expect("write rrd");

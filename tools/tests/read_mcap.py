@@ -1,7 +1,8 @@
 #!/usr/bin/env python3
 """Reads an MCAP file written by `vmt_tools::formats::write_mcap` with the Python `mcap` package
 and prints a JSON summary on stdout: package version, header, topics (schema, encodings, message
-counts), metadata names and values, first/last log time (ns), chunk compressions, the decoded
+counts), metadata names and values, first/last log time (ns), chunk compressions, whether the
+streams' and traces' messages are in log-time order and which topics follow them, the decoded
 ground truth, and per topic its first and last message and the sum of each numeric field over
 its messages (added one by one in file order, so that a reader summing the same values in the
 same order gets the same double exactly).
@@ -46,16 +47,21 @@ def main(path):
                 "last": None,
                 "sums": {},
             }
-        first_time, last_time, previous, ordered = None, None, -1, True
+        first_time, last_time, previous, ordered, tail = None, None, -1, True, []
         ground_truth = None
         for schema, channel, message in reader.iter_messages(log_time_order=False):
             t = topics[channel.topic]
             t["count"] += 1
             if message.publish_time != message.log_time:
                 raise SystemExit(f"publish_time != log_time on {channel.topic}")
-            if message.log_time < previous:
+            if channel.topic in ("/laser", "/ground_truth"):
+                # Known when the job ends: written after the streams and traces.
+                tail.append(channel.topic)
+            elif tail:
                 ordered = False
-            previous = message.log_time
+            else:
+                ordered = ordered and message.log_time >= previous
+                previous = message.log_time
             decoded = json.loads(message.data)
             if t["first"] is None:
                 t["first"] = decoded
@@ -81,7 +87,8 @@ def main(path):
         "metadata_names": sorted(metadata),
         "first_log_time_ns": first_time,
         "last_log_time_ns": last_time,
-        "file_order_is_time_order": ordered,
+        "streams_in_time_order": ordered,
+        "topics_after_streams": sorted(set(tail), key=tail.index),
         "statistics": {
             "message_count": summary.statistics.message_count,
             "message_start_time": summary.statistics.message_start_time,

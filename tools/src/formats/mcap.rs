@@ -19,15 +19,19 @@
 //!
 //! `log_time` and `publish_time` of every message are the **simulation time** of its sample in
 //! nanoseconds from the start of the job (`round(t_s · 1e9)`), never the wall clock. A file is a
-//! pure function of the run: the same run gives a byte-identical file. Messages are written in
-//! the order of their log time (ties: ground truth, then the streams in run order, then the
-//! ball-bar traces in run order, then the laser), so the file plays back in time order without an index.
+//! pure function of the run: the same run gives a byte-identical file, whether it is written
+//! from the finished run ([`write_mcap`]) or block by block while the job runs ([`McapFile`]).
+//! The streams' and ball-bar traces' messages are written in the order of their log time (ties:
+//! the streams in run order, then the traces in run order). The laser readings (relative to a
+//! datum read at the end of the test) and the ground truth (at log time 0) are known only when
+//! the job ends and follow them; readers that use the file's chunk index (Foxglove, the Python
+//! reader's `iter_messages()`) give every topic in log-time order.
 //!
 //! # Topics
 //!
 //! | topic | schema (`jsonschema`) | messages | fields (unit) |
 //! |---|---|---|---|
-//! | `/ground_truth` | `vmt.GroundTruth` | one, at log time 0 | the run's ground-truth object as it is; its schema lists its fields |
+//! | `/ground_truth` | `vmt.GroundTruth` | one, at log time 0 (written last) | the run's ground-truth object as it is; its schema lists its fields |
 //! | `/<stream>`, e.g. `/servo` | `vmt.stream.<stream>` | one per sample of the stream | `time_s` (s) and one number per channel, named as the channel, in the channel's unit |
 //! | `/ballbar/<trace>` | `vmt.ballbar.Sample` | one per sample of the trace | `time_s` (s), `angle_deg` (deg, unwrapped, from the plane's first axis), `deviation_um` (µm, measured minus nominal bar length) |
 //! | `/laser` | `vmt.laser.Reading` | one per laser reading of an ISO 230-2 test, at the end of its averaging window | `time_s` (s), `target` (i, 1-based), `target_mm` (P_i, mm), `direction` (`forward`, `backward`), `run` (j, 1-based), `reading_mm` (P_ij, mm), `deviation_um` (x_ij = P_ij − P_i, µm) |
@@ -55,7 +59,7 @@
 //! | `scenario` | `name`, `toml` (the scenario file that made the run) |
 //! | `ground_truth` | `json` (the ground truth as compact JSON, as on `/ground_truth`) |
 
-use super::{atomically, check_stream, check_trace, time_ns, unique_slugs};
+use super::{Partial, check_stream, check_trace, time_ns, unique_slugs};
 use crate::error::CliError;
 use ::mcap::records::{MessageHeader, Metadata};
 use ::mcap::{Compression, WriteOptions, Writer};
@@ -89,50 +93,153 @@ type McapWriter = Writer<BufWriter<File>>;
 ///
 /// Fails when a stream or trace is inconsistent (a channel with more or fewer values than sample
 /// times), when a sample time is negative or not finite, or when the file cannot be written.
+/// The file is the one [`McapFile`] writes block by block while the job runs, byte for byte.
 pub fn write_mcap(run: &Run, path: &Path) -> Result<(), CliError> {
-    validate(run, path)?;
-    atomically(path, |partial| write_file(run, partial))
+    let mut file = McapFile::create(path, run)?;
+    file.block(&run.streams, &run.ballbar)?;
+    file.finish(run)
 }
 
-/// [`write_mcap`] of a validated run to `path`.
-fn write_file(run: &Run, path: &Path) -> Result<(), CliError> {
-    let err = |e: ::mcap::McapError| CliError::output(path, e);
-    let file = File::create(path).map_err(|e| CliError::output(path, e))?;
-    let mut writer = WriteOptions::new()
-        .compression(Some(Compression::Zstd))
-        // One thread: zstd's multithreaded frames differ from single-threaded ones, and a
-        // dataset already runs one job per core. Level 1: level 3 took longer and was no
-        // smaller on our decimal text.
-        .compression_threads(0)
-        .compression_level(1)
-        .profile("")
-        .library(LIBRARY)
-        .create(BufWriter::new(file))
-        .map_err(err)?;
-    let channels = add_channels(&mut writer, run).map_err(err)?;
-    let events = message_order(run, path)?;
-    write_messages(&mut writer, run, &channels, &events, path)?;
-    write_metadata(&mut writer, run).map_err(err)?;
-    writer.finish().map_err(err)?;
-    writer
-        .into_inner()
-        .into_inner()
-        .map_err(|e| CliError::output(path, e.error()))?;
-    Ok(())
-}
-
-/// Checks every stream and trace before the file is created.
-fn validate(run: &Run, path: &Path) -> Result<(), CliError> {
-    run.streams.iter().try_for_each(|s| check_stream(s, path))?;
-    run.ballbar.iter().try_for_each(|t| check_trace(t, path))
-}
-
-/// Channel ids of the topics, in message-source order.
-struct Channels {
-    ground_truth: u16,
+/// An MCAP file of a run written while its job runs: the streams' and traces' channels when
+/// it is created, their messages block by block, the laser readings, the ground truth and the
+/// metadata at the end. Written as `<path>.partial` and renamed when finished; removed if
+/// dropped unfinished (an error), left as it is if the process is killed, when the chunks
+/// written so far are readable (`mcap recover`).
+pub struct McapFile {
+    // Declared before `partial`: dropped (and so closed) before the partial file is removed.
+    writer: McapWriter,
+    partial: Partial,
     streams: Vec<u16>,
     ballbar: Vec<u16>,
-    laser: Option<u16>,
+    sequence: BTreeMap<u16, u32>,
+    data: Vec<u8>,
+}
+
+impl McapFile {
+    /// Creates the file for the run `opening` (its streams' channels and its traces, with or
+    /// without their samples) and adds the channels of its streams and traces.
+    pub fn create(path: &Path, opening: &Run) -> Result<Self, CliError> {
+        let partial = Partial::new(path);
+        let err = |e: ::mcap::McapError| CliError::output(path, e);
+        let file = File::create(partial.path()).map_err(|e| CliError::output(path, e))?;
+        let mut writer = WriteOptions::new()
+            .compression(Some(Compression::Zstd))
+            // One thread: zstd's multithreaded frames differ from single-threaded ones, and a
+            // dataset already runs one job per core. Level 1: level 3 took longer and was no
+            // smaller on our decimal text.
+            .compression_threads(0)
+            .compression_level(1)
+            .profile("")
+            .library(LIBRARY)
+            .create(BufWriter::new(file))
+            .map_err(err)?;
+        let (streams, ballbar) = add_channels(&mut writer, opening).map_err(err)?;
+        Ok(Self {
+            writer,
+            partial,
+            streams,
+            ballbar,
+            sequence: BTreeMap::new(),
+            data: Vec::with_capacity(4096),
+        })
+    }
+
+    /// Writes every row of `streams` and every sample of `traces` (the run's streams and
+    /// traces, in the order of [`McapFile::create`]'s run, holding just the records of this
+    /// block), merged in time order.
+    pub fn block(&mut self, streams: &[Stream], traces: &[BallbarTrace]) -> Result<(), CliError> {
+        let path = self.partial.target().to_path_buf();
+        let path = path.as_path();
+        streams.iter().try_for_each(|s| check_stream(s, path))?;
+        traces.iter().try_for_each(|t| check_trace(t, path))?;
+        // Messages written so far on a channel: the index in its stream of a block's first row.
+        let written = |ids: &[u16]| -> Vec<usize> {
+            ids.iter()
+                .map(|id| self.sequence.get(id).map_or(0, |&n| n as usize))
+                .collect()
+        };
+        let first = [written(&self.streams), written(&self.ballbar)];
+        for (time, source) in message_order(streams, traces, &first, path)? {
+            let (channel_id, written) = match source {
+                Source::Stream(k, i) => (
+                    self.streams[k],
+                    serde_json::to_writer(&mut self.data, &stream_row(&streams[k], i)),
+                ),
+                Source::Ballbar(k, i) => (
+                    self.ballbar[k],
+                    serde_json::to_writer(&mut self.data, &trace_row(&traces[k], i)),
+                ),
+            };
+            written.map_err(|e| CliError::output(path, e))?;
+            self.message(channel_id, time)?;
+        }
+        Ok(())
+    }
+
+    /// Writes the message in the data buffer on `channel_id` at `time` (ns) and empties it.
+    fn message(&mut self, channel_id: u16, time: u64) -> Result<(), CliError> {
+        let seq = self.sequence.entry(channel_id).or_insert(0);
+        let header = MessageHeader {
+            channel_id,
+            sequence: *seq,
+            log_time: time,
+            publish_time: time,
+        };
+        *seq = seq.wrapping_add(1);
+        self.writer
+            .write_to_known_channel(&header, &self.data)
+            .map_err(|e| CliError::output(self.partial.target(), e))?;
+        self.data.clear();
+        Ok(())
+    }
+
+    /// Writes the laser readings and the ground truth of the finished `run` and the metadata
+    /// records, completes the file and renames it to its path.
+    pub fn finish(mut self, run: &Run) -> Result<(), CliError> {
+        let path = self.partial.target().to_path_buf();
+        let err = |e: ::mcap::McapError| CliError::output(&path, e);
+        if let Some(l) = &run.laser {
+            let id = self
+                .writer
+                .add_schema("vmt.laser.Reading", "jsonschema", &pretty(&laser_schema()))
+                .map_err(err)?;
+            let channel = self
+                .writer
+                .add_channel(id, "/laser", "json", &laser_metadata(l))
+                .map_err(err)?;
+            for (i, r) in l.readings.iter().enumerate() {
+                let time = time_ns(r.time_s, &|| format!("laser reading {i}"), &path)?;
+                serde_json::to_writer(&mut self.data, r).map_err(|e| CliError::output(&path, e))?;
+                self.message(channel, time)?;
+            }
+        }
+        let schema = pretty(&ground_truth_schema(&run.ground_truth));
+        let id = self
+            .writer
+            .add_schema("vmt.GroundTruth", "jsonschema", &schema)
+            .map_err(err)?;
+        let meta = BTreeMap::from([(
+            "description".to_string(),
+            "every injected parameter and derived figure of the run".to_string(),
+        )]);
+        let channel = self
+            .writer
+            .add_channel(id, "/ground_truth", "json", &meta)
+            .map_err(err)?;
+        serde_json::to_writer(&mut self.data, &run.ground_truth)
+            .map_err(|e| CliError::output(&path, e))?;
+        self.message(channel, 0)?;
+        write_metadata(&mut self.writer, run).map_err(err)?;
+        self.writer.finish().map_err(err)?;
+        let Self {
+            writer, partial, ..
+        } = self;
+        writer
+            .into_inner()
+            .into_inner()
+            .map_err(|e| CliError::output(&path, e.error()))?;
+        partial.commit()
+    }
 }
 
 /// Unique topic names for `names` under `prefix`: `/servo`, `/ballbar/xy_150_mm_ccw`, ...
@@ -143,14 +250,8 @@ fn topics<'a>(prefix: &str, names: impl Iterator<Item = &'a str>) -> Vec<String>
         .collect()
 }
 
-fn add_channels(w: &mut McapWriter, run: &Run) -> Result<Channels, ::mcap::McapError> {
-    let schema = pretty(&ground_truth_schema(&run.ground_truth));
-    let id = w.add_schema("vmt.GroundTruth", "jsonschema", &schema)?;
-    let meta = BTreeMap::from([(
-        "description".to_string(),
-        "every injected parameter and derived figure of the run".to_string(),
-    )]);
-    let ground_truth = w.add_channel(id, "/ground_truth", "json", &meta)?;
+/// Adds the channels of `run`'s streams and ball-bar traces: their ids, in run order.
+fn add_channels(w: &mut McapWriter, run: &Run) -> Result<(Vec<u16>, Vec<u16>), ::mcap::McapError> {
     let stream_topics = topics("", run.streams.iter().map(|s| s.name.as_str()));
     let mut streams = Vec::with_capacity(run.streams.len());
     for (stream, topic) in run.streams.iter().zip(&stream_topics) {
@@ -168,19 +269,7 @@ fn add_channels(w: &mut McapWriter, run: &Run) -> Result<Channels, ::mcap::McapE
     for (trace, topic) in run.ballbar.iter().zip(&trace_topics) {
         ballbar.push(w.add_channel(id, topic, "json", &trace_metadata(trace))?);
     }
-    let laser = match &run.laser {
-        Some(l) => {
-            let id = w.add_schema("vmt.laser.Reading", "jsonschema", &pretty(&laser_schema()))?;
-            Some(w.add_channel(id, "/laser", "json", &laser_metadata(l))?)
-        }
-        None => None,
-    };
-    Ok(Channels {
-        ground_truth,
-        streams,
-        ballbar,
-        laser,
-    })
+    Ok((streams, ballbar))
 }
 
 fn pretty(v: &Value) -> Vec<u8> {
@@ -326,38 +415,37 @@ fn infer_schema(v: &Value) -> Value {
     }
 }
 
-/// Where a message comes from: the ground truth, sample `i` of stream `k`, or sample `i` of
-/// trace `k`. The derived order (time, source, index) is the order of the file.
+/// Where a message comes from: sample `i` of stream `k` or sample `i` of trace `k`. The
+/// derived order (time, source, index) is the order of the file.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
 enum Source {
-    GroundTruth,
     Stream(usize, usize),
     Ballbar(usize, usize),
-    Laser(usize),
 }
 
-/// Every message as (log time ns, source), sorted by time then source.
-fn message_order(run: &Run, path: &Path) -> Result<Vec<(u64, Source)>, CliError> {
-    let total = run.streams.iter().map(|s| s.times_s.len()).sum::<usize>()
-        + run.ballbar.iter().map(|t| t.times_s.len()).sum::<usize>();
-    let mut events = Vec::with_capacity(total + 1);
-    events.push((0, Source::GroundTruth));
-    for (k, s) in run.streams.iter().enumerate() {
+/// Every message of `streams` and `traces` as (log time ns, source), sorted by time then
+/// source. `first` holds, for the streams and for the traces, the index of each one's first
+/// sample here in the whole run (for errors).
+fn message_order(
+    streams: &[Stream],
+    traces: &[BallbarTrace],
+    first: &[Vec<usize>; 2],
+    path: &Path,
+) -> Result<Vec<(u64, Source)>, CliError> {
+    let total = streams.iter().map(|s| s.times_s.len()).sum::<usize>()
+        + traces.iter().map(|t| t.times_s.len()).sum::<usize>();
+    let mut events = Vec::with_capacity(total);
+    for (k, s) in streams.iter().enumerate() {
         for (i, &t) in s.times_s.iter().enumerate() {
-            let what = || format!("stream `{}`, sample {i}", s.name);
+            let what = || format!("stream `{}`, sample {}", s.name, first[0][k] + i);
             events.push((time_ns(t, &what, path)?, Source::Stream(k, i)));
         }
     }
-    for (k, tr) in run.ballbar.iter().enumerate() {
+    for (k, tr) in traces.iter().enumerate() {
         for (i, &t) in tr.times_s.iter().enumerate() {
-            let what = || format!("ball-bar trace `{}`, sample {i}", tr.label);
+            let what = || format!("ball-bar trace `{}`, sample {}", tr.label, first[1][k] + i);
             events.push((time_ns(t, &what, path)?, Source::Ballbar(k, i)));
         }
-    }
-    let readings = run.laser.iter().flat_map(|l| l.readings.iter());
-    for (i, r) in readings.enumerate() {
-        let what = || format!("laser reading {i}");
-        events.push((time_ns(r.time_s, &what, path)?, Source::Laser(i)));
     }
     events.sort_unstable();
     Ok(events)
@@ -400,50 +488,6 @@ fn trace_row(t: &BallbarTrace, i: usize) -> Row<'_> {
             ("deviation_um", t.deviation_um[i]),
         ],
     }
-}
-
-fn write_messages(
-    w: &mut McapWriter,
-    run: &Run,
-    ch: &Channels,
-    events: &[(u64, Source)],
-    path: &Path,
-) -> Result<(), CliError> {
-    let mut sequence: BTreeMap<u16, u32> = BTreeMap::new();
-    let mut data = Vec::with_capacity(4096);
-    for &(time, source) in events {
-        data.clear();
-        let (channel_id, written) = match source {
-            Source::GroundTruth => (
-                ch.ground_truth,
-                serde_json::to_writer(&mut data, &run.ground_truth),
-            ),
-            Source::Stream(k, i) => (
-                ch.streams[k],
-                serde_json::to_writer(&mut data, &stream_row(&run.streams[k], i)),
-            ),
-            Source::Ballbar(k, i) => (
-                ch.ballbar[k],
-                serde_json::to_writer(&mut data, &trace_row(&run.ballbar[k], i)),
-            ),
-            Source::Laser(i) => match (ch.laser, &run.laser) {
-                (Some(id), Some(l)) => (id, serde_json::to_writer(&mut data, &l.readings[i])),
-                _ => continue,
-            },
-        };
-        written.map_err(|e| CliError::output(path, e))?;
-        let seq = sequence.entry(channel_id).or_insert(0);
-        let header = MessageHeader {
-            channel_id,
-            sequence: *seq,
-            log_time: time,
-            publish_time: time,
-        };
-        *seq = seq.wrapping_add(1);
-        w.write_to_known_channel(&header, &data)
-            .map_err(|e| CliError::output(path, e))?;
-    }
-    Ok(())
 }
 
 fn metadata(name: &str, pairs: Vec<(&str, String)>) -> Metadata {

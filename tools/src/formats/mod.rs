@@ -4,45 +4,88 @@
 //!   `mcap` readers (Python, C++, Rust, Go, ...).
 //! - [`rerun`]: a Rerun recording (`.rrd`) with the machine in 3D, the tool path, ball-bar polar
 //!   traces, time series and a viewer layout, for the Rerun viewer 0.36.
+//! - [`live`]: both written while the job runs, from the simulator's blocks of records.
 //!
 //! Both use the simulation time of the run as their clock; nothing in them comes from the wall
 //! clock of the computer that wrote them (see each module for what that means for its format).
 //! The topics and entity paths are documented in the modules and in `docs/formats.md`.
 
+pub mod live;
 pub mod mcap;
 pub mod rerun;
 
 use crate::error::CliError;
 use std::collections::BTreeSet;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use vmt_sim::run::{BallbarTrace, Stream};
 
 pub use self::mcap::write_mcap;
 pub use self::rerun::write_rrd;
 
-/// Writes the file `path` through `write`, which is given a sibling path to write instead:
-/// `<path>.partial` until it is complete, then renamed to `path` in one step. A run interrupted
-/// while writing (Ctrl-C, a full disk, kill -9) leaves a `.partial` file, never a truncated
-/// `path` that looks finished, and a file from an earlier run stays whole until it is replaced.
-/// On an error the partial file is removed, and the error names `path`, the file asked for.
+/// Writes the file `path` through `write`, which is given a sibling path to write instead
+/// (see [`Partial`]). On an error the partial file is removed, and the error names `path`, the
+/// file asked for.
 pub(crate) fn atomically(
     path: &Path,
     write: impl FnOnce(&Path) -> Result<(), CliError>,
 ) -> Result<(), CliError> {
-    let mut partial = path.as_os_str().to_owned();
-    partial.push(".partial");
-    let partial = std::path::PathBuf::from(partial);
-    let done = write(&partial)
-        .and_then(|()| std::fs::rename(&partial, path).map_err(|e| CliError::output(path, e)));
-    done.map_err(|e| {
-        let _ = std::fs::remove_file(&partial);
-        match e {
-            CliError::Output { path: p, message } if Path::new(&p) == partial => {
-                CliError::output(path, message)
-            }
-            e => e,
+    let partial = Partial::new(path);
+    write(partial.path()).map_err(|e| match e {
+        CliError::Output { path: p, message } if Path::new(&p) == partial.path() => {
+            CliError::output(path, message)
         }
-    })
+        e => e,
+    })?;
+    partial.commit()
+}
+
+/// A file written as `<path>.partial` until it is complete, then renamed to `path` in one
+/// step. A run interrupted while writing (Ctrl-C, a full disk, kill -9) leaves a `.partial`
+/// file, never a truncated `path` that looks finished, and a file from an earlier run stays
+/// whole until it is replaced. Dropped without [`Partial::commit`] (an error), the partial file
+/// is removed.
+pub(crate) struct Partial {
+    target: PathBuf,
+    partial: PathBuf,
+    committed: bool,
+}
+
+impl Partial {
+    pub(crate) fn new(target: &Path) -> Self {
+        let mut partial = target.as_os_str().to_owned();
+        partial.push(".partial");
+        Self {
+            target: target.to_path_buf(),
+            partial: PathBuf::from(partial),
+            committed: false,
+        }
+    }
+
+    /// The path to write: `<path>.partial`.
+    pub(crate) fn path(&self) -> &Path {
+        &self.partial
+    }
+
+    /// The path asked for, which errors name.
+    pub(crate) fn target(&self) -> &Path {
+        &self.target
+    }
+
+    /// Renames the complete partial file to its path.
+    pub(crate) fn commit(mut self) -> Result<(), CliError> {
+        std::fs::rename(&self.partial, &self.target)
+            .map_err(|e| CliError::output(&self.target, e))?;
+        self.committed = true;
+        Ok(())
+    }
+}
+
+impl Drop for Partial {
+    fn drop(&mut self) {
+        if !self.committed {
+            let _ = std::fs::remove_file(&self.partial);
+        }
+    }
 }
 
 /// `text` as a lower-case name of ASCII letters, digits and single underscores, e.g.

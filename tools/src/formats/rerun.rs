@@ -71,7 +71,7 @@
 //! `defaults` and visualizer overrides. The entity paths are laid out so that the viewer's own
 //! heuristics give much the same views when the blueprint is reset.
 
-use super::{atomically, check_stream, check_trace, slug, unique_slugs};
+use super::{Partial, atomically, check_stream, check_trace, slug, unique_slugs};
 use crate::error::CliError;
 use rerun::blueprint::{
     Blueprint, ContainerLike, Horizontal, Spatial2DView, Spatial3DView, Tabs, TextDocumentView,
@@ -87,7 +87,7 @@ use std::ops::Range;
 use std::path::Path;
 use vmt_model::Axis;
 use vmt_model::kinematics::{Element, Topology};
-use vmt_sim::run::{BallbarTrace, LaserReading, LaserRun, MachineSummary, Run, Stream};
+use vmt_sim::run::{BallbarTrace, Channel, LaserReading, LaserRun, MachineSummary, Run, Stream};
 
 /// Name of the timeline of simulation time.
 pub const TIMELINE: &str = "sim_time";
@@ -107,38 +107,153 @@ const SERIES_BLOCK: usize = 8192;
 /// Fails when the topology is not one of the 24, when a stream or trace is inconsistent, when a
 /// sample time is not finite or beyond ±292 years, or when the file cannot be written.
 pub fn write_rrd(run: &Run, path: &Path) -> Result<(), CliError> {
-    let topology: Topology = run
-        .machine
-        .topology
-        .parse()
-        .map_err(|e| CliError::output(path, e))?;
-    run.streams.iter().try_for_each(|s| check_stream(s, path))?;
-    run.ballbar.iter().try_for_each(|t| check_trace(t, path))?;
-    atomically(path, |partial| write_file(run, topology, partial))
+    let mut file = RrdFile::create(path, run)?;
+    file.block(&run.streams, &run.ballbar)?;
+    file.finish(run)
 }
 
-/// [`write_rrd`] of a checked run to `path`.
-fn write_file(run: &Run, topology: Topology, path: &Path) -> Result<(), CliError> {
-    let err = |e: &dyn std::fmt::Display| CliError::output(path, e);
-    let groups = polar_groups(&run.ballbar);
-    let rec = rerun::RecordingStreamBuilder::new(APPLICATION_ID)
-        .recording_id(recording_id(run))
-        .enabled(true)
-        .with_blueprint(blueprint(
-            &groups,
-            !run.ballbar.is_empty(),
-            run.laser.is_some(),
-        ))
-        .save(path)
-        .map_err(|e| err(&e))?;
-    rec.set_log_time_enabled(false);
-    rec.set_log_tick_enabled(false);
-    let log = Logger { rec: &rec, path };
-    log.run(run, topology, &groups)?;
-    rec.flush_blocking().map_err(|e| err(&e))?;
-    // Completes the file (footer with the chunk manifest) before returning.
-    rec.finalize_deferred_sinks();
-    Ok(())
+/// A Rerun recording of a run written while its job runs: the layout, the machine and the
+/// series' styles when it is created, the motion and the series block by block, the tool path,
+/// polar plots, laser series and ground truth at the end. Written as `<path>.partial` and
+/// renamed when finished; removed if dropped unfinished (an error).
+pub struct RrdFile {
+    // Declared before `partial`: closed before the partial file is removed.
+    rec: RecordingStream,
+    partial: Partial,
+    groups: Vec<PolarGroup>,
+    slugs: Vec<String>,
+    layout: Layout,
+    /// The tool path so far (it is drawn whole, as one static strip, at the end).
+    tool_path: Vec<[f32; 3]>,
+}
+
+impl RrdFile {
+    /// Creates the recording for the run `opening` (its streams' channels and its traces, with
+    /// or without their samples) with its blueprint, information, machine and series styles.
+    pub fn create(path: &Path, opening: &Run) -> Result<Self, CliError> {
+        let topology: Topology = opening
+            .machine
+            .topology
+            .parse()
+            .map_err(|e| CliError::output(path, e))?;
+        let partial = Partial::new(path);
+        let groups = polar_groups(&opening.ballbar);
+        let rec = rerun::RecordingStreamBuilder::new(APPLICATION_ID)
+            .recording_id(recording_id(opening))
+            .enabled(true)
+            .with_blueprint(blueprint(
+                &groups,
+                !opening.ballbar.is_empty(),
+                opening.laser.is_some(),
+            ))
+            .save(partial.path())
+            .map_err(|e| CliError::output(path, e))?;
+        rec.set_log_time_enabled(false);
+        rec.set_log_tick_enabled(false);
+        let file = Self {
+            rec,
+            partial,
+            groups,
+            slugs: unique_slugs(opening.ballbar.iter().map(|t| t.label.as_str())),
+            layout: Layout::new(&opening.machine, topology),
+            tool_path: Vec::new(),
+        };
+        let log = file.logger();
+        log.info(opening)?;
+        log.machine(&file.layout)?;
+        if let Some(servo) = servo(&opening.streams) {
+            log.servo_styles(servo)?;
+        }
+        for (t, slug) in opening.ballbar.iter().zip(&file.slugs) {
+            log.style(
+                &deviation_entity(slug),
+                &format!("{} (µm)", t.label),
+                direction_colour(t),
+            )?;
+        }
+        Ok(file)
+    }
+
+    fn logger(&self) -> Logger<'_> {
+        Logger {
+            rec: &self.rec,
+            path: self.partial.target(),
+        }
+    }
+
+    /// Sends every row of `streams` and every sample of `traces` (the run's streams and traces,
+    /// in the order of [`RrdFile::create`]'s run, holding just the records of this block).
+    pub fn block(&mut self, streams: &[Stream], traces: &[BallbarTrace]) -> Result<(), CliError> {
+        if let Some(servo) = servo(streams) {
+            extend_tool_path(&mut self.tool_path, servo);
+        }
+        let log = self.logger();
+        streams.iter().try_for_each(|s| check_stream(s, log.path))?;
+        traces.iter().try_for_each(|t| check_trace(t, log.path))?;
+        if let Some(servo) = servo(streams) {
+            for (entity, axis, sign) in &self.layout.carriages {
+                log.carriage_motion(entity, servo, *axis, *sign)?;
+            }
+            log.servo_series(servo)?;
+        }
+        for (t, slug) in traces.iter().zip(&self.slugs) {
+            let value = |i: usize| t.deviation_um[i];
+            log.send_blocks(&deviation_entity(slug), &t.times_s, &t.label, |rows| {
+                Scalars::new(rows.map(value)).columns_of_unit_batches()
+            })?;
+        }
+        Ok(())
+    }
+
+    /// Logs what needs the finished `run` (the tool path, the polar plots of its traces, its
+    /// laser readings and ground truth), completes the file and renames it to its path.
+    pub fn finish(self, run: &Run) -> Result<(), CliError> {
+        let log = self.logger();
+        if !self.tool_path.is_empty() {
+            let strip = LineStrips3D::new([&self.tool_path])
+                .with_colors([Color::from_rgb(20, 20, 20)])
+                .with_radii([rerun::Radius::new_ui_points(1.0)])
+                .with_labels(["tool path (tool_x, tool_y, tool_z)"]);
+            log.log_static(format!("{}/tool_path", self.layout.workpiece), &strip)?;
+        }
+        for g in &self.groups {
+            log.polar(g, &run.ballbar, &self.slugs)?;
+        }
+        if let Some(l) = &run.laser {
+            log.laser_series(l)?;
+        }
+        log.ground_truth(&run.ground_truth)?;
+        self.rec.flush_blocking().map_err(|e| log.err(e))?;
+        // Completes the file (footer with the chunk manifest) before it is renamed.
+        self.rec.finalize_deferred_sinks();
+        let Self { rec, partial, .. } = self;
+        drop(rec);
+        partial.commit()
+    }
+}
+
+/// The `servo` stream of `streams`, if there is one.
+fn servo(streams: &[Stream]) -> Option<&Stream> {
+    streams.iter().find(|s| s.name == "servo")
+}
+
+/// The finite points of the servo stream's `tool_x`, `tool_y`, `tool_z` appended to `path`.
+fn extend_tool_path(path: &mut Vec<[f32; 3]>, servo: &Stream) {
+    let (Some(x), Some(y), Some(z)) = (
+        servo.channel("tool_x"),
+        servo.channel("tool_y"),
+        servo.channel("tool_z"),
+    ) else {
+        return;
+    };
+    let points = (x.values.iter().zip(&y.values).zip(&z.values))
+        .filter(|((x, y), z)| x.is_finite() && y.is_finite() && z.is_finite())
+        .map(|((x, y), z)| [*x as f32, *y as f32, *z as f32]);
+    path.extend(points);
+}
+
+fn deviation_entity(slug: &str) -> String {
+    format!("/series/ballbar_deviation_um/{slug}")
 }
 
 /// A recording id that depends only on the run: `vmt-<scenario>-<seed>-<hash>`.
@@ -259,26 +374,6 @@ impl Logger<'_> {
         CliError::output(self.path, e)
     }
 
-    fn run(&self, run: &Run, topology: Topology, groups: &[PolarGroup]) -> Result<(), CliError> {
-        let servo = run.streams.iter().find(|s| s.name == "servo");
-        self.info(run)?;
-        self.machine(&run.machine, topology, servo)?;
-        if let Some(servo) = servo {
-            self.servo_series(servo)?;
-        }
-        let slugs = unique_slugs(run.ballbar.iter().map(|t| t.label.as_str()));
-        for g in groups {
-            self.polar(g, &run.ballbar, &slugs)?;
-        }
-        for (t, s) in run.ballbar.iter().zip(&slugs) {
-            self.deviation_series(t, s)?;
-        }
-        if let Some(l) = &run.laser {
-            self.laser_series(l)?;
-        }
-        Ok(())
-    }
-
     fn log_static(
         &self,
         entity: impl Into<rerun::EntityPath>,
@@ -287,6 +382,7 @@ impl Logger<'_> {
         self.rec.log_static(entity, what).map_err(|e| self.err(e))
     }
 
+    /// The run's and the scenario's text documents.
     fn info(&self, run: &Run) -> Result<(), CliError> {
         let m = &run.machine;
         let text = format!(
@@ -302,12 +398,7 @@ impl Logger<'_> {
             m.strokes_m,
             m.tool_length_m
         );
-        let truth = serde_json::to_string_pretty(&run.ground_truth).unwrap_or_default();
         self.log_static("/info/run", &TextDocument::from_markdown(text))?;
-        self.log_static(
-            "/info/ground_truth",
-            &TextDocument::from_markdown(format!("# Ground truth\n\n```json\n{truth}\n```\n")),
-        )?;
         self.log_static(
             "/info/scenario",
             &TextDocument::from_markdown(format!(
@@ -317,13 +408,16 @@ impl Logger<'_> {
         )
     }
 
-    fn machine(
-        &self,
-        machine: &MachineSummary,
-        topology: Topology,
-        servo: Option<&Stream>,
-    ) -> Result<(), CliError> {
-        let layout = Layout::new(machine, topology);
+    fn ground_truth(&self, truth: &serde_json::Value) -> Result<(), CliError> {
+        let truth = serde_json::to_string_pretty(truth).unwrap_or_default();
+        self.log_static(
+            "/info/ground_truth",
+            &TextDocument::from_markdown(format!("# Ground truth\n\n```json\n{truth}\n```\n")),
+        )
+    }
+
+    /// The machine's assemblies as static boxes.
+    fn machine(&self, layout: &Layout) -> Result<(), CliError> {
         self.log_static("/machine", &ViewCoordinates::RIGHT_HAND_Z_UP())?;
         for part in &layout.parts {
             let boxes = Boxes3D::from_centers_and_sizes([part.centre], [part.size])
@@ -332,13 +426,7 @@ impl Logger<'_> {
                 .with_labels([part.label.clone()]);
             self.log_static(part.entity.clone(), &boxes)?;
         }
-        let Some(servo) = servo else {
-            return Ok(());
-        };
-        for (entity, axis, sign) in &layout.carriages {
-            self.carriage_motion(entity, servo, *axis, *sign)?;
-        }
-        self.tool_path(&layout.workpiece, servo)
+        Ok(())
     }
 
     /// The translation of a carriage over time: `sign · position_a` along its axis.
@@ -390,25 +478,6 @@ impl Logger<'_> {
         Ok(())
     }
 
-    fn tool_path(&self, workpiece: &str, servo: &Stream) -> Result<(), CliError> {
-        let (Some(x), Some(y), Some(z)) = (
-            servo.channel("tool_x"),
-            servo.channel("tool_y"),
-            servo.channel("tool_z"),
-        ) else {
-            return Ok(());
-        };
-        let points: Vec<[f32; 3]> = (x.values.iter().zip(&y.values).zip(&z.values))
-            .filter(|((x, y), z)| x.is_finite() && y.is_finite() && z.is_finite())
-            .map(|((x, y), z)| [*x as f32, *y as f32, *z as f32])
-            .collect();
-        let strip = LineStrips3D::new([points])
-            .with_colors([Color::from_rgb(20, 20, 20)])
-            .with_radii([rerun::Radius::new_ui_points(1.0)])
-            .with_labels(["tool path (tool_x, tool_y, tool_z)"]);
-        self.log_static(format!("{workpiece}/tool_path"), &strip)
-    }
-
     /// `times_s` as a `sim_time` column in integer nanoseconds.
     fn time_column(
         &self,
@@ -430,6 +499,14 @@ impl Logger<'_> {
         Ok(TimeColumn::new_duration_nanos(TIMELINE, nanos))
     }
 
+    /// The name and colour of the series `entity`.
+    fn style(&self, entity: &str, name: &str, colour: Color) -> Result<(), CliError> {
+        self.log_static(
+            entity,
+            &SeriesLines::new().with_names([name]).with_colors([colour]),
+        )
+    }
+
     /// One scalar series over time, with its name and colour.
     fn series(
         &self,
@@ -439,41 +516,59 @@ impl Logger<'_> {
         times_s: &[f64],
         value: impl Fn(usize) -> f64,
     ) -> Result<(), CliError> {
-        self.log_static(
-            entity,
-            &SeriesLines::new().with_names([name]).with_colors([colour]),
-        )?;
+        self.style(entity, name, colour)?;
         self.send_blocks(entity, times_s, entity, |rows| {
             Scalars::new(rows.map(&value)).columns_of_unit_batches()
         })
     }
 
-    fn servo_series(&self, servo: &Stream) -> Result<(), CliError> {
+    /// The servo series of `servo`'s channels: entity, name, colour and channel of each.
+    fn servo_channels(servo: &Stream) -> Vec<(String, String, Color, &Channel)> {
+        let mut out = Vec::new();
         for axis in ["x", "y", "z"] {
             let colour = axis_colour(axis);
             if let Some(c) = servo.channel(&format!("following_error_{axis}")) {
-                let entity = format!("/series/following_error_um/{axis}");
-                let name = format!("following error {axis} (µm)");
-                let value = |i: usize| c.values[i] * 1e6;
-                self.series(&entity, &name, colour, &servo.times_s, value)?;
+                out.push((
+                    format!("/series/following_error_um/{axis}"),
+                    format!("following error {axis} (µm)"),
+                    colour,
+                    c,
+                ));
             }
             for (kind, shade) in [("guide", 1.0), ("screw", 0.6)] {
                 if let Some(c) = servo.channel(&format!("{kind}_friction_{axis}")) {
-                    let entity = format!("/series/friction_n/{kind}_{axis}");
-                    let name = format!("{kind} friction {axis} (N)");
-                    let value = |i: usize| c.values[i];
-                    self.series(&entity, &name, scale(colour, shade), &servo.times_s, value)?;
+                    out.push((
+                        format!("/series/friction_n/{kind}_{axis}"),
+                        format!("{kind} friction {axis} (N)"),
+                        scale(colour, shade),
+                        c,
+                    ));
                 }
             }
+        }
+        out
+    }
+
+    fn servo_styles(&self, servo: &Stream) -> Result<(), CliError> {
+        for (entity, name, colour, _) in Self::servo_channels(servo) {
+            self.style(&entity, &name, colour)?;
         }
         Ok(())
     }
 
-    fn deviation_series(&self, t: &BallbarTrace, slug: &str) -> Result<(), CliError> {
-        let entity = format!("/series/ballbar_deviation_um/{slug}");
-        let name = format!("{} (µm)", t.label);
-        let value = |i: usize| t.deviation_um[i];
-        self.series(&entity, &name, direction_colour(t), &t.times_s, value)
+    /// The following errors (µm) and friction forces (N) of the rows of `servo`.
+    fn servo_series(&self, servo: &Stream) -> Result<(), CliError> {
+        for (entity, _, _, c) in Self::servo_channels(servo) {
+            let k = if entity.starts_with("/series/following_error_um") {
+                1e6
+            } else {
+                1.0
+            };
+            self.send_blocks(&entity, &servo.times_s, &entity, |rows| {
+                Scalars::new(rows.map(|i| c.values[i] * k)).columns_of_unit_batches()
+            })?;
+        }
+        Ok(())
     }
 
     /// The laser deviations over time, one series per direction of approach.
