@@ -446,8 +446,22 @@ pub fn milling_job(
                 p.key("step_us")
             }
             MillingError::Cutting(_) => p.key("tool"),
-            // The depth of cut over the tool's helix and radius (named in the message).
-            MillingError::TooManyDisks { .. } => p.key("axial_depth_mm"),
+            // The depth of cut, with the tool's helix and diameter it is taken with.
+            MillingError::TooManyDisks { .. } => {
+                // The tool was found in the table above.
+                let msg = match tools.get(&j.tool) {
+                    Some(t) => format!(
+                        "{e} (job.axial_depth_mm = {}, tools.{name}.helix_deg = {}, \
+                         tools.{name}.diameter_mm = {})",
+                        j.axial_depth_mm,
+                        t.helix_deg,
+                        t.diameter_mm,
+                        name = j.tool
+                    ),
+                    None => e.to_string(),
+                };
+                return Invalid::new(p.key("axial_depth_mm"), msg);
+            }
             // The sensors' values are checked at their keys above.
             _ => KeyPath::of(&["instruments", "accelerometer"]),
         };

@@ -1267,7 +1267,7 @@ fn cutting_coefficients_beyond_any_material_are_refused_at_their_keys() {
 }
 
 /// The number of axial disks follows from the helix lag a_p·tan β / R; a helix near 90°
-/// made it unbounded (10^5 disks of surface memory at 89.999°, more than memory holds
+/// made it unbounded (82 071 disks of surface memory at 89.999°, more than memory holds
 /// closer to 90°). More than 1000 disks are refused at the depth of cut.
 #[test]
 fn a_cut_needing_more_axial_disks_than_accepted_is_refused_at_its_depth() {
@@ -1281,7 +1281,9 @@ fn a_cut_needing_more_axial_disks_than_accepted_is_refused_at_its_depth() {
     );
     let e = parse(&steep, "s.toml", Some(&scenarios())).unwrap_err();
     assert!(
-        e.message.contains("axial disks") && e.message.contains("helix"),
+        e.message.contains("the cut needs 82071 axial disks")
+            && e.message
+                .contains("tools.T1.helix_deg = 89.999, tools.T1.diameter_mm = 20)"),
         "{e}"
     );
     let text = shipped_with("milling_slot.toml", "helix_deg = 0.0", "helix_deg = 89.9");
