@@ -1,7 +1,7 @@
 //! Scenario sections for executing jobs: each axis' drive and servo, the controller, the
 //! simulation settings, the job and the ball bar.
 
-use crate::build::{BuildError, count_in_range, in_range, typed};
+use crate::build::{BuildError, count_in_range, in_range, positive, typed};
 use crate::error::{Invalid, KeyPath};
 use crate::schema::Numbers;
 use nalgebra::Vector3;
@@ -268,6 +268,9 @@ fn within3(v: &Numbers<3>, max: f64, path: &KeyPath, what: &str) -> R<Vector3<f6
 /// Largest friction force accepted, N: ten tonnes moving at a friction coefficient of 0.1.
 const MAX_FRICTION_N: f64 = 1e5;
 
+/// Largest peak torque of a servo motor accepted, N·m.
+const MAX_PEAK_TORQUE_N_M: f64 = 1e5;
+
 fn friction(f: &FrictionToml, p: &KeyPath) -> R<LuGreParams> {
     // Generous bounds around guideways and screws (bristles of 1 to 100 N/µm, Stribeck
     // velocities of 0.1 to 10 mm/s, viscous friction of hundreds of N·s/m): beyond them the
@@ -478,8 +481,14 @@ pub fn servo(s: &ServoToml, drive: &DriveParams, p: &KeyPath) -> R<ServoParams> 
             &p.key("current_time_constant_ms"),
             "a time constant (ms)",
         )? * 1e-3,
-        force_limit_n: pos(s.peak_torque_n_m, &p.key("peak_torque_n_m"), "a torque")?
-            / drive.screw.m_per_rad(),
+        // Feed-axis servo motors peak at a few to a few hundred N·m, direct-drive torque
+        // motors at thousands; 10^5 N·m is beyond any of them.
+        force_limit_n: positive(
+            s.peak_torque_n_m,
+            MAX_PEAK_TORQUE_N_M,
+            &p.key("peak_torque_n_m"),
+            "a peak torque (N·m)",
+        )? / drive.screw.m_per_rad(),
     })
 }
 
@@ -876,6 +885,10 @@ const MAX_TARGETS: usize = 10_000;
 /// (`vmt_positioning::run::MIN_TARGET_SPACING_MM`, 1 µm).
 const MIN_TARGET_SPACING_MM: f64 = 1e-3;
 const MAX_RUNS: usize = 100;
+/// Longest dwell at a target of an ISO 230-2 job, s: the standard's dwells last seconds (long
+/// enough for the axis to settle and the reading to be averaged); an hour at every target
+/// measures the machine's thermal drift (ISO 230-3), not its positioning.
+const MAX_DWELL_S: f64 = 3600.0;
 
 /// Most steps of a Kwon job: the seven, each up to four times.
 const MAX_KWON_STEPS: usize = 7 * 4;
@@ -979,7 +992,7 @@ fn positioning_job(j: &PositioningToml, instruments: &InstrumentsToml) -> R<Job>
         }
         line[i] = v * 1e-3;
     }
-    let dwell = pos(*dwell_s, &p.key("dwell_s"), "a dwell")?;
+    let dwell = positive(*dwell_s, MAX_DWELL_S, &p.key("dwell_s"), "a dwell (s)")?;
     let spec = laser_spec(instruments.laser.as_ref())?;
     if spec.averaging_s > dwell {
         return Err(Invalid::new(

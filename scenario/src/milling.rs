@@ -143,16 +143,41 @@ fn modes(list: &[ModeToml], path: &KeyPath) -> Result<Vec<Mode>, Invalid> {
         .collect()
 }
 
-/// The material's coefficients in SI.
+/// Largest specific cutting force accepted (Kt, Kr, Ka), N/mm²: metals take a few hundred
+/// (aluminium) to a few thousand (hardened steel, nickel alloys), and up to about 10^4 where a
+/// mechanistic fit is made at chips of a few µm; 10^5 is beyond any material.
+const MAX_CUTTING_N_PER_MM2: f64 = 1e5;
+
+/// Largest edge (ploughing) force per unit of cut length accepted (Kte, Kre, Kae), N/mm:
+/// measured edge coefficients are tens of N/mm (aluminium, steel, titanium), up to a few
+/// hundred for worn or honed edges; 10^4 is beyond any edge.
+const MAX_EDGE_N_PER_MM: f64 = 1e4;
+
+/// The material's coefficients at `p` (`job.material`) in SI; an error names the key.
 pub fn coefficients(m: &MaterialToml, p: &KeyPath) -> Result<CuttingCoefficients, Invalid> {
-    let c = CuttingCoefficients {
-        tangential: m.kt_n_per_mm2 * 1e6,
-        radial: m.kr_n_per_mm2 * 1e6,
-        axial: m.ka_n_per_mm2 * 1e6,
-        tangential_edge: m.kte_n_per_mm * 1e3,
-        radial_edge: m.kre_n_per_mm * 1e3,
-        axial_edge: m.kae_n_per_mm * 1e3,
+    let cutting = |v: f64, k: &str| {
+        let what = "a specific cutting force in N/mm²";
+        in_range(v, 0.0, MAX_CUTTING_N_PER_MM2, &p.key(k), what)
     };
+    let edge = |v: f64, k: &str| {
+        let what = "an edge force in N/mm";
+        in_range(v, 0.0, MAX_EDGE_N_PER_MM, &p.key(k), what)
+    };
+    let c = CuttingCoefficients {
+        // The tangential force does the cutting: without it there is no cut.
+        tangential: positive(
+            m.kt_n_per_mm2,
+            MAX_CUTTING_N_PER_MM2,
+            &p.key("kt_n_per_mm2"),
+            "a specific cutting force in N/mm²",
+        )? * 1e6,
+        radial: cutting(m.kr_n_per_mm2, "kr_n_per_mm2")? * 1e6,
+        axial: cutting(m.ka_n_per_mm2, "ka_n_per_mm2")? * 1e6,
+        tangential_edge: edge(m.kte_n_per_mm, "kte_n_per_mm")? * 1e3,
+        radial_edge: edge(m.kre_n_per_mm, "kre_n_per_mm")? * 1e3,
+        axial_edge: edge(m.kae_n_per_mm, "kae_n_per_mm")? * 1e3,
+    };
+    // Every value is checked above at its key; the model's check stays as a guard.
     c.validate()
         .map_err(|e| Invalid::new(p.clone(), e.to_string()))?;
     Ok(c)
@@ -421,6 +446,22 @@ pub fn milling_job(
                 p.key("step_us")
             }
             MillingError::Cutting(_) => p.key("tool"),
+            // The depth of cut, with the tool's helix and diameter it is taken with.
+            MillingError::TooManyDisks { .. } => {
+                // The tool was found in the table above.
+                let msg = match tools.get(&j.tool) {
+                    Some(t) => format!(
+                        "{e} (job.axial_depth_mm = {}, tools.{name}.helix_deg = {}, \
+                         tools.{name}.diameter_mm = {})",
+                        j.axial_depth_mm,
+                        t.helix_deg,
+                        t.diameter_mm,
+                        name = j.tool
+                    ),
+                    None => e.to_string(),
+                };
+                return Invalid::new(p.key("axial_depth_mm"), msg);
+            }
             // The sensors' values are checked at their keys above.
             _ => KeyPath::of(&["instruments", "accelerometer"]),
         };

@@ -1145,3 +1145,147 @@ fn the_default_log_rate_follows_a_slow_servo() {
     let e = error_of(&text.replacen("[simulation]", "[simulation]\nlog_rate_hz = 1000.0", 1));
     assert_eq!(e.key.as_deref(), Some("simulation.log_rate_hz"), "{e}");
 }
+
+/// The ISO 230-2 dwell and the servo's peak torque were only checked for being finite and
+/// positive: a dwell of 10^308 s was refused as a test too long at [job], and a torque of
+/// 10^308 N·m was accepted. Both are bounded at their keys.
+#[test]
+fn a_dwell_or_peak_torque_beyond_any_test_or_motor_is_refused_at_its_key() {
+    let dwell = "a dwell (s) from 0 to 3600 is accepted";
+    assert_edits_refused(
+        "iso230_2_x.toml",
+        &[
+            ("dwell_s = 2.0", "dwell_s = 1e308", "job.dwell_s", dwell),
+            ("dwell_s = 2.0", "dwell_s = 7200.0", "job.dwell_s", dwell),
+            (
+                "dwell_s = 2.0",
+                "dwell_s = 0.0",
+                "job.dwell_s",
+                "0 is not accepted; a dwell (s) must be > 0",
+            ),
+        ],
+    );
+    let torque = "a peak torque (N·m) from 0 to 100000 is accepted";
+    for (by, accepted) in [
+        ("peak_torque_n_m = 1e308", torque),
+        ("peak_torque_n_m = 2e5", torque),
+        ("peak_torque_n_m = -12.0", torque),
+        (
+            "peak_torque_n_m = 0.0",
+            "0 is not accepted; a peak torque (N·m) must be > 0",
+        ),
+    ] {
+        assert_refused(
+            &with("peak_torque_n_m = 12.0", by),
+            by,
+            "machine.axes.x.servo.peak_torque_n_m",
+            accepted,
+        );
+    }
+    // The hour itself is accepted as a dwell (the job is then too long for the interpolator,
+    // which is refused at [job]), and so is a large torque motor.
+    let hour = shipped_with("iso230_2_x.toml", "dwell_s = 2.0", "dwell_s = 3600.0");
+    let e = parse(&hour, "s.toml", Some(&scenarios())).expect_err("too long");
+    assert_eq!(e.key.as_deref(), Some("job"), "{e}");
+    builtin_with("peak_torque_n_m = 12.0", "peak_torque_n_m = 1e5");
+}
+
+/// The built-in machine with `replace` replaced by `by`, which must load.
+fn builtin_with(replace: &str, by: &str) {
+    let text = with(replace, by);
+    parse(&text, "machine.toml", None).unwrap_or_else(|e| panic!("{by}: {e}"));
+}
+
+/// The material's coefficients were checked by the model only (positive, not negative) and
+/// the error named `job.material`, not the key; each is now bounded at its key to what real
+/// materials and edges take.
+#[test]
+fn cutting_coefficients_beyond_any_material_are_refused_at_their_keys() {
+    let material = "job.material";
+    let key = |k: &str| format!("{material}.{k}");
+    let cutting = "a specific cutting force in N/mm² from 0 to 100000 is accepted";
+    let edge = "an edge force in N/mm from 0 to 10000 is accepted";
+    let kr = "kr_n_per_mm2 = 200.0";
+    for (replace, by, key, accepted) in [
+        (
+            "kt_n_per_mm2 = 600.0",
+            "kt_n_per_mm2 = 1e308",
+            key("kt_n_per_mm2"),
+            cutting,
+        ),
+        (
+            "kt_n_per_mm2 = 600.0",
+            "kt_n_per_mm2 = 2e5",
+            key("kt_n_per_mm2"),
+            cutting,
+        ),
+        (
+            "kt_n_per_mm2 = 600.0",
+            "kt_n_per_mm2 = 0.0",
+            key("kt_n_per_mm2"),
+            "0 is not accepted; a specific cutting force in N/mm² must be > 0",
+        ),
+        (kr, "kr_n_per_mm2 = 1e308", key("kr_n_per_mm2"), cutting),
+        (kr, "kr_n_per_mm2 = -200.0", key("kr_n_per_mm2"), cutting),
+        (
+            kr,
+            "kr_n_per_mm2 = 200.0\nka_n_per_mm2 = 1e6",
+            key("ka_n_per_mm2"),
+            cutting,
+        ),
+        (
+            kr,
+            "kr_n_per_mm2 = 200.0\nkte_n_per_mm = 1e308",
+            key("kte_n_per_mm"),
+            edge,
+        ),
+        (
+            kr,
+            "kr_n_per_mm2 = 200.0\nkre_n_per_mm = 2e4",
+            key("kre_n_per_mm"),
+            edge,
+        ),
+        (
+            kr,
+            "kr_n_per_mm2 = 200.0\nkae_n_per_mm = -1.0",
+            key("kae_n_per_mm"),
+            edge,
+        ),
+    ] {
+        let text = shipped_with("milling_slot.toml", replace, by);
+        assert_refused(&text, by.lines().last().unwrap(), &key, accepted);
+    }
+    // Real coefficients load: titanium's (Budak et al.) with its edge forces.
+    let titanium = "kt_n_per_mm2 = 1319.0\nkr_n_per_mm2 = 1025.0\nka_n_per_mm2 = 225.0\n\
+                    kte_n_per_mm = 24.0\nkre_n_per_mm = 43.0\nkae_n_per_mm = 2.0";
+    let text = shipped_with("milling_slot.toml", "kt_n_per_mm2 = 600.0", titanium).replacen(
+        "kr_n_per_mm2 = 200.0\n",
+        "",
+        1,
+    );
+    parse(&text, "s.toml", Some(&scenarios())).expect("titanium's coefficients");
+}
+
+/// The number of axial disks follows from the helix lag a_p·tan β / R; a helix near 90°
+/// made it unbounded (82 071 disks of surface memory at 89.999°, more than memory holds
+/// closer to 90°). More than 1000 disks are refused at the depth of cut.
+#[test]
+fn a_cut_needing_more_axial_disks_than_accepted_is_refused_at_its_depth() {
+    // 0.5 mm deep with a 20 mm tool: 89.9° needs 821 disks, 89.999° about 82 000.
+    let steep = shipped_with("milling_slot.toml", "helix_deg = 0.0", "helix_deg = 89.999");
+    assert_refused(
+        &steep,
+        "axial_depth_mm = 0.5",
+        "job.axial_depth_mm",
+        "at most 1000 disks are accepted",
+    );
+    let e = parse(&steep, "s.toml", Some(&scenarios())).unwrap_err();
+    assert!(
+        e.message.contains("the cut needs 82071 axial disks")
+            && e.message
+                .contains("tools.T1.helix_deg = 89.999, tools.T1.diameter_mm = 20)"),
+        "{e}"
+    );
+    let text = shipped_with("milling_slot.toml", "helix_deg = 0.0", "helix_deg = 89.9");
+    parse(&text, "s.toml", Some(&scenarios())).expect("821 disks");
+}

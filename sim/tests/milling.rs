@@ -5,7 +5,8 @@ use vmt_model::cutting::{
     CutGeometry, CuttingCoefficients, CuttingError, EndMill, MillingDirection, Mode, ToolDynamics,
 };
 use vmt_sim::milling::{
-    AccelerometerParams, Feed, MillingDrive, MillingError, MillingSetup, simulate_milling,
+    AccelerometerParams, Feed, MAX_DISKS, MillingDrive, MillingError, MillingSetup,
+    simulate_milling,
 };
 
 /// Insperger–Stépán / Ding et al. benchmark: one mode along X (m = 0.03993 kg, 922 Hz,
@@ -399,6 +400,33 @@ fn bad_inputs_are_refused_one_clear_error_each() {
         odd.validate(),
         Err(MillingError::StepNotFraction { .. })
     ));
+    // The axial disks follow from the helix lag a_p·tan β / R, which grows without bound as
+    // the helix nears 90°: at 0.3 mm deep with a 5 mm radius, 89.9° needs 985 disks and is
+    // accepted, 89.999° needs about 98 500 and is refused before any memory is laid out.
+    let helix = |deg: f64| MillingSetup {
+        tool: EndMill {
+            helix: deg.to_radians(),
+            ..good.tool
+        },
+        ..good.clone()
+    };
+    let dense = helix(89.9);
+    dense.validate().unwrap();
+    assert_eq!(dense.disks(), 985);
+    let steep = helix(89.999);
+    let err = vmt_sim::milling::CuttingProcess::new(&steep).err();
+    assert!(
+        matches!(
+            err,
+            Some(MillingError::TooManyDisks { disks, max: MAX_DISKS, .. }) if disks > 9e4
+        ),
+        "{err:?}"
+    );
+    let err = steep.validate().unwrap_err().to_string();
+    assert!(
+        err.contains("at most 1000 disks are accepted (a helix lag of 2000°)"),
+        "{err}"
+    );
     let bad_drive = MillingDrive {
         spindle_rpm: -100.0,
         ..drive(15_000.0, 0.1)

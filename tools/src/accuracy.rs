@@ -11,13 +11,15 @@
 //!
 //! The study warns when the dataset looks unfinished: fewer runs than `dataset.json` asked for,
 //! no manifest, or a manifest listing another number of runs (an interrupted `vmt dataset`).
+//! A run whose `labels.json` is not JSON or lacks one of its keys is a damaged dataset: an
+//! error naming the file, before anything is diagnosed.
 //!
 //! Tolerances: max(0.3 µm, 5 % of |truth|) for lengths (backlash, lateral play, eccentricity,
 //! closing error, straightness); scale mismatch as the length it makes over the radius R:
 //! max(0.3 µm / R, 5 %) in ppm; 1 µm/m for squareness; 0.1 ms for servo mismatch. Goals: 95 %
 //! within tolerance and false positives under 2 %; straightness is reported but is no goal.
 
-use crate::dataset::{complete_runs, read_identity};
+use crate::dataset::{complete_runs, read_identity, read_run_labels};
 use crate::diagnose::{diagnose_file, truth_figures};
 use crate::error::CliError;
 use rayon::prelude::*;
@@ -121,6 +123,11 @@ pub fn tolerance(key: &str, truth: f64, radius_mm: f64) -> (f64, &'static str) {
 /// Diagnoses every complete run of dataset `dir` and computes the statistics.
 pub fn study(dir: &Path) -> Result<Study, CliError> {
     let runs = complete_runs(dir)?;
+    // A corrupt label is a damaged dataset, an error naming the file, not a run that failed
+    // its diagnosis (the truth scored against is the one in run.mcap).
+    for run in &runs {
+        read_run_labels(run)?;
+    }
     let per_run: Vec<Result<RunComparisons, (String, String)>> =
         runs.par_iter().map(|p| compare_run(p)).collect();
     let mut by_key: BTreeMap<String, (String, Vec<Option<Comparison>>)> = BTreeMap::new();

@@ -131,7 +131,7 @@ pub fn read_identity(dir: &Path) -> Result<Option<Identity>, CliError> {
     if !path.exists() {
         return Ok(None);
     }
-    let v = read_labels(&path)?;
+    let v = read_json(&path)?;
     let file = path.display().to_string();
     let bad = |key: &str| {
         CliError::input(
@@ -428,7 +428,7 @@ struct Manifest {
 fn manifest(dir: &Path) -> Result<Manifest, CliError> {
     let labels = complete_runs(dir)?
         .iter()
-        .map(|p| read_labels(&p.join("labels.json")))
+        .map(|p| read_run_labels(p))
         .collect::<Result<Vec<_>, _>>()?;
     let figures = |l: &Value| {
         crate::diagnose::truth_figures(&l["ground_truth"], 0)
@@ -467,11 +467,61 @@ fn manifest(dir: &Path) -> Result<Manifest, CliError> {
     Ok(Manifest { numbers, rows })
 }
 
-fn read_labels(path: &Path) -> Result<Value, CliError> {
+fn read_json(path: &Path) -> Result<Value, CliError> {
     let file = path.display().to_string();
     let text =
         std::fs::read_to_string(path).map_err(|e| CliError::input(&file, None, e.to_string()))?;
     serde_json::from_str(&text).map_err(|e| CliError::input(&file, Some(e.line()), e.to_string()))
+}
+
+/// Reads run folder `run`'s `labels.json`, checked to be what `vmt dataset` writes: an
+/// object with the run's `id` (the folder's name), its `seed` and the `parameters`, `keys` and
+/// `ground_truth` objects. A label that is not JSON (named with serde's line and column) or
+/// lacks one of them is a damaged run, an error naming the file: not a run to leave out.
+pub fn read_run_labels(run: &Path) -> Result<Value, CliError> {
+    let path = run.join("labels.json");
+    let file = path.display().to_string();
+    let damaged = |what: String| {
+        format!(
+            "{what}; the run is damaged: remove its folder and run `vmt dataset` again with the \
+             same arguments to simulate it anew"
+        )
+    };
+    let text =
+        std::fs::read_to_string(&path).map_err(|e| CliError::input(&file, None, e.to_string()))?;
+    let v: Value = serde_json::from_str(&text)
+        .map_err(|e| CliError::input(&file, Some(e.line()), damaged(format!("not JSON ({e})"))))?;
+    match label_problem(&v, &name_of(run)) {
+        Some(what) => Err(CliError::input(&file, None, damaged(what))),
+        None => Ok(v),
+    }
+}
+
+/// What makes `v` not the label of run `id`, if anything.
+fn label_problem(v: &Value, id: &str) -> Option<String> {
+    let holds = "a label holds id, seed, parameters, keys and ground_truth";
+    if !v.is_object() {
+        return Some(format!("not a JSON object ({holds})"));
+    }
+    if let Some(k) = ["id", "seed", "parameters", "keys", "ground_truth"]
+        .into_iter()
+        .find(|k| v.get(k).is_none())
+    {
+        return Some(format!("the key `{k}` is missing ({holds})"));
+    }
+    if v["id"].as_str() != Some(id) {
+        return Some(format!(
+            "`id` is {}, not the run's folder name \"{id}\"",
+            v["id"]
+        ));
+    }
+    if v["seed"].as_u64().is_none() {
+        return Some(format!("`seed` is {}, not a whole number", v["seed"]));
+    }
+    ["parameters", "keys", "ground_truth"]
+        .into_iter()
+        .find(|k| !v[k].is_object())
+        .map(|k| format!("`{k}` is {}, not an object", v[k]))
 }
 
 /// Rebuilds `manifest.csv` and `manifest.parquet` from the labels; returns the number of rows.

@@ -150,8 +150,20 @@ fn model_error(e: impl std::fmt::Display) -> CliError {
     CliError::Model(format!("stability: {e}"))
 }
 
-/// The depth grid of one case: up to --depth-max-mm, or eight times the smallest ZOA depth
-/// over the speed range, never beyond the flute length.
+/// Refuses a --depth-max-mm beyond the flute length of `system`'s tool.
+fn check_depth(args: &LobesArgs, system: &MillingSystem) -> Result<(), CliError> {
+    let flute = system.tool.flute_length;
+    match args.depth_max_mm {
+        Some(mm) if mm * 1e-3 > flute => Err(CliError::Argument(format!(
+            "--depth-max-mm {mm} is beyond the tool's flute length {} mm",
+            flute * 1e3
+        ))),
+        _ => Ok(()),
+    }
+}
+
+/// The depth grid of one case: up to --depth-max-mm (checked by [`check_depth`]), or eight
+/// times the smallest ZOA depth over the speed range, never beyond the flute length.
 fn depth_grid(
     args: &LobesArgs,
     system: &MillingSystem,
@@ -160,12 +172,6 @@ fn depth_grid(
 ) -> Result<Vec<f64>, CliError> {
     let flute = system.tool.flute_length;
     let max = match args.depth_max_mm {
-        Some(mm) if mm * 1e-3 > flute => {
-            return Err(CliError::Argument(format!(
-                "--depth-max-mm {mm} is beyond the tool's flute length {} mm",
-                flute * 1e3
-            )));
-        }
         Some(mm) => mm * 1e-3,
         None => speeds
             .iter()
@@ -215,9 +221,27 @@ fn check(args: &LobesArgs) -> Result<(), CliError> {
     Ok(())
 }
 
-/// Both diagrams of every case. The semi-discretization map runs over the speeds in parallel.
-pub fn compute(args: &LobesArgs) -> Result<Vec<Case>, CliError> {
+/// The cases to analyse, every argument checked and the scenario read: what `command` does
+/// before it makes the output folder.
+pub fn prepare(args: &LobesArgs) -> Result<Vec<(String, MillingSystem)>, CliError> {
     check(args)?;
+    let systems = systems(args)?;
+    for (_, system) in &systems {
+        check_depth(args, system)?;
+    }
+    Ok(systems)
+}
+
+/// Both diagrams of every case of [`prepare`]. The semi-discretization map runs over the
+/// speeds in parallel.
+pub fn compute(args: &LobesArgs) -> Result<Vec<Case>, CliError> {
+    compute_cases(args, prepare(args)?)
+}
+
+fn compute_cases(
+    args: &LobesArgs,
+    systems: Vec<(String, MillingSystem)>,
+) -> Result<Vec<Case>, CliError> {
     let speeds = grid(
         "spindle speed, rpm",
         args.speed_min_rpm,
@@ -229,7 +253,7 @@ pub fn compute(args: &LobesArgs) -> Result<Vec<Case>, CliError> {
         steps: args.sd_steps,
     };
     let mut cases = Vec::new();
-    for (label, system) in systems(args)? {
+    for (label, system) in systems {
         let zoa = lobes(&system, &ZoaSettings::default()).map_err(model_error)?;
         let depths = depth_grid(args, &system, &zoa, &speeds)?;
         let bar = progress(args.quiet, speeds.len(), &label);
@@ -349,9 +373,12 @@ pub fn summary(cases: &[Case]) -> String {
 }
 
 /// `vmt lobes`: computes, writes lobes.csv, sd_map.csv and the image, prints the summary.
+/// The output folder is made after the arguments and the scenario are checked, so that a
+/// refused command leaves no empty folder, and before the diagrams are computed.
 pub fn command(args: &LobesArgs) -> Result<(), CliError> {
+    let systems = prepare(args)?;
     crate::out::output_dir(&args.out)?;
-    let cases = compute(args)?;
+    let cases = compute_cases(args, systems)?;
     for (name, text) in [
         ("lobes.csv", lobes_csv(&cases)),
         ("sd_map.csv", map_csv(&cases)),

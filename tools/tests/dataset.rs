@@ -251,6 +251,53 @@ fn accuracy_compares_the_diagnosis_with_the_truth() {
     );
 }
 
+/// A run's labels.json that is not JSON, or lacks one of its keys, is a damaged dataset:
+/// `vmt accuracy` stops with an error naming the file (and serde's line and column) instead of
+/// scoring the dataset without it, and so does `vmt dataset` when it rebuilds the manifest.
+#[test]
+fn a_corrupt_label_is_an_error_naming_its_file() {
+    let tmp = tempfile::tempdir().unwrap();
+    let s = scenario(tmp.path(), None);
+    let out = tmp.path().join("ds");
+    dataset(&s, &out, 2, 2);
+    let labels = out.join("runs/000001/labels.json");
+    let good = std::fs::read_to_string(&labels).unwrap();
+    let refused = |expected: &[&str]| {
+        let o = vmt(&["accuracy", out.to_str().unwrap()]);
+        let e = stderr(&o);
+        assert!(!o.status.success(), "a corrupt label was scored: {e}");
+        for x in expected {
+            assert!(e.contains(x), "`{x}` not in: {e}");
+        }
+        assert!(!out.join("accuracy.json").exists(), "{e}");
+    };
+    let file = format!("{}", labels.display());
+    // Not JSON: the value of `seed` on line 3 is garbage.
+    std::fs::write(&labels, "{\n  \"id\": \"000001\",\n  \"seed\": x\n}\n").unwrap();
+    refused(&[
+        &format!("{file}:3: not JSON"),
+        "line 3 column 11",
+        "damaged",
+    ]);
+    // JSON, but without the ground truth.
+    let mut v: Value = serde_json::from_str(&good).unwrap();
+    v.as_object_mut().unwrap().remove("ground_truth");
+    std::fs::write(&labels, v.to_string()).unwrap();
+    refused(&[&file, "the key `ground_truth` is missing"]);
+    // Another run's label.
+    let other = good.replacen("\"000001\"", "\"000000\"", 1);
+    std::fs::write(&labels, other).unwrap();
+    refused(&[&file, "not the run's folder name \"000001\""]);
+    // `vmt dataset` continuing the folder reads the labels into the manifest: refused too.
+    let o = dataset_run(&s, &out, 2, 7, 1);
+    let e = stderr(&o);
+    assert!(!o.status.success() && e.contains(&file), "{e}");
+    // Restored, the dataset is scored.
+    std::fs::write(&labels, good).unwrap();
+    let o = vmt(&["accuracy", out.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+}
+
 /// The run folders of `out`, by name.
 fn run_names(out: &Path) -> Vec<String> {
     let mut names: Vec<String> = std::fs::read_dir(out.join("runs"))

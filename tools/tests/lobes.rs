@@ -59,44 +59,46 @@ fn lobes_writes_both_diagrams_and_the_image() {
     assert_eq!(map.lines().count(), 1 + 11 * 40);
 }
 
+/// Bad arguments are refused by name, and before the output folder is made: a refused
+/// command leaves no empty folder behind (the folder was made first, as `vmt gap` once did).
 #[test]
-fn bad_lobe_arguments_are_refused_by_name() {
+fn bad_lobe_arguments_are_refused_by_name_leaving_no_folder() {
     let dir = tempfile::tempdir().unwrap();
-    let out = dir.path().to_str().unwrap();
-    let o = vmt(&["lobes", "--immersion", "1.5", "--out", out]);
-    assert!(!o.status.success());
-    assert!(stderr(&o).contains("--immersion 1.5"), "{}", stderr(&o));
-    let o = vmt(&[
-        "lobes",
-        "--immersion",
-        "1",
-        "--depth-max-mm",
-        "60",
-        "--out",
-        out,
-    ]);
-    assert!(!o.status.success());
-    assert!(stderr(&o).contains("flute length 50 mm"), "{}", stderr(&o));
-    let o = vmt(&[
-        "lobes",
-        "--speed-min-rpm",
-        "9000",
-        "--speed-max-rpm",
-        "8000",
-        "--out",
-        out,
-    ]);
-    assert!(!o.status.success());
-    assert!(stderr(&o).contains("spindle speed"), "{}", stderr(&o));
-    let o = vmt(&[
-        "lobes",
-        "--scenario",
-        "../scenarios/vmc500.toml",
-        "--out",
-        out,
-    ]);
-    assert!(!o.status.success());
-    assert!(stderr(&o).contains("no milling job"), "{}", stderr(&o));
+    let folder = dir.path().join("never");
+    let out = folder.to_str().unwrap();
+    let refused = |args: &[&str], expected: &str| {
+        let o = vmt(&[&["lobes"], args, &["--out", out]].concat());
+        assert!(!o.status.success(), "{args:?} accepted");
+        let e = stderr(&o);
+        assert!(e.contains(expected), "{args:?}: `{expected}` not in {e}");
+        assert!(!folder.exists(), "{args:?} was refused but made {out}");
+    };
+    refused(&["--immersion", "1.5"], "--immersion 1.5");
+    refused(
+        &["--immersion", "1", "--depth-max-mm", "60"],
+        "flute length 50 mm",
+    );
+    refused(
+        &["--speed-min-rpm", "9000", "--speed-max-rpm", "8000"],
+        "spindle speed",
+    );
+    refused(&["--speeds", "1"], "--speeds 1");
+    refused(&["--depth-max-mm", "nan"], "--depth-max-mm");
+    refused(
+        &["--scenario", "../scenarios/vmc500.toml"],
+        "no milling job",
+    );
+    refused(&["--scenario", "../scenarios/missing.toml"], "missing.toml");
+    // A scenario's depth limit is its tool's flute (30 mm for the shipped slot).
+    refused(
+        &[
+            "--scenario",
+            "../scenarios/milling_slot.toml",
+            "--depth-max-mm",
+            "40",
+        ],
+        "flute length 30 mm",
+    );
     // A scenario's engagement is its job's: the benchmark's options are refused beside it,
     // not ignored.
     for (option, value) in [("--immersion", "0.5"), ("--direction", "up")] {
@@ -115,5 +117,6 @@ fn bad_lobe_arguments_are_refused_by_name() {
             e.contains("'--scenario <SCENARIO>' cannot be used with") && e.contains(option),
             "{e}"
         );
+        assert!(!folder.exists(), "{option} was refused but made {out}");
     }
 }

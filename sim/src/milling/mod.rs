@@ -23,8 +23,9 @@
 //!    samples of the ground truth are updated ([`process`] on the timing and its accuracy).
 //!
 //! Axial disks: as many as make the helix lag per disk at most 2° (K = ⌈a_p·tan β/(R·2°)⌉,
-//! at least one), each of height dz = a_p/K. The step must give at least 20 steps per period
-//! of the highest mode and be an integer fraction of the output period.
+//! at least one; a cut needing more than [`MAX_DISKS`] is refused), each of height
+//! dz = a_p/K. The step must give at least 20 steps per period of the highest mode and be an
+//! integer fraction of the output period.
 
 pub mod accelerometer;
 pub mod drive;
@@ -97,6 +98,23 @@ pub enum MillingError {
         output_period_s: f64,
         suggested_step_s: f64,
     },
+    /// The cut needs more axial disks than [`MAX_DISKS`]: each holds a surface memory, and
+    /// the tool's teeth are computed on every disk at every step.
+    #[error(
+        "the cut needs {disks} axial disks (helix lag a_p·tan β / R = {lag_deg:.0}° over the \
+         depth of cut, at most 2° per disk); at most {max} disks are accepted (a helix lag of \
+         {max_lag_deg}°): a shallower cut, a smaller helix angle or a larger tool"
+    )]
+    TooManyDisks {
+        /// Disks the cut would need (as a real: it may exceed any integer).
+        disks: f64,
+        /// The helix lag over the depth of cut, deg.
+        lag_deg: f64,
+        /// [`MAX_DISKS`].
+        max: usize,
+        /// The lag [`MAX_DISKS`] disks cover, deg.
+        max_lag_deg: f64,
+    },
     #[error("{name} = {value} is out of range; accepted: {accepted}")]
     OutOfRange {
         name: &'static str,
@@ -159,6 +177,7 @@ impl MillingSetup {
             check_mode(m)?;
         }
         self.cut.validate(&self.tool)?;
+        self.check_disks()?;
         let ft = self.feed_per_tooth;
         check(
             "feed per tooth (m)",
@@ -197,10 +216,34 @@ impl MillingSetup {
         (1.0 / (self.accelerometer.sample_rate_hz * self.step_s)).round() as usize
     }
 
-    /// Number of axial disks: helix lag per disk at most [`MAX_LAG_PER_DISK`].
+    /// Number of axial disks: helix lag per disk at most [`MAX_LAG_PER_DISK`] (at most
+    /// [`MAX_DISKS`] in a validated setup).
     pub fn disks(&self) -> usize {
-        let lag = self.cut.axial_depth * self.tool.helix.tan() / (self.tool.diameter / 2.0);
-        ((lag / MAX_LAG_PER_DISK).ceil() as usize).max(1)
+        (self.disks_needed() as usize).max(1)
+    }
+
+    /// The helix lag a_p·tan β / R over the depth of cut, rad.
+    fn helix_lag(&self) -> f64 {
+        self.cut.axial_depth * self.tool.helix.tan() / (self.tool.diameter / 2.0)
+    }
+
+    /// Disks of at most [`MAX_LAG_PER_DISK`] the helix lag needs, as a real (a lag near a
+    /// 90° helix needs more than any integer holds).
+    fn disks_needed(&self) -> f64 {
+        (self.helix_lag() / MAX_LAG_PER_DISK).ceil()
+    }
+
+    fn check_disks(&self) -> Result<(), MillingError> {
+        let disks = self.disks_needed();
+        if disks <= MAX_DISKS as f64 {
+            return Ok(());
+        }
+        Err(MillingError::TooManyDisks {
+            disks,
+            lag_deg: self.helix_lag().to_degrees(),
+            max: MAX_DISKS,
+            max_lag_deg: (MAX_DISKS as f64 * MAX_LAG_PER_DISK).to_degrees().round(),
+        })
     }
 
     fn check_step(&self) -> Result<(), MillingError> {
@@ -229,6 +272,12 @@ impl MillingSetup {
 
 /// Largest helix lag of one axial disk, rad (2°).
 pub const MAX_LAG_PER_DISK: f64 = 2.0 * std::f64::consts::PI / 180.0;
+
+/// Most axial disks of a cut: a helix lag of 2000°, more than five turns of a flute within
+/// the depth of cut, beyond any end mill (a 10 mm tool with a 45° helix reaches it at a depth
+/// of 175 mm). Each disk holds a surface memory of [`engagement::BINS`] bins, and every tooth
+/// is computed on every disk at every cut step.
+pub const MAX_DISKS: usize = 1000;
 
 fn check_mode(m: &Mode) -> Result<(), MillingError> {
     let f = m.natural_frequency_hz;
