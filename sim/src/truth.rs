@@ -50,7 +50,7 @@ pub struct TruthInputs<'a> {
 /// every figure a ball-bar diagnosis reports, under the diagnosis' keys (see [`test_figures`]).
 /// A positioning test's
 /// `laser` section holds the noise-free deviations (what a perfect laser would read), the error
-/// chain's share, and the ISO 230-2 figures of both (see [`Iso230_2`]).
+/// chain's share, and the ISO 230-2 figures of both (see [`Iso230_2`](vmt_model::iso230_2::Iso230_2)).
 pub fn ground_truth(
     inputs: &TruthInputs,
     closing_um: &[Option<f64>],

@@ -94,7 +94,7 @@ const LASER_COLUMNS: &str =
     "target_mm, direction (forward/backward), run, and deviation_um or reading_mm";
 
 /// Tells the kind of `path` from its first bytes (MCAP) or its CSV header, reading only its
-/// first [`HEAD_BYTES`] (a run's MCAP may hold a gigabyte); an empty file, or a header of
+/// first `HEAD_BYTES` (a run's MCAP may hold a gigabyte); an empty file, or a header of
 /// neither kind, is refused naming what is missing.
 pub fn file_kind(path: &Path) -> Result<FileKind, CliError> {
     use std::io::Read;

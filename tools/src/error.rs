@@ -93,7 +93,7 @@ fn check_within<T: PartialOrd + Copy + std::fmt::Display>(
     ))
 }
 
-/// [`check_within`] for a quantity in `unit`.
+/// `check_within` for a quantity in `unit`.
 pub fn check_range(
     name: &str,
     value: f64,
@@ -104,7 +104,7 @@ pub fn check_range(
     check_within(name, value, range, unit, why)
 }
 
-/// [`check_within`] for a count.
+/// `check_within` for a count.
 pub fn check_count(
     name: &str,
     value: usize,

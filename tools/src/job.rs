@@ -36,7 +36,7 @@ pub fn execute(
 
 /// [`execute`] and the run's files written into the folder `dir`: `run.mcap` and `run.rrd`
 /// while a job through the feed drives runs (see [`RunFiles`]; a milling run writes them
-/// afterwards), then the rest of [`write`]'s.
+/// afterwards), then the rest of [`write`](fn@write)'s.
 pub fn execute_and_write(
     scenario: &Scenario,
     text: &str,

@@ -1,5 +1,9 @@
 //! `vmt`: the virtual machine tool on the command line.
 
+// The doc comments of the argument structs are clap's `--help` text, written for a terminal:
+// `[dataset]` is a TOML table and `<id>` a placeholder there, not a link or an HTML tag.
+#![allow(rustdoc::broken_intra_doc_links, rustdoc::invalid_html_tags)]
+
 use clap::{Args, Parser, Subcommand};
 use nalgebra::Vector3;
 use std::fs::File;

@@ -79,7 +79,7 @@ thread_local! {
 const NOISE_DIFFERENCES: usize = 16_384;
 
 /// Robust white-noise σ of a series from the median of its first differences: of every k-th
-/// of them, k = ⌊(n − 1)/[`NOISE_DIFFERENCES`]⌋ (from k = 2 on, differences of disjoint pairs,
+/// of them, k = ⌊(n − 1)/`NOISE_DIFFERENCES`⌋ (from k = 2 on, differences of disjoint pairs,
 /// independent; the median of at least 16 384 estimates σ to about 1 %, well within the spread
 /// of the noise between runs).
 pub fn noise_sigma(r: &[f64]) -> f64 {
@@ -726,7 +726,7 @@ const SPREAD: i64 = 6;
 
 /// `(Σ_j a_j e^{i n t_j}, Σ_j b_j e^{i n t_j})` for n = 0…`n_max`, points `t_j` anywhere: the
 /// type-1 non-uniform FFT by Gaussian gridding (Greengard & Lee 2004, oversampling 2,
-/// [`SPREAD`] points each side): the sources are spread with a Gaussian onto a regular grid of
+/// `SPREAD` points each side): the sources are spread with a Gaussian onto a regular grid of
 /// the period 2π, the grid is transformed, and the Gaussian's transform divided out.
 pub fn nufft(
     t: &[f64],

@@ -67,7 +67,7 @@ impl Compiled {
     /// `out[i] = deviation[i] − model(i)` for the samples of one trace of sense sign `g` (the
     /// residual): the dot product of the weights with [`shapes`], the sense folded into the
     /// weights and the terms regrouped (`w₉c²s + w₁₀s²c = sc (w₉c + w₁₀s)`,
-    /// `|s| = sign(s) s`), the signs applied by [`signed`], so that the loop has no branch or
+    /// `|s| = sign(s) s`), the signs applied by `signed`, so that the loop has no branch or
     /// select and runs on vectors.
     pub fn residuals(
         &self,

@@ -16,7 +16,7 @@ const CHAINS: usize = 4;
 pub struct PrefixSums(Vec<f64>);
 
 impl PrefixSums {
-    /// The prefix sums of `x`: [`CHAINS`] stretches summed side by side, then each stretch
+    /// The prefix sums of `x`: `CHAINS` stretches summed side by side, then each stretch
     /// offset by the total of those before it.
     pub fn new(x: &[f64]) -> Self {
         let n = x.len();

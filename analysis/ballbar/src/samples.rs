@@ -178,7 +178,7 @@ fn table() -> &'static [(f64, f64); TABLE_N] {
 }
 
 /// (sin, cos) of an angle in degrees: the nearest of 1024 tabulated angles rotated by the
-/// remainder ε (|ε| ≤ π/1024, see [`rotate`]). Agrees with `to_radians().sin_cos()` to a few
+/// remainder ε (|ε| ≤ π/1024, see `rotate`). Agrees with `to_radians().sin_cos()` to a few
 /// 1e-16, and each sample is independent of the others (no recurrence to wait for).
 #[inline]
 pub fn sin_cos_deg(a: f64, table: &[(f64, f64); TABLE_N]) -> (f64, f64) {

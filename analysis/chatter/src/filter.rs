@@ -242,7 +242,7 @@ impl ChebyshevBandPass {
         20.0 * self.response(f_hz).norm().log10()
     }
 
-    /// Direct-form polynomials (b, a) in powers of z⁻¹, a[0] = 1: y[k] = Σ b_i x[k−i] − Σ_{i≥1} a_i y[k−i].
+    /// Direct-form polynomials (b, a) in powers of z⁻¹, `a[0] = 1`: `y[k] = Σ b_i x[k−i] − Σ_{i≥1} a_i y[k−i]`.
     pub fn direct_form(&self) -> (Vec<f64>, Vec<f64>) {
         let mut b = vec![1.0];
         let mut a = vec![1.0];
@@ -340,7 +340,7 @@ impl SosFilter {
     }
 }
 
-/// A direct-form difference equation y[k] = Σ b_i x[k−i] − Σ_{i≥1} a_i y[k−i] (a[0] = 1),
+/// A direct-form difference equation `y[k] = Σ b_i x[k−i] − Σ_{i≥1} a_i y[k−i]` (`a[0] = 1`),
 /// for running published coefficients as printed.
 pub fn direct_form_filter(b: &[f64], a: &[f64], x: &[f64]) -> Vec<f64> {
     let mut y: Vec<f64> = Vec::with_capacity(x.len());

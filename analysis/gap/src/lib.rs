@@ -9,7 +9,7 @@
 //! - [`effects`]: the library of candidate effects, as the scenario keys they change;
 //! - [`model`]: a scenario re-simulated with parameter offsets (the forward model);
 //! - [`select`]: which effects explain the gap, by forward selection judged on held-out runs;
-//! - [`bench`]: the withheld-effect check: effects switched off in the model, found again;
+//! - [`bench`](mod@bench): the withheld-effect check: effects switched off in the model, found again;
 //! - [`spectrum`]: third-octave band levels of accelerometer signals;
 //! - [`vibration`]: the gap of a milling model against accelerometer logs, by band;
 //! - [`vibration_bench`]: the withheld-effect check of the vibration gap.

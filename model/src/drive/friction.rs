@@ -209,8 +209,8 @@ impl LuGreStep {
     }
 
     /// Advances `contact` by one step at sliding velocity `v` (m/s) and returns the friction
-    /// force over the step, N. A step is [`LuGreStep::slip`], `exp(-a h)` and
-    /// [`LuGreStep::settle`]: batches of contacts take them stage by stage, so that their
+    /// force over the step, N. A step is `LuGreStep::slip`, `exp(-a h)` and
+    /// `LuGreStep::settle`: batches of contacts take them stage by stage, so that their
     /// chains (an `exp`, a division, another `exp`) overlap in the pipeline.
     #[inline]
     pub fn advance(&self, contact: &mut LuGre, v: f64) -> f64 {

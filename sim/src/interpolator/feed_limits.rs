@@ -45,7 +45,7 @@ pub(crate) fn commanded_speed(kind: MoveKind, limits: &Limits) -> f64 {
 }
 
 /// The fastest a circle of radius `radius_m` in the plane of axes `plane` can be run, m/s:
-/// what [`segment_limits`] grants a helix without rise (`q = 1`, `κ = 1/r`), the slower plane
+/// what `segment_limits` grants a helix without rise (`q = 1`, `κ = 1/r`), the slower plane
 /// axis' velocity and `√(c a r)` for its acceleration `a`, with the path feed's own maximum.
 pub fn circle_speed_limit(limits: &Limits, plane: [usize; 2], radius_m: f64) -> f64 {
     let [iu, iv] = plane;

@@ -11,7 +11,7 @@
 //! where RMS_limit is set beforehand from cuts that chattered. The feed override sent to the CNC
 //! is the ratio RMS_limit / RMS (§4), capped here at 1 (no speeding up below the limit).
 //!
-//! The paper states neither its buffer length nor its limit; [`KimSettings::default`] uses a
+//! The paper states neither its buffer length nor its limit; [`KimSettings::with_limit`] uses a
 //! 50 ms block (1000 samples at 20 kHz) and the limit must be given. The paper's DSP stops
 //! sampling while it processes a buffer; here the filter runs continuously (its state carries
 //! over from block to block). Several axes are combined by summing their squared filtered

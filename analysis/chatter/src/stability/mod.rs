@@ -112,8 +112,8 @@ impl MillingSystem {
     }
 }
 
-/// ∫_{φ0}^{φ1} [a_xx a_xy; a_yx a_yy](φ) dφ with K_r = `kr` in closed form; over the engagement
-/// it is Altintas' [α] (eq. 3.87, the ½[…] terms of [`zoa`]). The building block of both the ZOA's averaged coefficients and
+/// `∫_{φ0}^{φ1} [a_xx a_xy; a_yx a_yy](φ) dφ` with K_r = `kr` in closed form; over the engagement
+/// it is Altintas' \[α\] (eq. 3.87, the ½[…] terms of [`zoa`]). The building block of both the ZOA's averaged coefficients and
 /// the semi-discretization's step-averaged directional matrix.
 pub fn directional_integral(phi0: f64, phi1: f64, kr: f64) -> Matrix2<f64> {
     let f = |p: f64| {
