@@ -307,8 +307,11 @@ fn friction(f: &FrictionToml, p: &KeyPath) -> R<LuGreParams> {
             &p.key("stribeck_mm_s"),
             "a Stribeck velocity (mm/s)",
         )? * 1e-3,
-        stribeck_exponent: pos(
+        // δ of exp(−|v/v_s|^δ): 0.5 to 2 in the literature (Armstrong-Hélouvry 1994).
+        stribeck_exponent: in_range(
             f.stribeck_exponent,
+            0.1,
+            10.0,
             &p.key("stribeck_exponent"),
             "a Stribeck exponent",
         )?,

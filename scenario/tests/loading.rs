@@ -829,6 +829,12 @@ fn drive_values_beyond_any_drive_are_refused_at_their_keys() {
             friction("stribeck_mm_s"),
             "a Stribeck velocity (mm/s) from 0.001 to 1000 is accepted",
         ),
+        (
+            "stribeck_mm_s = 1.0,",
+            "stribeck_mm_s = 1.0, stribeck_exponent = 1e308,",
+            friction("stribeck_exponent"),
+            "a Stribeck exponent from 0.1 to 10 is accepted",
+        ),
     ] {
         assert_refused(
             &with(replace, by),
