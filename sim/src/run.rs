@@ -70,6 +70,23 @@ pub struct BallbarTrace {
     pub deviation_um: Vec<f64>,
 }
 
+impl BallbarTrace {
+    /// The trace with only its samples in `range` (none: its label, plane, direction, radius
+    /// and feed).
+    pub fn samples(&self, range: std::ops::Range<usize>) -> BallbarTrace {
+        BallbarTrace {
+            label: self.label.clone(),
+            plane: self.plane.clone(),
+            direction: self.direction.clone(),
+            radius_mm: self.radius_mm,
+            feed_mm_min: self.feed_mm_min,
+            times_s: self.times_s[range.clone()].to_vec(),
+            angle_deg: self.angle_deg[range.clone()].to_vec(),
+            deviation_um: self.deviation_um[range].to_vec(),
+        }
+    }
+}
+
 /// What a viewer needs to draw the machine.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct MachineSummary {

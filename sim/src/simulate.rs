@@ -920,16 +920,7 @@ impl Recorder {
             fidelity: settings.fidelity.name().into(),
             machine: summary(machine),
             streams: vec![servo_stream(0)],
-            ballbar: self
-                .traces
-                .iter()
-                .map(|t| BallbarTrace {
-                    times_s: Vec::new(),
-                    angle_deg: Vec::new(),
-                    deviation_um: Vec::new(),
-                    ..t.clone()
-                })
-                .collect(),
+            ballbar: self.traces.iter().map(|t| t.samples(0..0)).collect(),
             laser: self.laser.as_ref().map(Laser::header),
             ground_truth: serde_json::Value::Null,
         }

@@ -36,7 +36,8 @@ pub fn execute(
 
 /// [`execute`] and the run's files written into the folder `dir`: `run.mcap` and `run.rrd`
 /// while a job through the feed drives runs (see [`RunFiles`]; a milling run writes them
-/// afterwards), then the rest of [`write`](fn@write)'s.
+/// afterwards), then the rest of [`write`](fn@write)'s. The run of a job through the feed
+/// drives comes back without the rows of its `servo` stream, which went to the files.
 pub fn execute_and_write(
     scenario: &Scenario,
     text: &str,
@@ -55,16 +56,14 @@ pub fn execute_and_write(
         return Ok((run, written));
     }
     let mut files = RunFiles::new(dir);
-    let run = execute_into(scenario, text, fidelity, quiet, Some(&mut files));
-    let mut written = match run {
-        Ok(ref r) => files.finish(Some(r))?,
+    let (run, mut written) = match execute_into(scenario, text, fidelity, quiet, Some(&mut files)) {
+        Ok(run) => files.finish(run)?,
         Err(e) => {
             // A writer's own error explains a simulation stopped by it.
-            files.finish(None)?;
+            files.abandon()?;
             return Err(e);
         }
     };
-    let run = run?;
     written.extend(write_others(&run, dir)?);
     Ok((run, Written { files: written }))
 }

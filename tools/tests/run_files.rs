@@ -208,6 +208,27 @@ fn a_file_that_cannot_be_written_stops_the_job_and_leaves_nothing_half_written()
     assert!(out.join("run.mcap.partial").is_dir());
 }
 
+/// The two files of a run appear together or not at all: when `run.rrd` cannot take its
+/// name (a folder is in the way), the complete `run.mcap` is not left behind either.
+#[test]
+fn a_run_has_both_files_or_neither() {
+    let dir = tempfile::tempdir().unwrap();
+    let job = "[job]\nkind = \"ballbar\"\nplane = \"XY\"\ncenter_mm = [250.0, 200.0, 200.0]\n\
+               radius_mm = 50.0\nfeed_mm_min = 3000.0\narc_deg = 90.0\ndirections = [\"ccw\"]";
+    let s = scenario(dir.path(), "s.toml", job, &[]);
+    let out = dir.path().join("out");
+    std::fs::create_dir_all(out.join("run.rrd")).unwrap();
+    let o = vmt(&["run", &s, "--out", out.to_str().unwrap(), "--quiet"]);
+    assert!(!o.status.success());
+    let e = stderr(&o);
+    assert!(e.contains("run.rrd"), "{e}");
+    let names: Vec<String> = std::fs::read_dir(&out)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    assert_eq!(names, ["run.rrd"], "{e}");
+}
+
 /// A program feed above the controller's largest runs at that largest, as on a controller, and
 /// the run says so, naming the line.
 #[test]

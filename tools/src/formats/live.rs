@@ -5,8 +5,10 @@
 //!
 //! The MCAP file is byte for byte the one [`write_mcap`](super::write_mcap) makes of the
 //! finished run; the recording has the same entities and contents as
-//! [`write_rrd`](super::write_rrd)'s.
+//! [`write_rrd`](super::write_rrd)'s. The two files are renamed to their names together, once
+//! both are complete: a run has both or neither.
 
+use super::Partial;
 use super::mcap::McapFile;
 use super::rerun::RrdFile;
 use crate::error::CliError;
@@ -16,22 +18,24 @@ use std::sync::mpsc::{Receiver, SyncSender, sync_channel};
 use std::thread::JoinHandle;
 use vmt_sim::run::{BallbarTrace, LogBlock, LogSink, Run, Stream};
 
-/// Blocks waiting for each writer: the memory a slow disk can hold up (about 2 MB a block).
+/// Blocks waiting for each writer (about 2 MB each): what a slow disk can hold up.
 const QUEUE: usize = 4;
 
-/// What the writer threads are sent.
+/// What the writer threads are sent (each the same, shared).
+#[derive(Clone)]
 enum Message {
     /// The streams' rows and traces' samples of a block (every trace, most with no sample).
-    Block(Vec<Stream>, Vec<BallbarTrace>),
+    Block(Arc<(Vec<Stream>, Vec<BallbarTrace>)>),
     /// The finished run.
-    Finish(Box<Run>),
+    Finish(Arc<Run>),
 }
 
 /// A file of a run written block by block.
 trait BlockFile: Sized {
     fn create(path: &Path, opening: &Run) -> Result<Self, CliError>;
     fn block(&mut self, streams: &[Stream], traces: &[BallbarTrace]) -> Result<(), CliError>;
-    fn finish(self, run: &Run) -> Result<(), CliError>;
+    /// The complete file, not yet renamed.
+    fn complete(self, run: &Run) -> Result<Partial, CliError>;
 }
 
 impl BlockFile for McapFile {
@@ -41,8 +45,8 @@ impl BlockFile for McapFile {
     fn block(&mut self, streams: &[Stream], traces: &[BallbarTrace]) -> Result<(), CliError> {
         McapFile::block(self, streams, traces)
     }
-    fn finish(self, run: &Run) -> Result<(), CliError> {
-        McapFile::finish(self, run)
+    fn complete(self, run: &Run) -> Result<Partial, CliError> {
+        McapFile::complete(self, run)
     }
 }
 
@@ -53,17 +57,19 @@ impl BlockFile for RrdFile {
     fn block(&mut self, streams: &[Stream], traces: &[BallbarTrace]) -> Result<(), CliError> {
         RrdFile::block(self, streams, traces)
     }
-    fn finish(self, run: &Run) -> Result<(), CliError> {
-        RrdFile::finish(self, run)
+    fn complete(self, run: &Run) -> Result<Partial, CliError> {
+        RrdFile::complete(self, run)
     }
 }
+
+/// The complete file under its partial name, or none if the run ended without finishing.
+type Outcome = Result<Option<Partial>, CliError>;
 
 /// One file's thread and the way to it.
 struct Writer {
     path: PathBuf,
-    queue: SyncSender<Arc<Message>>,
-    /// `Ok(true)` once the file is complete, `Ok(false)` if the run ended without finishing.
-    thread: JoinHandle<Result<bool, CliError>>,
+    queue: SyncSender<Message>,
+    thread: JoinHandle<Outcome>,
 }
 
 impl Writer {
@@ -78,8 +84,8 @@ impl Writer {
         }
     }
 
-    /// Waits for the thread: whether the file is complete, or its error.
-    fn join(self) -> Result<bool, CliError> {
+    /// Waits for the thread and returns what it made.
+    fn join(self) -> Outcome {
         drop(self.queue);
         self.thread
             .join()
@@ -87,22 +93,18 @@ impl Writer {
     }
 }
 
-/// The body of a writer thread: creates the file, writes the blocks as they come and finishes
+/// The body of a writer thread: creates the file, writes the blocks as they come and completes
 /// it with the run. A run that ends without [`Message::Finish`] (the simulation failed) drops
 /// the file, which removes it.
-fn write<F: BlockFile>(
-    path: &Path,
-    opening: &Run,
-    blocks: Receiver<Arc<Message>>,
-) -> Result<bool, CliError> {
+fn write<F: BlockFile>(path: &Path, opening: &Run, blocks: Receiver<Message>) -> Outcome {
     let mut file = F::create(path, opening)?;
     for m in blocks {
-        match &*m {
-            Message::Block(streams, traces) => file.block(streams, traces)?,
-            Message::Finish(run) => return file.finish(run).map(|()| true),
+        match m {
+            Message::Block(b) => file.block(&b.0, &b.1)?,
+            Message::Finish(run) => return file.complete(&run).map(Some),
         }
     }
-    Ok(false)
+    Ok(None)
 }
 
 /// `run.mcap` and `run.rrd` in a folder, written while the job runs.
@@ -121,41 +123,56 @@ impl RunFiles {
     }
 
     fn send(&self, m: Message) -> Result<(), String> {
-        let m = Arc::new(m);
         for w in &self.writers {
-            // A writer that has stopped has an error, which `finish` reports.
+            // A writer that has stopped has an error, which `finish` or `abandon` reports.
             w.queue
-                .send(Arc::clone(&m))
+                .send(m.clone())
                 .map_err(|_| format!("writing {} failed", w.path.display()))?;
         }
         Ok(())
     }
 
     /// Completes the files with the finished `run` (whose `servo` rows went to the files as it
-    /// ran) and returns their paths; or, with no run (the simulation failed), removes them and
-    /// returns the first writer's error if one failed.
-    pub fn finish(self, run: Option<&Run>) -> Result<Vec<PathBuf>, CliError> {
-        let sent = match run {
-            Some(r) => self.send(Message::Finish(Box::new(r.clone()))),
-            None => Ok(()),
-        };
+    /// ran), renames them to their names once both are complete, and returns the run and the
+    /// files' paths.
+    pub fn finish(mut self, run: Run) -> Result<(Run, Vec<PathBuf>), CliError> {
+        let run = Arc::new(run);
+        let sent = self.send(Message::Finish(Arc::clone(&run)));
+        let made = self.join_all()?;
+        sent.map_err(|e| CliError::output(&self.dir, e))?;
         let mut files = Vec::new();
-        let mut first_error = None;
-        for w in self.writers {
-            let path = w.path.clone();
-            match w.join() {
-                Ok(true) => files.push(path),
-                Ok(false) => {}
-                Err(e) => {
-                    first_error.get_or_insert(e);
-                }
+        for p in made.into_iter().flatten() {
+            let path = p.target().to_path_buf();
+            if let Err(e) = p.commit() {
+                // Both or neither: the files renamed already go too.
+                files.iter().for_each(|f| drop(std::fs::remove_file(f)));
+                return Err(e);
             }
+            files.push(path);
         }
-        match (first_error, sent) {
-            (Some(e), _) => Err(e),
-            (None, Err(e)) => Err(CliError::output(&self.dir, e)),
-            (None, Ok(())) => Ok(files),
-        }
+        // The writers have let go of the run.
+        let run = Arc::try_unwrap(run).unwrap_or_else(|shared| (*shared).clone());
+        Ok((run, files))
+    }
+
+    /// Ends the files of a run that failed, removing them; a writer's error if one had failed
+    /// (which would explain the run's).
+    pub fn abandon(mut self) -> Result<(), CliError> {
+        self.join_all().map(drop)
+    }
+
+    /// Waits for every writer: what each made, or the first error.
+    fn join_all(&mut self) -> Result<Vec<Option<Partial>>, CliError> {
+        let outcomes: Vec<Outcome> = self.writers.drain(..).map(Writer::join).collect();
+        outcomes.into_iter().collect()
+    }
+}
+
+impl Drop for RunFiles {
+    /// Joins the writers of files neither finished nor abandoned (the caller unwound), so that
+    /// they remove their partial files before the process ends.
+    fn drop(&mut self) {
+        let _ = self.join_all();
     }
 }
 
@@ -169,21 +186,12 @@ impl LogSink for RunFiles {
     }
 
     fn block(&mut self, block: &LogBlock<'_>) -> Result<(), String> {
-        let traces = block
+        let traces: Vec<BallbarTrace> = block
             .ballbar
             .iter()
             .zip(block.new_samples)
-            .map(|(t, r)| BallbarTrace {
-                label: t.label.clone(),
-                plane: t.plane.clone(),
-                direction: t.direction.clone(),
-                radius_mm: t.radius_mm,
-                feed_mm_min: t.feed_mm_min,
-                times_s: t.times_s[r.clone()].to_vec(),
-                angle_deg: t.angle_deg[r.clone()].to_vec(),
-                deviation_um: t.deviation_um[r.clone()].to_vec(),
-            })
+            .map(|(t, r)| t.samples(r.clone()))
             .collect();
-        self.send(Message::Block(block.streams.to_vec(), traces))
+        self.send(Message::Block(Arc::new((block.streams.to_vec(), traces))))
     }
 }

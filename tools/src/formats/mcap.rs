@@ -195,7 +195,12 @@ impl McapFile {
 
     /// Writes the laser readings and the ground truth of the finished `run` and the metadata
     /// records, completes the file and renames it to its path.
-    pub fn finish(mut self, run: &Run) -> Result<(), CliError> {
+    pub fn finish(self, run: &Run) -> Result<(), CliError> {
+        self.complete(run)?.commit()
+    }
+
+    /// [`McapFile::finish`] but for the rename: the complete file, still under its partial name.
+    pub(crate) fn complete(mut self, run: &Run) -> Result<Partial, CliError> {
         let path = self.partial.target().to_path_buf();
         let err = |e: ::mcap::McapError| CliError::output(&path, e);
         if let Some(l) = &run.laser {
@@ -238,7 +243,7 @@ impl McapFile {
             .into_inner()
             .into_inner()
             .map_err(|e| CliError::output(&path, e.error()))?;
-        partial.commit()
+        Ok(partial)
     }
 }
 

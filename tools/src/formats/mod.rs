@@ -40,10 +40,10 @@ pub(crate) fn atomically(
 }
 
 /// A file written as `<path>.partial` until it is complete, then renamed to `path` in one
-/// step. A run interrupted while writing (Ctrl-C, a full disk, kill -9) leaves a `.partial`
-/// file, never a truncated `path` that looks finished, and a file from an earlier run stays
-/// whole until it is replaced. Dropped without [`Partial::commit`] (an error), the partial file
-/// is removed.
+/// step, so that no truncated `path` ever looks finished and a file from an earlier run stays
+/// whole until it is replaced. Dropped without [`Partial::commit`] (a write that failed: a full
+/// disk, a folder in the way), the partial file is removed; a process killed while writing
+/// (Ctrl-C, kill -9) leaves it.
 pub(crate) struct Partial {
     target: PathBuf,
     partial: PathBuf,

@@ -202,12 +202,20 @@ impl RrdFile {
                 Scalars::new(rows.map(value)).columns_of_unit_batches()
             })?;
         }
-        Ok(())
+        // Waits for the block to be on disk: the SDK would otherwise buffer up to 100 MB ahead
+        // of a slow disk, and a file sink that has failed shows only here (its own error goes
+        // to the log, not to us).
+        self.rec.flush_blocking().map_err(|e| log.err(e))
     }
 
     /// Logs what needs the finished `run` (the tool path, the polar plots of its traces, its
     /// laser readings and ground truth), completes the file and renames it to its path.
     pub fn finish(self, run: &Run) -> Result<(), CliError> {
+        self.complete(run)?.commit()
+    }
+
+    /// [`RrdFile::finish`] but for the rename: the complete file, still under its partial name.
+    pub(crate) fn complete(self, run: &Run) -> Result<Partial, CliError> {
         let log = self.logger();
         if !self.tool_path.is_empty() {
             let strip = LineStrips3D::new([&self.tool_path])
@@ -228,7 +236,7 @@ impl RrdFile {
         self.rec.finalize_deferred_sinks();
         let Self { rec, partial, .. } = self;
         drop(rec);
-        partial.commit()
+        Ok(partial)
     }
 }
 
