@@ -633,6 +633,48 @@ mod tests {
         assert!((f.bidirectional_deviation_um.unwrap() - 9.5).abs() < 1e-6);
     }
 
+    /// H pairs the CW and CCW deviations at the same angle. Odd signatures tell a right pairing
+    /// from a wrong one (θ with −θ, a mean or a single angle), which an even path or a constant
+    /// offset cannot: a servo mismatch ∓A sin 2θ gives H = 2A (at 45°), an X backlash
+    /// ±(b/2) sgn(sin θ) cos θ gives H = b (at 0° and 180°), and neither changes when the CW
+    /// run starts at 90° instead of 0°.
+    #[test]
+    fn hysteresis_pairs_the_two_directions_at_the_same_angle() {
+        let (a, b) = (1.25, 3.0);
+        let servo = |g: f64| move |th: f64| g * a * (2.0 * th).sin();
+        let backlash = |g: f64| move |th: f64| g * 0.5 * b * th.sin().signum() * th.cos();
+        for start_deg in [0.0, 90.0] {
+            let cases: [(Trace, Trace, f64); 2] = [
+                (
+                    trace_from(Sense::Cw, start_deg, servo(-1.0)),
+                    trace(Sense::Ccw, servo(1.0)),
+                    2.0 * a,
+                ),
+                (
+                    trace_from(Sense::Cw, start_deg, backlash(1.0)),
+                    trace(Sense::Ccw, backlash(-1.0)),
+                    b,
+                ),
+            ];
+            for (cw, ccw, expected) in cases {
+                let h = figures(&[&cw, &ccw], false).hysteresis_um.unwrap();
+                assert!(
+                    (h - expected).abs() < 1e-4,
+                    "start {start_deg}°: H {h}, expected {expected}"
+                );
+            }
+        }
+    }
+
+    /// [`trace`] starting at `start_deg`: the angles start + sense · i · 0.1°, the deviation
+    /// `f` of each.
+    fn trace_from(sense: Sense, start_deg: f64, f: impl Fn(f64) -> f64) -> Trace {
+        let mut t = trace(sense, |_| 0.0);
+        t.angle_deg = t.angle_deg.iter().map(|x| x + start_deg).collect();
+        t.deviation_um = t.angle_deg.iter().map(|x| f(x.to_radians())).collect();
+        t
+    }
+
     /// The hysteresis found block by block is the largest difference over all samples: noisy
     /// paths, angles stepping back, and a CW run that starts elsewhere and wraps round.
     #[test]
