@@ -99,6 +99,40 @@ fn backlash_steps_at_the_axis_reversals() {
         "{:?}",
         l.by_direction
     );
+    reversal_concentrations(&l, "X", "Y");
+    // Y backlash, ±(b/2)·sign(cos θ)·sin θ: the same harmonics and reversing share, its steps
+    // at 90° and 270°; only the reversal windows tell the axes apart.
+    let l = localise(&Errors {
+        backlash_um: [0.0, 6.0],
+        ..base()
+    });
+    reversal_concentrations(&l, "Y", "X");
+}
+
+/// The reversal windows (±5°) of a backlash of 6 µm on `stepping`: the residual's energy
+/// density is (b/2)² cos²(θ − θ_r) about that axis' reversals θ_r, so each of its windows
+/// holds (w + sin 2w / 2)/π = 5.5415 % of the signal and the other axis' windows
+/// (w − sin 2w / 2)/π = 0.0141 %, against w/π = 2.7778 % of white noise. With the signal's
+/// 4.5 µm² and the two noises' and roundings' 0.1817 µm², the concentrations are
+/// (4.5 · 0.055415 + 0.1817 · 0.027778) / 4.6817 / 0.027778 = 1.956 and
+/// (4.5 · 0.000141 + 0.1817 · 0.027778) / 4.6817 / 0.027778 = 0.044.
+fn reversal_concentrations(l: &Localisation, stepping: &str, other: &str) {
+    for (axis, expected, band) in [(stepping, 1.956, 0.03), (other, 0.044, 0.02)] {
+        let windows: Vec<&Place> = l
+            .by_reversal
+            .iter()
+            .filter(|p| p.name.starts_with(&format!("{axis} reversal at")))
+            .collect();
+        assert_eq!(windows.len(), 2, "{:?}", l.by_reversal);
+        for p in windows {
+            let c = p.concentration();
+            assert!(
+                (c - expected).abs() < band,
+                "{}: {c}, expected {expected}",
+                p.name
+            );
+        }
+    }
 }
 
 #[test]
