@@ -61,6 +61,11 @@ fn compare(run: &Run, d: &Diagnosis, tol: impl Fn(&str, f64) -> f64) {
         if (f.value - truth).abs() > t {
             failures.push(format!("{key}: {} against {truth}", f.value));
         }
+        // A truth under its tolerance is no recovery (a diagnosis of 0 would pass): the error
+        // must then be reported absent.
+        if truth.abs() < t && f.present {
+            failures.push(format!("{key}: reported present at {truth} (under {t})"));
+        }
     }
     assert!(
         failures.is_empty(),
@@ -142,6 +147,39 @@ fn screw_lead_errors_are_diagnosed_as_cyclic_errors_of_their_pitch() {
         assert!(f.present, "cyclic_{axis} not reported present: {f:?}");
         assert!((pitch - 10.0).abs() < 0.2, "cyclic_{axis} pitch {pitch} mm");
     }
+    compare(&r, &d, tolerance(100.0));
+}
+
+/// A 4 µm gap in the Y nut (the built-in 1 µm is under the tolerance once the ball bar sees
+/// it): the Y backlash the bar sees is recovered within tolerance and reported present, and
+/// every other figure stays within tolerance.
+#[test]
+fn a_y_drive_backlash_is_recovered_as_backlash_of_y() {
+    let second = vmt_scenario::BUILTIN_DEFAULT
+        .match_indices("backlash_um = 1.0")
+        .nth(1)
+        .expect("Y's backlash")
+        .0;
+    let mut text = vmt_scenario::BUILTIN_DEFAULT.to_string();
+    text.replace_range(
+        second..second + "backlash_um = 1.0".len(),
+        "backlash_um = 4.0",
+    );
+    let r = run_on(
+        &text,
+        &xy_test(100.0, 2000.0),
+        "[instruments.ballbar]\nnoise_um = 0.3",
+    );
+    let truth = r.ground_truth["ballbar"]["tests"][0]["figures"]["backlash_y"]
+        .as_f64()
+        .unwrap();
+    let t = tolerance(100.0)("backlash_y", truth);
+    assert!(
+        truth > 3.0 * t,
+        "backlash_y truth {truth} µm, tolerance {t}"
+    );
+    let d = diagnose(&vmt_e2e::traces(&r), &Options::default()).expect("diagnosis");
+    assert!(d.finding("backlash_y").is_some_and(|f| f.present));
     compare(&r, &d, tolerance(100.0));
 }
 
