@@ -192,6 +192,43 @@ fn machine_report_agrees_with_the_truth() {
     assert!(failures.is_empty(), "{failures:#?}");
 }
 
+/// Kwon's XZ and YZ squareness measure the machine's: with EB0Z and EA0Z raised by 20 µrad
+/// (both directions of Y), the diagnosed figures of the machine report move by +20 µm/m (they
+/// moved 20.002 and 20.001). A differential run, so that the expected change is the injected
+/// one, not a number from the formulas under test (the report's absolute figures also hold the
+/// axes' tilts and bows over the link heights).
+#[test]
+fn kwon_squareness_follows_the_injected_squareness() {
+    let (_, d) = shared();
+    let before = kwon::machine_report(d);
+    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../scenarios/kwon_seven_step.toml");
+    let text = std::fs::read_to_string(&path).expect("the scenario file");
+    let (eb, ea) = (
+        "EB0Z_urad = -8.0",
+        "EA0Z_urad = { forward = 6.0, backward = 9.0 }",
+    );
+    assert!(text.contains(eb) && text.contains(ea));
+    let text = text
+        .replace(eb, "EB0Z_urad = 12.0")
+        .replace(ea, "EA0Z_urad = { forward = 26.0, backward = 29.0 }");
+    let after = kwon::machine_report(&diagnoses(&vmt_e2e::simulate_text(
+        &text,
+        "kwon_seven_step.toml",
+    )));
+    let value = |r: &MachineReport, key: &str| {
+        r.figures
+            .iter()
+            .find(|f| f.key == key)
+            .map(|f| f.value)
+            .unwrap_or_else(|| panic!("{key} not in the report"))
+    };
+    for key in ["squareness_zx_kwon", "squareness_yz_kwon"] {
+        let moved = value(&after, key) - value(&before, key);
+        eprintln!("{key} moved {moved:+.3} µm/m");
+        assert!((moved - 20.0).abs() < 0.2, "{key} moved {moved} µm/m");
+    }
+}
+
 /// Step 5's runs start straight off the radial feed-in (no overshoot), so each begins with the
 /// carriages' lag at the corner (Kwon's transient start peak, Section III.6). The diagnosed
 /// transient is that lag as the servo log records it: the carriages' distance from the circle's
