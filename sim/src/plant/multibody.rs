@@ -66,6 +66,8 @@ pub struct MultibodyPlant {
     fine_done: usize,
     elapsed_s: f64,
     impulse_n_s: [f64; 3],
+    /// Macro steps rapier has taken since the plant was built.
+    macro_steps: u64,
 }
 
 impl MultibodyPlant {
@@ -159,6 +161,7 @@ impl MultibodyPlant {
             fine_done: 0,
             elapsed_s: 0.0,
             impulse_n_s: [0.0; 3],
+            macro_steps: 0,
         };
         let (q, v) = plant.read_joints();
         for (l, (q, v)) in plant.links.iter_mut().zip(q.into_iter().zip(v)) {
@@ -166,6 +169,38 @@ impl MultibodyPlant {
             l.carriage.velocity_m_s = v;
         }
         Ok(plant)
+    }
+
+    /// How many macro steps rapier has advanced the multibody since the plant was built.
+    pub fn macro_steps(&self) -> u64 {
+        self.macro_steps
+    }
+
+    /// The joint-space dynamics rapier gave at its last macro step, in axis coordinates: the
+    /// inverse mass (1/kg; `[i][j]` is the acceleration of axis i per newton on axis j) from its
+    /// factorised mass matrix, and the bias acceleration of each axis (m/s²; gravity,
+    /// Coriolis) from the velocities it reached. These are what the fine steps use until the
+    /// next macro step. `None` before rapier's first step (the fine steps then use the
+    /// layout's moving masses and gravity).
+    pub fn rapier_dynamics(&self) -> Option<([[f64; 3]; 3], [f64; 3])> {
+        (self.macro_steps > 0).then_some((self.inv_mass, self.bias_m_s2))
+    }
+
+    /// The translation (m) of the rigid body of each axis' link (X, Y, Z) in the machine frame,
+    /// as rapier's rigid-body set holds it: placed by the multibody's forward kinematics at the
+    /// last macro step, at the carriages' positions (before rapier's first step the bodies are
+    /// where they were built, at the origin). A workpiece-side link moves along `-q` and
+    /// carries the links outboard of it.
+    pub fn link_translations_m(&self) -> [[f64; 3]; 3] {
+        std::array::from_fn(|i| {
+            self.world
+                .bodies
+                .get(self.links[i].body)
+                .map_or([f64::NAN; 3], |b| {
+                    let t = b.translation();
+                    [t.x, t.y, t.z]
+                })
+        })
     }
 
     /// Each link's coordinate (m) and velocity (m/s) in the multibody, in axis coordinates.
@@ -197,6 +232,7 @@ impl MultibodyPlant {
         }
         self.world.integration_parameters.dt = big_h;
         self.world.step();
+        self.macro_steps += 1;
         let (q1, v1) = self.read_joints();
         // The inverse mass matrix rapier factorised for this step, in axis coordinates.
         let mut inv_mass = [[0.0; 3]; 3];
