@@ -695,6 +695,63 @@ mod tests {
         assert!(laser(true).finish().is_ok());
     }
 
+    /// The refractive index of air at the He-Ne vacuum wavelength 632.9914 nm from the updated
+    /// Edlén equation of Birch & Downs (Metrologia 30:155, 1993): `t` in °C, `p` in Pa, water
+    /// vapour partial pressure `f` in Pa.
+    fn birch_downs_n(t: f64, p: f64, f: f64) -> f64 {
+        let s2 = (1.0 / 0.632_991_4f64).powi(2);
+        let ns = (8342.54 + 2_406_147.0 / (130.0 - s2) + 15998.0 / (38.9 - s2)) * 1e-8;
+        let ntp =
+            p * ns / 96095.43 * (1.0 + 1e-8 * (0.601 - 0.00972 * t) * p) / (1.0 + 0.003_661 * t);
+        1.0 + ntp - f * (3.7345 - 0.0401 * s2) * 1e-10
+    }
+
+    /// The weather station's sensitivities against a hand value each and against the full
+    /// Birch & Downs (1993) equation for air at 20 °C, 1013.25 hPa, dry: a sensor reading `e`
+    /// too high makes the laser assume `n(x + e)` for the true `n(x)` and scale every length by
+    /// `n(x)/n(x + e)`, so `ε = n(x) − n(x + e)` to first order. +1 hPa: −0.2675 ppm;
+    /// +10 %RH (233.9 Pa of water vapour at 20 °C, saturation 2339 Pa): +0.085 ppm; +1 K:
+    /// +0.925 ppm. The implemented four-digit coefficients (from `n − 1 = 2.71e-4`) agree with
+    /// the full equation (`n − 1 = 2.718e-4`: −0.2684, +0.0850 and +0.9267 ppm) to 0.4 %,
+    /// checked to 1 %.
+    ///
+    /// Catches: a term of the wrong sign (the pressure and the humidity terms have opposite
+    /// signs to the temperature term), a pressure in Pa (100 times too large) or a humidity as
+    /// a fraction, the pressure and humidity coefficients swapped.
+    #[test]
+    fn weather_sensitivities_match_hand_values_and_birch_downs() {
+        let ppm = |s: LaserSpec| s.scale_error() * 1e6;
+        let pressure = ppm(LaserSpec {
+            air_pressure_error_hpa: 1.0,
+            ..LaserSpec::default()
+        });
+        let humidity = ppm(LaserSpec {
+            humidity_error_percent: 10.0,
+            ..LaserSpec::default()
+        });
+        let temperature = ppm(LaserSpec {
+            air_temperature_error_k: 1.0,
+            ..LaserSpec::default()
+        });
+        assert!((pressure + 0.2675).abs() < 1e-4, "{pressure} ppm");
+        assert!((humidity - 0.085).abs() < 1e-4, "{humidity} ppm");
+        assert!((temperature - 0.925).abs() < 1e-4, "{temperature} ppm");
+        let (t, p) = (20.0, 101_325.0);
+        let n = birch_downs_n(t, p, 0.0);
+        assert!((n - 1.0 - 2.718e-4).abs() < 0.001e-4, "n - 1 = {}", n - 1.0);
+        let eps = |dt: f64, dp: f64, df: f64| (n - birch_downs_n(t + dt, p + dp, df)) * 1e6;
+        for (name, got, full) in [
+            ("+1 hPa", pressure, eps(0.0, 100.0, 0.0)),
+            ("+10 %RH", humidity, eps(0.0, 0.0, 233.9)),
+            ("+1 K", temperature, eps(1.0, 0.0, 0.0)),
+        ] {
+            assert!(
+                (got - full).abs() < 0.01 * full.abs(),
+                "{name}: {got} ppm implemented, {full} ppm from Birch & Downs"
+            );
+        }
+    }
+
     #[test]
     fn scale_error_signs() {
         let s = LaserSpec {
