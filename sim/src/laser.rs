@@ -390,13 +390,27 @@ impl LaserSetup {
     }
 }
 
-/// Sums over one averaging window: measured samples, noise-free samples, error-chain samples.
+/// Sums over one averaging window: measured samples, noise-free samples, error-chain samples,
+/// and the test axis' drive (see [`DriveSample`]).
 #[derive(Clone, Copy, Debug, Default)]
 struct Window {
     n: usize,
     measured: f64,
     exact: f64,
     chain: f64,
+    holding: f64,
+    servo: f64,
+}
+
+/// The state of the test axis' drive at a laser sample, for the truth.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct DriveSample {
+    /// The guideway friction force on the carriage, N (against forward motion).
+    pub holding_n: f64,
+    /// The position the loop closes on minus the axis command, m: the motor's (as carriage
+    /// travel) in semi-closed loop, the carriage's on a linear scale. What the position loop
+    /// leaves at a stop, within a count or so of its feedback.
+    pub servo_residual_m: f64,
 }
 
 /// The laser during a run: samples the tool point in the averaging windows of the dwells.
@@ -412,13 +426,25 @@ pub struct Laser {
     datum_time_s: f64,
 }
 
-/// Noise-free deviations and error-chain deviations of every measurement, µm.
+/// Noise-free deviations and error-chain deviations of every measurement, µm, and the state of
+/// the test axis' drive while it was read: the friction the carriage rested on and where the
+/// servo left it.
 #[derive(Clone, Debug, PartialEq)]
 pub struct LaserTruth {
     /// What a perfect laser would read: x_ij of the tool point, µm, per measurement.
     pub exact_um: Vec<f64>,
     /// The geometric/thermal error chain alone at the commanded axis positions, µm.
     pub chain_um: Vec<f64>,
+    /// The guideway friction force on the test axis' carriage, averaged over each
+    /// measurement's window, N (the force the guideways exert against the carriage's forward
+    /// motion: positive after a forward approach). At rest it is the force that holds the
+    /// carriage against the screw; the truth's drive share of the deviations follows from it.
+    pub holding_force_n: Vec<f64>,
+    /// The servo's residual, averaged over each measurement's window, m
+    /// ([`DriveSample::servo_residual_m`]).
+    pub servo_residual_m: Vec<f64>,
+    /// The datum window's averages: holding force (N) and servo residual (m).
+    pub datum_drive: DriveSample,
 }
 
 impl Laser {
@@ -454,6 +480,11 @@ impl Laser {
         }
     }
 
+    /// The axis under test.
+    pub fn axis(&self) -> Axis {
+        self.setup.test.axis
+    }
+
     /// The window being sampled at servo tick `k`, time `t_s`, block `block`, if any.
     pub fn window_at(&self, k: usize, t_s: f64, block: Option<usize>) -> Option<usize> {
         let block = block?;
@@ -474,8 +505,16 @@ impl Laser {
     }
 
     /// Adds a sample to window `i` at `t_s`: `tool` the tool point, `chain` the error chain's
-    /// tool point at the commanded axis positions (m, relative to the workpiece).
-    pub fn sample(&mut self, i: usize, t_s: f64, tool: &Vector3<f64>, chain: &Vector3<f64>) {
+    /// tool point at the commanded axis positions (m, relative to the workpiece),
+    /// `drive` the test axis' drive, for the truth.
+    pub fn sample(
+        &mut self,
+        i: usize,
+        t_s: f64,
+        tool: &Vector3<f64>,
+        chain: &Vector3<f64>,
+        drive: DriveSample,
+    ) {
         let s = &self.setup.spec;
         let a = self.setup.test.axis.index();
         let drift = s.air_drift_k_per_s * (t_s - self.datum_time_s).max(0.0);
@@ -488,6 +527,8 @@ impl Laser {
         w.measured += if q > 0.0 { (raw / q).round() * q } else { raw };
         w.exact += tool[a];
         w.chain += chain[a];
+        w.holding += drive.holding_n;
+        w.servo += drive.servo_residual_m;
     }
 
     fn mean(&self, i: usize, f: impl Fn(&Window) -> f64) -> f64 {
@@ -515,6 +556,12 @@ impl Laser {
         let mut truth = LaserTruth {
             exact_um: Vec::new(),
             chain_um: Vec::new(),
+            holding_force_n: Vec::new(),
+            servo_residual_m: Vec::new(),
+            datum_drive: DriveSample {
+                holding_n: self.mean(d, |w| w.holding),
+                servo_residual_m: self.mean(d, |w| w.servo),
+            },
         };
         for (i, m) in self.setup.measurements.iter().enumerate() {
             let target = test.targets_m[m.target];
@@ -534,6 +581,8 @@ impl Laser {
             truth
                 .chain_um
                 .push((relative(i, &|w| w.chain) - target) * 1e6);
+            truth.holding_force_n.push(self.mean(i, |w| w.holding));
+            truth.servo_residual_m.push(self.mean(i, |w| w.servo));
         }
         Ok((
             LaserRun {
@@ -627,11 +676,11 @@ mod tests {
             let mut laser = Laser::new(&setup, &times, 1e-3, 1);
             let p = Vector3::new(0.0, 0.1, 0.0);
             for (i, m) in setup.measurements.iter().enumerate() {
-                laser.sample(i, m.block as f64 + 0.5, &p, &p);
+                laser.sample(i, m.block as f64 + 0.5, &p, &p, DriveSample::default());
             }
             if sample_datum {
                 let n = setup.measurements.len();
-                laser.sample(n, datum_block as f64 + 0.5, &p, &p);
+                laser.sample(n, datum_block as f64 + 0.5, &p, &p, DriveSample::default());
             }
             laser
         };
@@ -644,6 +693,63 @@ mod tests {
             )
         );
         assert!(laser(true).finish().is_ok());
+    }
+
+    /// The refractive index of air at the He-Ne vacuum wavelength 632.9914 nm from the updated
+    /// Edlén equation of Birch & Downs (Metrologia 30:155, 1993): `t` in °C, `p` in Pa, water
+    /// vapour partial pressure `f` in Pa.
+    fn birch_downs_n(t: f64, p: f64, f: f64) -> f64 {
+        let s2 = (1.0 / 0.632_991_4f64).powi(2);
+        let ns = (8342.54 + 2_406_147.0 / (130.0 - s2) + 15998.0 / (38.9 - s2)) * 1e-8;
+        let ntp =
+            p * ns / 96095.43 * (1.0 + 1e-8 * (0.601 - 0.00972 * t) * p) / (1.0 + 0.003_661 * t);
+        1.0 + ntp - f * (3.7345 - 0.0401 * s2) * 1e-10
+    }
+
+    /// The weather station's sensitivities against a hand value each and against the full
+    /// Birch & Downs (1993) equation for air at 20 °C, 1013.25 hPa, dry: a sensor reading `e`
+    /// too high makes the laser assume `n(x + e)` for the true `n(x)` and scale every length by
+    /// `n(x)/n(x + e)`, so `ε = n(x) − n(x + e)` to first order. +1 hPa: −0.2675 ppm;
+    /// +10 %RH (233.9 Pa of water vapour at 20 °C, saturation 2339 Pa): +0.085 ppm; +1 K:
+    /// +0.925 ppm. The implemented four-digit coefficients (from `n − 1 = 2.71e-4`) agree with
+    /// the full equation (`n − 1 = 2.718e-4`: −0.2684, +0.0850 and +0.9267 ppm) to 0.4 %,
+    /// checked to 1 %.
+    ///
+    /// Catches: a term of the wrong sign (the pressure and the humidity terms have opposite
+    /// signs to the temperature term), a pressure in Pa (100 times too large) or a humidity as
+    /// a fraction, the pressure and humidity coefficients swapped.
+    #[test]
+    fn weather_sensitivities_match_hand_values_and_birch_downs() {
+        let ppm = |s: LaserSpec| s.scale_error() * 1e6;
+        let pressure = ppm(LaserSpec {
+            air_pressure_error_hpa: 1.0,
+            ..LaserSpec::default()
+        });
+        let humidity = ppm(LaserSpec {
+            humidity_error_percent: 10.0,
+            ..LaserSpec::default()
+        });
+        let temperature = ppm(LaserSpec {
+            air_temperature_error_k: 1.0,
+            ..LaserSpec::default()
+        });
+        assert!((pressure + 0.2675).abs() < 1e-4, "{pressure} ppm");
+        assert!((humidity - 0.085).abs() < 1e-4, "{humidity} ppm");
+        assert!((temperature - 0.925).abs() < 1e-4, "{temperature} ppm");
+        let (t, p) = (20.0, 101_325.0);
+        let n = birch_downs_n(t, p, 0.0);
+        assert!((n - 1.0 - 2.718e-4).abs() < 0.001e-4, "n - 1 = {}", n - 1.0);
+        let eps = |dt: f64, dp: f64, df: f64| (n - birch_downs_n(t + dt, p + dp, df)) * 1e6;
+        for (name, got, full) in [
+            ("+1 hPa", pressure, eps(0.0, 100.0, 0.0)),
+            ("+10 %RH", humidity, eps(0.0, 0.0, 233.9)),
+            ("+1 K", temperature, eps(1.0, 0.0, 0.0)),
+        ] {
+            assert!(
+                (got - full).abs() < 0.01 * full.abs(),
+                "{name}: {got} ppm implemented, {full} ppm from Birch & Downs"
+            );
+        }
     }
 
     #[test]

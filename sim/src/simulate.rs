@@ -19,7 +19,7 @@
 
 use crate::ballbar::{Ballbar, BallbarSpec};
 use crate::interpolator::{Cursor, Interpolator, InterpolatorConfig, InterpolatorError, Setpoint};
-use crate::laser::{Laser, LaserSetup, LaserSpec};
+use crate::laser::{DriveSample, Laser, LaserSetup, LaserSpec};
 use crate::nc::program::{ArcDirection, Plane, Program, Spindle};
 use crate::plant::{Fidelity, MultibodyPlant, Plant, PlantError, ReducedPlant, layout};
 use crate::replay::Replay;
@@ -29,7 +29,7 @@ use nalgebra::Vector3;
 use std::ops::Range;
 use thiserror::Error;
 use vmt_model::drive::servo::{loops_are_stable, sampled_loop_radius};
-use vmt_model::drive::{AxisCommand, Drive, DriveParams, ServoParams};
+use vmt_model::drive::{AxisCommand, Drive, DriveParams, Feedback, ServoParams};
 use vmt_model::kinematics::{AxisState, VolumetricEvaluator};
 use vmt_model::machine::Machine;
 use vmt_model::thermal::{Operating, ThermalStepper};
@@ -849,7 +849,23 @@ impl Recorder {
                 position: sp.position - machine.volumetric.kinematics.tool_offset,
                 direction: state.direction,
             };
-            l.sample(i, sp.time_s, &tool, &evaluator.tool_point(&commanded));
+            let a = l.axis().index();
+            let (carriage, d) = (plant.carriages()[a], plant.drive(a));
+            let closes_on = match d.params().feedback {
+                Feedback::MotorEncoder => d.motor_position_m,
+                Feedback::LinearScale { .. } => carriage.position_m,
+            };
+            let drive = DriveSample {
+                holding_n: carriage.friction_force_n,
+                servo_residual_m: closes_on - commanded.position[a],
+            };
+            l.sample(
+                i,
+                sp.time_s,
+                &tool,
+                &evaluator.tool_point(&commanded),
+                drive,
+            );
         }
         if log {
             self.servo.times_s.push(sp.time_s);

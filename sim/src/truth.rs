@@ -1,7 +1,7 @@
 //! Ground truth of a run: every injected parameter, and the derived figures a diagnosis reports,
 //! in the same definitions and units.
 
-use crate::laser::{LaserRun, LaserTruth};
+use crate::laser::{DriveSample, LaserRun, LaserTruth};
 use crate::nc::program::{ArcDirection, Motion, Plane, Program};
 use crate::simulate::{AxisDynamics, BallbarSetup, Job};
 use nalgebra::Vector3;
@@ -30,11 +30,13 @@ pub struct TruthInputs<'a> {
 /// The truth of a run of `job` on `machine` with drives `axes`, as JSON.
 ///
 /// Derived figures (first order, ball-bar definitions):
-/// - `backlash_seen_um`: in semi-closed loop a reversal shifts the carriage by the gap plus the
-///   screw's elastic change under the guideway friction at the test feed, `b + 2 F(v)/k`, or
+/// - `backlash_seen_um`: in semi-closed loop a reversal *while moving* (a ball bar's) shifts the
+///   carriage by the gap plus the screw's elastic change under the sliding guideway friction at
+///   the test feed, `b + 2 F(v)/k` with `F(v)` the Stribeck curve plus the viscous `σ2 v`, or
 ///   by `2 F(v)/k` alone when a constant load larger than the friction (gravity on a Z head
 ///   without counterweight) keeps the nut on one flank; zero with a linear scale (the loop
-///   closes on the carriage).
+///   closes on the carriage). A positioning test reads at rest, where no viscous friction acts:
+///   its reversal is in the `laser` section (see `laser_truth`), not this figure.
 /// - `static_deflection_um`: where that load holds the carriage from where its encoder puts
 ///   it, averaged over both directions: `F_load/k`, plus half the gap towards the load when the
 ///   nut stays on one flank.
@@ -50,7 +52,9 @@ pub struct TruthInputs<'a> {
 /// every figure a ball-bar diagnosis reports, under the diagnosis' keys (see [`test_figures`]).
 /// A positioning test's
 /// `laser` section holds the noise-free deviations (what a perfect laser would read), the error
-/// chain's share, and the ISO 230-2 figures of both (see [`Iso230_2`](vmt_model::iso230_2::Iso230_2)).
+/// chain's share, the drive's share at rest (the reversal a laser reads at standstill), and the
+/// ISO 230-2 figures of each (see [`Iso230_2`](vmt_model::iso230_2::Iso230_2) and
+/// `laser_truth`).
 pub fn ground_truth(
     inputs: &TruthInputs,
     closing_um: &[Option<f64>],
@@ -126,7 +130,10 @@ pub fn ground_truth(
         })
     });
     let laser = match (&job.laser, laser) {
-        (Some(setup), Some((run, truth))) => laser_truth(setup, run, truth),
+        (Some(setup), Some((run, truth))) => {
+            let a = setup.test.axis.index();
+            laser_truth(setup, run, truth, &axes[a], loads[a])
+        }
         _ => Value::Null,
     };
     json!({
@@ -228,13 +235,87 @@ fn ballbar_test(b: &BallbarSetup, axes: &[AxisDynamics; 3], loads: &[f64; 3]) ->
     })
 }
 
+/// The screw's lost motion at rest, m: where the carriage stands from the nut when the guideway
+/// friction `holding_n` (N, against forward motion) holds it still against the screw under the
+/// constant load `load_n` (N, along the axis). At rest the screw carries `S = F_h − F_load`
+/// (no inertia, no viscous or bristle-damping force without velocity) and the carriage sits
+/// `−(S/k + sign(S) b/2)` from the nut: the screw's stretch, and half the gap on the flank `S`
+/// pushes on. Zero with a linear scale, whose loop holds the carriage itself.
+fn lost_motion_at_rest_m(d: &AxisDynamics, holding_n: f64, load_n: f64) -> f64 {
+    let p = &d.drive;
+    let screw = holding_n - load_n;
+    match p.feedback {
+        Feedback::MotorEncoder => {
+            -(screw / p.screw.stiffness_n_per_m + 0.5 * p.screw.backlash_m * screw.signum())
+        }
+        Feedback::LinearScale { .. } => 0.0,
+    }
+}
+
+/// The reversal a positioning test reads at rest when the guideways hold the carriage with
+/// `holding_n` (N, magnitude) after either approach, m: backward minus forward lost motion,
+/// `b + 2 F_h/k` in semi-closed loop (`2 F_h/k` when the load keeps the nut on one flank, 0
+/// with a linear scale).
+fn reversal_at_rest_m(d: &AxisDynamics, holding_n: f64, load_n: f64) -> f64 {
+    lost_motion_at_rest_m(d, -holding_n, load_n) - lost_motion_at_rest_m(d, holding_n, load_n)
+}
+
 /// The laser section: instrument settings, the compensation scale error, and per measurement
-/// the noise-free deviation (`exact_deviation_um`, the tool point) and the error chain's share
+/// the noise-free deviation (`exact_deviation_um`, the tool point), the error chain's share
 /// (`chain_deviation_um`: geometric and thermal errors at the commanded positions, without the
-/// drives), with the ISO 230-2 figures of each.
-fn laser_truth(setup: &crate::laser::LaserSetup, run: &LaserRun, truth: &LaserTruth) -> Value {
+/// drives) and the drive's share at rest (`drive_deviation_um`), with the ISO 230-2 figures of
+/// each (`iso230_2_exact`, `iso230_2_chain`, `iso230_2_drive`).
+///
+/// The drive's share of a reading, relative to the datum's, is where the servo left the
+/// position its loop closes on (`servo_residual_um`: the motor's, or the carriage's on a linear
+/// scale, minus the command; within a count of the encoder) plus the screw's lost motion at rest ([`lost_motion_at_rest_m`]) under
+/// the guideway friction that held the carriage while it was read (`holding_force_n`, N,
+/// signed, each averaged over the reading's window); not the screw's cyclic lead error, which
+/// does not change with the direction. A laser reads after a dwell, with the carriage at rest,
+/// so its reversal is
+///
+/// `B = b + (F_h↑ + F_h↓)/k` (plus the servo residuals' difference, a fraction of a count),
+///
+/// with no viscous share and so independent of the feed, unlike the moving
+/// `backlash_seen_um`'s `b + 2 F(v)/k`. `F_h` is the LuGre bristles' `σ0 z` at rest, set by
+/// how the carriage came to rest: the position loop's exponential approach (time constant
+/// `1/K_v`) slows through the Stribeck range over the last `v_s/K_v` of travel (30 µm at
+/// `v_s` = 1 mm/s, `K_v` = 33/s), many times the bristles' deflection `F_s/σ0` (3.3 µm at
+/// 65 N and 20 N/µm), so the bristles stop loaded near `F_s` (64.7 N of 65 N on the X drive
+/// of `sim/tests/laser.rs`); the position loop's hunting by an encoder count at standstill
+/// then relaxes them (LuGre's drift under small oscillations): on that drive to 62.6 N over the
+/// last second of a 2 s dwell, 55 N of a 10 s one, 37 N of a 30 s one.
+/// `reversal_at_rest_bounds_um` is the range of `B` for `F_c ≤ F_h ≤ F_s`,
+/// `[b + 2 F_c/k, b + 2 F_s/k]` (gap and load as in [`reversal_at_rest_m`]; `[0, 0]` with a
+/// linear scale): the upper bound is strict (the bristles never hold more than `F_s`), the
+/// lower one holds for dwells of a few seconds, not for half a minute of hunting.
+fn laser_truth(
+    setup: &crate::laser::LaserSetup,
+    run: &LaserRun,
+    truth: &LaserTruth,
+    drive: &AxisDynamics,
+    load_n: f64,
+) -> Value {
     let s = &setup.spec;
     let t = &setup.test;
+    let share =
+        |d: DriveSample| d.servo_residual_m + lost_motion_at_rest_m(drive, d.holding_n, load_n);
+    let datum = share(truth.datum_drive);
+    let drive_um: Vec<f64> = truth
+        .holding_force_n
+        .iter()
+        .zip(&truth.servo_residual_m)
+        .map(|(&holding_n, &servo_residual_m)| {
+            let d = DriveSample {
+                holding_n,
+                servo_residual_m,
+            };
+            (share(d) - datum) * 1e6
+        })
+        .collect();
+    let friction = &drive.drive.guide_friction;
+    let bounds_um =
+        [friction.coulomb_n, friction.static_n].map(|f| reversal_at_rest_m(drive, f, load_n) * 1e6);
     json!({
         "axis": run.axis,
         "feed_mm_min": t.feed_m_s * 60_000.0,
@@ -249,8 +330,13 @@ fn laser_truth(setup: &crate::laser::LaserSetup, run: &LaserRun, truth: &LaserTr
         "air_drift_k_per_h": s.air_drift_k_per_s * 3600.0,
         "exact_deviation_um": truth.exact_um,
         "chain_deviation_um": truth.chain_um,
+        "drive_deviation_um": drive_um,
+        "holding_force_n": truth.holding_force_n,
+        "servo_residual_um": truth.servo_residual_m.iter().map(|m| m * 1e6).collect::<Vec<_>>(),
+        "reversal_at_rest_bounds_um": bounds_um,
         "iso230_2_exact": setup.iso230_2(&truth.exact_um),
         "iso230_2_chain": setup.iso230_2(&truth.chain_um),
+        "iso230_2_drive": setup.iso230_2(&drive_um),
     })
 }
 
