@@ -31,7 +31,7 @@ use crate::nc::{Motion, Spindle};
 use crate::run::{Channel, Run, Stream};
 use crate::simulate::{
     AxisDynamics, Job, SimError, SimSettings, build_plant, check_servo, check_step, check_strokes,
-    summary,
+    servo_tick, summary,
 };
 use nalgebra::Vector3;
 use serde_json::json;
@@ -278,15 +278,7 @@ pub fn simulate_machining(
         let Some(sp) = setpoint_at(&ipo, tau, o, &mut cursor) else {
             break;
         };
-        let commands: [AxisCommand; 3] = std::array::from_fn(|i| AxisCommand {
-            position: sp.position[i] - tcp[i],
-            velocity: sp.velocity[i],
-            acceleration: sp.acceleration[i],
-        });
-        plant.control(&commands, period);
-        for _ in 0..substeps {
-            plant.step(period / substeps as f64);
-        }
+        let commands = servo_tick(plant.as_mut(), &sp, &tcp, period, substeps);
         k += 1;
         let t = k as f64 * period;
         let now = tool_xy(plant.as_ref());

@@ -230,8 +230,9 @@ pub fn simulate_with_replay(
     job_run.execute(progress, replayable, None)
 }
 
-/// [`simulate`] handing the run's records to `sink` while the job runs (see [`LogSink`]): the
-/// returned run has everything but the `servo` stream's rows, which went to the sink.
+/// [`simulate`] handing the run's records to `sink`, if there is one, while the job runs (see
+/// [`LogSink`]): the returned run then has everything but the `servo` stream's rows, which
+/// went to the sink.
 #[allow(clippy::too_many_arguments)]
 pub fn simulate_logged(
     machine: &Machine,
@@ -241,7 +242,7 @@ pub fn simulate_logged(
     settings: &SimSettings,
     scenario_toml: &str,
     progress: &mut dyn FnMut(f64),
-    sink: &mut dyn LogSink,
+    sink: Option<&mut dyn LogSink>,
 ) -> Result<Run, SimError> {
     let job_run = JobRun {
         machine,
@@ -251,7 +252,7 @@ pub fn simulate_logged(
         settings,
         scenario_toml,
     };
-    Ok(job_run.execute(progress, false, Some(sink))?.0)
+    Ok(job_run.execute(progress, false, sink)?.0)
 }
 
 /// What a job runs on.
@@ -327,15 +328,7 @@ impl JobRun<'_> {
             let Some(sp) = interpolator.setpoint_from(k, &mut cursor) else {
                 break;
             };
-            let commands: [AxisCommand; 3] = std::array::from_fn(|i| AxisCommand {
-                position: sp.position[i] - tcp[i],
-                velocity: sp.velocity[i],
-                acceleration: sp.acceleration[i],
-            });
-            plant.control(&commands, period);
-            for _ in 0..substeps {
-                plant.step(h);
-            }
+            servo_tick(plant.as_mut(), &sp, &tcp, period, substeps);
             let carriages = plant.carriages();
             let q = Vector3::from_fn(|i, _| carriages[i].position_m);
             let direction = directions(&mut trackers, &q);
@@ -382,6 +375,29 @@ impl JobRun<'_> {
         };
         Ok((recorder.finish(&truth, settings, scenario_toml)?, replay))
     }
+}
+
+/// One servo period: the controllers take the setpoint `sp` (the tool point less the TCP
+/// offset `tcp`: the axes' commands, returned) and the plant advances `substeps` steps of
+/// `period / substeps`.
+pub(crate) fn servo_tick(
+    plant: &mut dyn Plant,
+    sp: &Setpoint,
+    tcp: &Vector3<f64>,
+    period: f64,
+    substeps: usize,
+) -> [AxisCommand; 3] {
+    let commands: [AxisCommand; 3] = std::array::from_fn(|i| AxisCommand {
+        position: sp.position[i] - tcp[i],
+        velocity: sp.velocity[i],
+        acceleration: sp.acceleration[i],
+    });
+    plant.control(&commands, period);
+    let h = period / substeps as f64;
+    for _ in 0..substeps {
+        plant.step(h);
+    }
+    commands
 }
 
 /// The axes' direction states after they moved to `q` (a loop: `array::from_fn` leaves its

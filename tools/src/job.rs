@@ -15,7 +15,7 @@ use vmt_scenario::Scenario;
 use vmt_sim::machining::simulate_machining;
 use vmt_sim::plant::Fidelity;
 use vmt_sim::run::{LogSink, Run};
-use vmt_sim::simulate::{SimError, simulate, simulate_logged};
+use vmt_sim::simulate::{SimError, simulate_logged};
 
 /// The files a run wrote.
 #[derive(Clone, Debug)]
@@ -116,27 +116,16 @@ fn execute_into(
             None,
             &mut progress,
         ),
-        None => match sink {
-            Some(sink) => simulate_logged(
-                &scenario.machine,
-                &exec.axes,
-                &exec.controller,
-                &exec.job,
-                &settings,
-                text,
-                &mut progress,
-                sink,
-            ),
-            None => simulate(
-                &scenario.machine,
-                &exec.axes,
-                &exec.controller,
-                &exec.job,
-                &settings,
-                text,
-                &mut progress,
-            ),
-        },
+        None => simulate_logged(
+            &scenario.machine,
+            &exec.axes,
+            &exec.controller,
+            &exec.job,
+            &settings,
+            text,
+            &mut progress,
+            sink,
+        ),
     }
     .map_err(|e| match (&e, &exec.program_file) {
         (SimError::Stroke { line, .. }, Some(file)) => {
