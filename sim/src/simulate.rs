@@ -867,13 +867,15 @@ impl Recorder {
             };
             let a = l.axis().index();
             let (carriage, d) = (plant.carriages()[a], plant.drive(a));
-            let closes_on = match d.params().feedback {
-                Feedback::MotorEncoder => d.motor_position_m,
+            // What the drive positions: the nut (the motor through the screw's lead, its
+            // cyclic error included) in semi-closed loop, the carriage on a linear scale.
+            let driven = match d.params().feedback {
+                Feedback::MotorEncoder => d.params().screw.nut(d.motor_position_m, 0.0).0,
                 Feedback::LinearScale { .. } => carriage.position_m,
             };
             let drive = DriveSample {
                 holding_n: carriage.friction_force_n,
-                servo_residual_m: closes_on - commanded.position[a],
+                servo_residual_m: driven - commanded.position[a],
             };
             l.sample(
                 i,

@@ -266,29 +266,31 @@ fn reversal_at_rest_m(d: &AxisDynamics, holding_n: f64, load_n: f64) -> f64 {
 /// drives) and the drive's share at rest (`drive_deviation_um`), with the ISO 230-2 figures of
 /// each (`iso230_2_exact`, `iso230_2_chain`, `iso230_2_drive`).
 ///
-/// The drive's share of a reading, relative to the datum's, is where the servo left the
-/// position its loop closes on (`servo_residual_um`: the motor's, or the carriage's on a linear
-/// scale, minus the command; within a count of the encoder) plus the screw's lost motion at rest ([`lost_motion_at_rest_m`]) under
-/// the guideway friction that held the carriage while it was read (`holding_force_n`, N,
-/// signed, each averaged over the reading's window); not the screw's cyclic lead error, which
-/// does not change with the direction. A laser reads after a dwell, with the carriage at rest,
-/// so its reversal is
+/// The drive's share of a reading, relative to the datum's (the same share of the datum
+/// reading, whose `datum_holding_force_n` and `datum_servo_residual_um` are given), is where the
+/// servo left what the drive positions (`servo_residual_um`, position minus command, the
+/// opposite sign of the `following_error` channel: the nut, that is the motor through the
+/// screw's lead with its cyclic error, or the carriage on a linear scale; within about a count
+/// of the encoder) plus the screw's lost motion at rest ([`lost_motion_at_rest_m`]) under the
+/// guideway friction that held the carriage while it was read (`holding_force_n`, N, signed,
+/// positive after a forward approach; each averaged over the reading's window). The noise-free
+/// deviation is then the chain's share plus the drive's, reading by reading. A laser reads after
+/// a dwell, with the carriage at rest, so its reversal is
 ///
-/// `B = b + (F_h↑ + F_h↓)/k` (plus the servo residuals' difference, a fraction of a count),
+/// `B = b + (F_h↑ + F_h↓)/k` (plus the servo residuals' difference, about a count),
 ///
 /// with no viscous share and so independent of the feed, unlike the moving
 /// `backlash_seen_um`'s `b + 2 F(v)/k`. `F_h` is the LuGre bristles' `σ0 z` at rest, set by
 /// how the carriage came to rest: the position loop's exponential approach (time constant
-/// `1/K_v`) slows through the Stribeck range over the last `v_s/K_v` of travel (30 µm at
-/// `v_s` = 1 mm/s, `K_v` = 33/s), many times the bristles' deflection `F_s/σ0` (3.3 µm at
-/// 65 N and 20 N/µm), so the bristles stop loaded near `F_s` (64.7 N of 65 N on the X drive
-/// of `sim/tests/laser.rs`); the position loop's hunting by an encoder count at standstill
-/// then relaxes them (LuGre's drift under small oscillations): on that drive to 62.6 N over the
-/// last second of a 2 s dwell, 55 N of a 10 s one, 37 N of a 30 s one.
-/// `reversal_at_rest_bounds_um` is the range of `B` for `F_c ≤ F_h ≤ F_s`,
-/// `[b + 2 F_c/k, b + 2 F_s/k]` (gap and load as in [`reversal_at_rest_m`]; `[0, 0]` with a
-/// linear scale): the upper bound is strict (the bristles never hold more than `F_s`), the
-/// lower one holds for dwells of a few seconds, not for half a minute of hunting.
+/// `1/K_v`) slows through the Stribeck range over the last `v_s/K_v` of travel, many times the
+/// bristles' deflection `F_s/σ0`, so the bristles stop loaded near `F_s`; the position loop's
+/// hunting by an encoder count at standstill then relaxes them (LuGre's drift under small
+/// oscillations), the more the longer the dwell, so B depends on the dwell though not on the
+/// feed. `reversal_at_rest_bounds_um` is the range of `B` for `F_c ≤ F_h ≤ F_s`,
+/// `[b + 2 F_c/k, b + 2 F_s/k]` (`[2 F_c/k, 2 F_s/k]` when the load keeps the nut on one flank,
+/// `[0, 0]` with a linear scale; see [`reversal_at_rest_m`]), less about a count: the upper
+/// bound is strict (the bristles never hold more than `F_s`), the lower one holds for dwells of
+/// a few seconds, not for half a minute of hunting.
 fn laser_truth(
     setup: &crate::laser::LaserSetup,
     run: &LaserRun,
@@ -333,6 +335,8 @@ fn laser_truth(
         "drive_deviation_um": drive_um,
         "holding_force_n": truth.holding_force_n,
         "servo_residual_um": truth.servo_residual_m.iter().map(|m| m * 1e6).collect::<Vec<_>>(),
+        "datum_holding_force_n": truth.datum_drive.holding_n,
+        "datum_servo_residual_um": truth.datum_drive.servo_residual_m * 1e6,
         "reversal_at_rest_bounds_um": bounds_um,
         "iso230_2_exact": setup.iso230_2(&truth.exact_um),
         "iso230_2_chain": setup.iso230_2(&truth.chain_um),

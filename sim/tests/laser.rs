@@ -611,6 +611,43 @@ fn shipped_positioning_reversal_is_the_chain_s_plus_the_drive_s_at_rest() {
     let iso = run.laser.as_ref().unwrap().iso230_2();
     let b = f(&truth["iso230_2_exact"]["b_um"]);
     assert!((iso.b_um - b).abs() < 0.005, "{} vs {b}", iso.b_um);
+    readings_are_the_chain_s_plus_the_drive_s(&run);
+    // With a 2 µm cyclic lead error on X's screw (the first screw of the file), still reading by
+    // reading: the drive's share holds the nut's cyclic error.
+    let cyclic = text.replacen(
+        "screw_cyclic_um = [0.0, 0.0]",
+        "screw_cyclic_um = [2.0, 0.0]",
+        1,
+    );
+    let s = vmt_scenario::parse(&cyclic, "iso230_2_x.toml", None).unwrap();
+    let exec = s.execution.as_ref().unwrap();
+    let run = exec.simulate(&s.machine, &cyclic, &mut |_| {}).unwrap();
+    readings_are_the_chain_s_plus_the_drive_s(&run);
+}
+
+/// Every reading's noise-free deviation is the chain's share plus the drive's (both relative
+/// to the datum), to 1e-3 µm. Catches: a drive share without the datum's (a constant offset,
+/// which the reversals cancel), one that leaves out the screw's cyclic lead error.
+fn readings_are_the_chain_s_plus_the_drive_s(run: &vmt_sim::run::Run) {
+    let truth = &run.ground_truth["laser"];
+    let values = |key: &str| -> Vec<f64> {
+        truth[key]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|v| v.as_f64().unwrap())
+            .collect()
+    };
+    let (exact, chain, drive) = (
+        values("exact_deviation_um"),
+        values("chain_deviation_um"),
+        values("drive_deviation_um"),
+    );
+    assert_eq!(exact.len(), run.laser.as_ref().unwrap().readings.len());
+    for i in 0..exact.len() {
+        let rest = exact[i] - chain[i] - drive[i];
+        assert!(rest.abs() < 1e-3, "reading {i}: {rest} µm left over");
+    }
 }
 
 /// The shipped positioning scenario loads, and bad values are refused naming their key.
