@@ -169,18 +169,11 @@ fn gap_stays_closed(d: &AxisDynamics, feed: f64, load_n: f64) -> bool {
 /// The backlash a reversal at `feed` (m/s) shows at the tool, m (see [`ground_truth`]): in semi-closed
 /// loop the screw's elastic change under the guideway friction, `2 F(v)/k`, plus the gap `b`
 /// unless the constant load `load_n` (N) keeps the nut on one flank; zero with a linear scale.
+/// The reversal at rest ([`reversal_at_rest_m`]) with the friction of sliding at `feed`
+/// holding the carriage.
 fn backlash_seen_m(d: &AxisDynamics, feed: f64, load_n: f64) -> f64 {
-    let p = &d.drive;
-    let friction = p.guide_friction.steady_state_force(feed.max(1e-9));
-    let gap = if gap_stays_closed(d, feed, load_n) {
-        0.0
-    } else {
-        p.screw.backlash_m
-    };
-    match p.feedback {
-        Feedback::MotorEncoder => gap + 2.0 * friction / p.screw.stiffness_n_per_m,
-        Feedback::LinearScale { .. } => 0.0,
-    }
+    let friction = d.drive.guide_friction.steady_state_force(feed.max(1e-9));
+    reversal_at_rest_m(d, friction, load_n)
 }
 
 /// The carriage's displacement from where its motor encoder puts it, averaged over both
