@@ -41,7 +41,9 @@ const TMP_PREFIX: &str = ".tmp-";
 pub const IDENTITY_FILE: &str = "dataset.json";
 /// The version of what `labels.json` holds: 2 since the truth's injected squareness is in µrad
 /// (format 1, without the key in `dataset.json`, wrote it in rad under the same keys). Runs of
-/// two formats never share a dataset.
+/// two formats never share a dataset. A change of a key's meaning or unit bumps it; keys only
+/// added (as the laser truth's drive share at rest was) do not, since no value read before
+/// changes.
 pub const LABELS_FORMAT: u64 = 2;
 
 /// What `vmt dataset` is asked for.
