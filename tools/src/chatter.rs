@@ -12,8 +12,8 @@
 //! `vmt_chatter::detect::spectral` (non-harmonic spectral peak share).
 
 use crate::error::CliError;
+use crate::formats::input::{self, Input};
 use clap::{Args, ValueEnum};
-use mcap::MessageStream;
 use serde_json::Value;
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -87,11 +87,9 @@ const CSV_FORMAT: &str = "a header with time_s (s) and one or more of ax, ay, az
 /// Reads an MCAP run or a CSV log.
 pub fn read(path: &Path) -> Result<Log, CliError> {
     let file = path.display().to_string();
-    let bytes = std::fs::read(path).map_err(|e| CliError::input(&file, None, e.to_string()))?;
-    if bytes.starts_with(mcap::MAGIC) {
-        read_mcap(&bytes, &file)
-    } else {
-        read_csv(&bytes, &file)
+    match input::open(path, &file)? {
+        Input::Mcap => read_mcap(path, &file),
+        Input::Other(bytes) => read_csv(&bytes, &file),
     }
 }
 
@@ -197,14 +195,12 @@ fn read_csv(bytes: &[u8], file: &str) -> Result<Log, CliError> {
     finish(file, &times, channels, None)
 }
 
-fn read_mcap(bytes: &[u8], file: &str) -> Result<Log, CliError> {
+fn read_mcap(path: &Path, file: &str) -> Result<Log, CliError> {
     let bad = |m: String| CliError::input(file, None, m);
     let mut truth: Option<Value> = None;
     let mut times = Vec::new();
     let mut values: Vec<Vec<f64>> = vec![Vec::new(); AXES.len()];
-    let stream =
-        MessageStream::new(bytes).map_err(|e| bad(format!("not a readable MCAP file: {e}")))?;
-    for message in stream {
+    for message in input::messages(path, file)? {
         let m = message.map_err(|e| bad(format!("a damaged MCAP record: {e}")))?;
         match m.channel.topic.as_str() {
             "/ground_truth" => truth = serde_json::from_slice(&m.data).ok(),

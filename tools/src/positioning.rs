@@ -18,9 +18,9 @@
 //! `/laser` topic); the axis name comes from `--axis` (CSV) or the run.
 
 use crate::error::CliError;
+use crate::formats::input::{self, Input};
 use crate::plot::{DrawResult, FONT, Figure, Format, register_font, render};
 use crate::traces::{csv_with_header, finite_cell};
-use mcap::MessageStream;
 use plotters::coord::Shift;
 use plotters::prelude::*;
 use serde_json::{Value, json};
@@ -44,11 +44,9 @@ pub struct Positioning {
 /// a CSV with a `target_mm` column); `None` for any other file.
 pub fn read(path: &Path, axis: Option<&str>) -> Result<Option<Positioning>, CliError> {
     let file = path.display().to_string();
-    let bytes = std::fs::read(path).map_err(|e| CliError::input(&file, None, e.to_string()))?;
-    let found = if bytes.starts_with(mcap::MAGIC) {
-        read_mcap(&bytes, &file)?
-    } else {
-        read_csv(&bytes, &file, axis.unwrap_or("?"))?.map(|r| (r, None))
+    let found = match input::open(path, &file)? {
+        Input::Mcap => read_mcap(path, &file)?,
+        Input::Other(bytes) => read_csv(&bytes, &file, axis.unwrap_or("?"))?.map(|r| (r, None)),
     };
     let Some((run, truth)) = found else {
         return Ok(None);
@@ -70,13 +68,10 @@ fn direction(s: &str) -> Option<Approach> {
     }
 }
 
-fn read_mcap(
-    bytes: &[u8],
-    file: &str,
-) -> Result<Option<(PositioningRun, Option<Value>)>, CliError> {
+fn read_mcap(path: &Path, file: &str) -> Result<Option<(PositioningRun, Option<Value>)>, CliError> {
     let bad = |m: String| CliError::input(file, None, m);
     // A run with a summary names its topics there: a ball-bar run is not read twice.
-    if let Ok(Some(summary)) = mcap::Summary::read(bytes)
+    if let Some(summary) = input::summary(path)
         && !summary.channels.values().any(|c| c.topic == "/laser")
     {
         return Ok(None);
@@ -84,9 +79,7 @@ fn read_mcap(
     let mut readings = Vec::new();
     let mut axis = None;
     let mut truth = None;
-    for message in
-        MessageStream::new(bytes).map_err(|e| bad(format!("not a readable MCAP file: {e}")))?
-    {
+    for message in input::messages(path, file)? {
         let m = message.map_err(|e| bad(format!("a damaged MCAP record: {e}")))?;
         match m.channel.topic.as_str() {
             "/ground_truth" => {

@@ -16,7 +16,7 @@
 //! `--plane`). Rows of one direction must be consecutive and in the order measured.
 
 use crate::error::CliError;
-use mcap::MessageStream;
+use crate::formats::input::{self, Input};
 use serde_json::Value;
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -72,10 +72,10 @@ pub fn group_tests(traces: Vec<Trace>) -> Vec<Vec<Trace>> {
 /// Reads `path`: an MCAP run (by its magic bytes) or a CSV trace file.
 pub fn read(path: &Path, csv: Option<CsvSetup>) -> Result<Recorded, CliError> {
     let file = path.display().to_string();
-    let bytes = std::fs::read(path).map_err(|e| CliError::input(&file, None, e.to_string()))?;
-    if bytes.starts_with(mcap::MAGIC) {
-        return read_mcap(&bytes, &file);
-    }
+    let bytes = match input::open(path, &file)? {
+        Input::Mcap => return read_mcap(path, &file),
+        Input::Other(bytes) => bytes,
+    };
     let setup = csv.ok_or_else(|| {
         CliError::Argument(format!(
             "{file} is a CSV trace: give its set-up with --radius-mm, --feed-mm-min and --plane"
@@ -97,13 +97,11 @@ struct Channel {
     deviation: Vec<f64>,
 }
 
-fn read_mcap(bytes: &[u8], file: &str) -> Result<Recorded, CliError> {
+fn read_mcap(path: &Path, file: &str) -> Result<Recorded, CliError> {
     let bad = |m: String| CliError::input(file, None, m);
     let mut channels: BTreeMap<u16, Channel> = BTreeMap::new();
     let mut truth = None;
-    for message in
-        MessageStream::new(bytes).map_err(|e| bad(format!("not a readable MCAP file: {e}")))?
-    {
+    for message in input::messages(path, file)? {
         let m = message.map_err(|e| bad(format!("a damaged MCAP record: {e}")))?;
         let topic = m.channel.topic.as_str();
         if topic == "/ground_truth" {

@@ -10,6 +10,7 @@
 //! clock of the computer that wrote them (see each module for what that means for its format).
 //! The topics and entity paths are documented in the modules and in `docs/formats.md`.
 
+pub(crate) mod input;
 pub mod live;
 pub mod mcap;
 pub mod rerun;

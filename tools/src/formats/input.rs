@@ -1,0 +1,59 @@
+//! Reading the files the analysis commands are given: an MCAP run is streamed from disk (the
+//! mcap crate's `io::MessageReader`, memory of about one chunk, whatever the run's length: a
+//! 277 MB Kwon run had been read whole into memory), any other file (a CSV) is read whole.
+
+use crate::error::CliError;
+use mcap::sans_io::summary_reader::{SummaryReadEvent, SummaryReader};
+use std::fs::File;
+use std::io::{BufReader, Read, Seek};
+use std::path::Path;
+
+/// A file as the analysis commands take it.
+pub(crate) enum Input {
+    /// An MCAP file (by its magic bytes), to be read with [`messages`].
+    Mcap,
+    /// Any other file, whole.
+    Other(Vec<u8>),
+}
+
+/// The MCAP messages of the file, in file order, linked to their channels.
+pub(crate) type Messages = mcap::io::MessageReader<BufReader<File>>;
+
+/// Whether `path` is an MCAP file, or its bytes if it is not; errors name `file`.
+pub(crate) fn open(path: &Path, file: &str) -> Result<Input, CliError> {
+    let err = |e: std::io::Error| CliError::input(file, None, e.to_string());
+    let mut f = File::open(path).map_err(err)?;
+    let mut head = Vec::with_capacity(mcap::MAGIC.len());
+    f.by_ref()
+        .take(mcap::MAGIC.len() as u64)
+        .read_to_end(&mut head)
+        .map_err(err)?;
+    if head == mcap::MAGIC {
+        return Ok(Input::Mcap);
+    }
+    f.read_to_end(&mut head).map_err(err)?;
+    Ok(Input::Other(head))
+}
+
+/// The messages of the MCAP file `path`, streamed.
+pub(crate) fn messages(path: &Path, file: &str) -> Result<Messages, CliError> {
+    let f = File::open(path).map_err(|e| CliError::input(file, None, e.to_string()))?;
+    Ok(mcap::io::MessageReader::new(BufReader::new(f)))
+}
+
+/// The summary section of the MCAP file `path`, if it has one (read with a few seeks, not
+/// through the file); `None` also when it cannot be read.
+pub(crate) fn summary(path: &Path) -> Option<mcap::Summary> {
+    let mut f = File::open(path).ok()?;
+    let mut reader = SummaryReader::new();
+    while let Some(event) = reader.next_event() {
+        match event.ok()? {
+            SummaryReadEvent::ReadRequest(need) => {
+                let n = f.read(reader.insert(need)).ok()?;
+                reader.notify_read(n);
+            }
+            SummaryReadEvent::SeekRequest(to) => reader.notify_seeked(f.seek(to).ok()?),
+        }
+    }
+    reader.finish()
+}
