@@ -403,6 +403,16 @@ pub fn command(a: &GapArgs) -> Result<(), CliError> {
         }
         return vibration_command(a);
     }
+    for f in &a.real {
+        if crate::diagnose::file_kind(f)? == crate::diagnose::FileKind::LaserCsv {
+            return Err(CliError::input(
+                &f.display().to_string(),
+                Some(1),
+                "a laser positioning CSV (ISO 230-2): `vmt gap` compares ball-bar runs or \
+                 accelerometer logs with their model; `vmt diagnose` evaluates a positioning test",
+            ));
+        }
+    }
     let csv = crate::diagnose::csv_setup(a.radius_mm, a.feed_mm_min, a.plane.as_deref())?;
     let measured = measured(&a.real, csv)?;
     // After the arguments and files are read, before the model is simulated.

@@ -126,6 +126,27 @@ fn measurements_of_another_test_are_refused_by_name() {
     assert!(!o.status.success());
     assert!(stderr(&o).contains("missing.csv"), "{}", stderr(&o));
     assert!(!out.exists(), "a refused command made {}", out.display());
+    // A laser positioning CSV is named as one, not asked for a ball bar's set-up.
+    let laser = dir.path().join("laser.csv");
+    std::fs::write(
+        &laser,
+        "target_mm,direction,run,deviation_um\n0,forward,1,0.5\n100,forward,1,1.0\n",
+    )
+    .unwrap();
+    let o = vmt(&[
+        "gap",
+        "--model",
+        model.to_str().unwrap(),
+        "--real",
+        laser.to_str().unwrap(),
+    ]);
+    assert!(!o.status.success());
+    let e = stderr(&o);
+    assert!(
+        e.contains("laser.csv:1: a laser positioning CSV (ISO 230-2)")
+            && !e.contains("--radius-mm"),
+        "{e}"
+    );
 }
 
 /// The shipped milling slot at 0.2 mm depth (a stable cut), with its NC program, in `dir`.
