@@ -335,6 +335,55 @@ fn writers_refuse_inconsistent_runs_without_panicking() {
     assert!(e.to_string().contains("WXXGZT"), "{e}");
 }
 
+/// The servo stream's rows `rows` alone, as a block of a run written while it runs.
+fn rows_of(s: &Stream, rows: std::ops::Range<usize>) -> Stream {
+    Stream {
+        times_s: s.times_s[rows.clone()].to_vec(),
+        channels: s
+            .channels
+            .iter()
+            .map(|c| Channel {
+                values: c.values[rows.clone()].to_vec(),
+                ..c.clone()
+            })
+            .collect(),
+        ..s.clone()
+    }
+}
+
+/// Written block by block, a bad time is named by its row in the whole run, not in its block;
+/// and the failed file is removed.
+#[test]
+fn files_written_in_blocks_name_a_bad_row_by_its_place_in_the_run() {
+    use vmt_tools::formats::{mcap::McapFile, rerun::RrdFile};
+    let dir = tempfile::tempdir().expect("temp dir");
+    let mut run = test_run();
+    run.streams[0].times_s[13] = f64::NAN;
+    let servo = &run.streams[0];
+    let blocks = [rows_of(servo, 0..10), rows_of(servo, 10..20)];
+    let no_samples: Vec<BallbarTrace> = run.ballbar.iter().map(|t| t.samples(0..0)).collect();
+    let path = dir.path().join("b.mcap");
+    let mut mcap = McapFile::create(&path, &run).expect("create");
+    mcap.block(std::slice::from_ref(&blocks[0]), &no_samples)
+        .expect("first block");
+    let e = mcap
+        .block(std::slice::from_ref(&blocks[1]), &no_samples)
+        .expect_err("a NaN time");
+    assert!(e.to_string().contains("stream `servo`, sample 13"), "{e}");
+    drop(mcap);
+    let path = dir.path().join("b.rrd");
+    let mut rrd = RrdFile::create(&path, &run).expect("create");
+    rrd.block(std::slice::from_ref(&blocks[0]), &no_samples)
+        .expect("first block");
+    let e = rrd
+        .block(std::slice::from_ref(&blocks[1]), &no_samples)
+        .expect_err("a NaN time");
+    assert!(e.to_string().contains("sample 13"), "{e}");
+    drop(rrd);
+    let left: Vec<_> = std::fs::read_dir(dir.path()).expect("dir").collect();
+    assert!(left.is_empty(), "{left:?}");
+}
+
 #[test]
 fn files_appear_whole_or_not_at_all() {
     let dir = tempfile::tempdir().expect("temp dir");

@@ -125,6 +125,9 @@ pub struct RrdFile {
     layout: Layout,
     /// The tool path so far (it is drawn whole, as one static strip, at the end).
     tool_path: Vec<[f32; 3]>,
+    /// Rows of the `servo` stream and samples of each trace sent so far (errors give a row's
+    /// index in the whole run).
+    sent: (usize, Vec<usize>),
 }
 
 impl RrdFile {
@@ -157,6 +160,7 @@ impl RrdFile {
             slugs: unique_slugs(opening.ballbar.iter().map(|t| t.label.as_str())),
             layout: Layout::new(&opening.machine, topology),
             tool_path: Vec::new(),
+            sent: (0, vec![0; opening.ballbar.len()]),
         };
         let log = file.logger();
         log.info(opening)?;
@@ -191,21 +195,28 @@ impl RrdFile {
         streams.iter().try_for_each(|s| check_stream(s, log.path))?;
         traces.iter().try_for_each(|t| check_trace(t, log.path))?;
         if let Some(servo) = servo(streams) {
+            let first = self.sent.0;
             for (entity, axis, sign) in &self.layout.carriages {
-                log.carriage_motion(entity, servo, *axis, *sign)?;
+                log.carriage_motion(entity, servo, first, *axis, *sign)?;
             }
-            log.servo_series(servo)?;
+            log.servo_series(servo, first)?;
         }
-        for (t, slug) in traces.iter().zip(&self.slugs) {
+        for ((t, slug), &first) in traces.iter().zip(&self.slugs).zip(&self.sent.1) {
             let value = |i: usize| t.deviation_um[i];
-            log.send_blocks(&deviation_entity(slug), &t.times_s, &t.label, |rows| {
+            let series = (&t.times_s[..], first);
+            log.send_blocks(&deviation_entity(slug), series, &t.label, |rows| {
                 Scalars::new(rows.map(value)).columns_of_unit_batches()
             })?;
         }
         // Waits for the block to be on disk: the SDK would otherwise buffer up to 100 MB ahead
         // of a slow disk, and a file sink that has failed shows only here (its own error goes
         // to the log, not to us).
-        self.rec.flush_blocking().map_err(|e| log.err(e))
+        self.rec.flush_blocking().map_err(|e| log.err(e))?;
+        self.sent.0 += servo(streams).map_or(0, |s| s.times_s.len());
+        for (sent, t) in self.sent.1.iter_mut().zip(traces) {
+            *sent += t.times_s.len();
+        }
+        Ok(())
     }
 
     /// Logs what needs the finished `run` (the tool path, the polar plots of its traces, its
@@ -442,6 +453,7 @@ impl Logger<'_> {
         &self,
         entity: &str,
         servo: &Stream,
+        first_row: usize,
         axis: Axis,
         sign: f64,
     ) -> Result<(), CliError> {
@@ -453,7 +465,7 @@ impl Logger<'_> {
             return Ok(());
         };
         let k = axis.index();
-        self.send_blocks(entity, &servo.times_s, &servo.name, |rows| {
+        self.send_blocks(entity, (&servo.times_s, first_row), &servo.name, |rows| {
             let translations = ch.values[rows].iter().map(|&p| {
                 let mut v = [0.0_f32; 3];
                 v[k] = (sign * p) as f32;
@@ -467,17 +479,18 @@ impl Logger<'_> {
 
     /// Sends the rows of `entity` at the times `times_s` ([`SERIES_BLOCK`] rows at a time, so
     /// that a long run is not converted to Arrow all at once: a 17-minute job logged at 1 kHz
-    /// has a million rows per entity), with the columns `columns` makes of each block of rows.
+    /// has a million rows per entity), with the columns `columns` makes of each block of rows;
+    /// `first_row` is the index of the first of `times_s` in the whole run (for errors).
     fn send_blocks<C: IntoIterator<Item = SerializedComponentColumn>>(
         &self,
         entity: &str,
-        times_s: &[f64],
+        (times_s, first_row): (&[f64], usize),
         what: &str,
         columns: impl Fn(Range<usize>) -> SerializationResult<C>,
     ) -> Result<(), CliError> {
         for first in (0..times_s.len()).step_by(SERIES_BLOCK) {
             let rows = first..(first + SERIES_BLOCK).min(times_s.len());
-            let time = self.time_column(&times_s[rows.clone()], first, what)?;
+            let time = self.time_column(&times_s[rows.clone()], first_row + first, what)?;
             let columns = columns(rows).map_err(|e| self.err(e))?;
             self.rec
                 .send_columns(entity, [time], columns)
@@ -525,7 +538,7 @@ impl Logger<'_> {
         value: impl Fn(usize) -> f64,
     ) -> Result<(), CliError> {
         self.style(entity, name, colour)?;
-        self.send_blocks(entity, times_s, entity, |rows| {
+        self.send_blocks(entity, (times_s, 0), entity, |rows| {
             Scalars::new(rows.map(&value)).columns_of_unit_batches()
         })
     }
@@ -564,15 +577,16 @@ impl Logger<'_> {
         Ok(())
     }
 
-    /// The following errors (µm) and friction forces (N) of the rows of `servo`.
-    fn servo_series(&self, servo: &Stream) -> Result<(), CliError> {
+    /// The following errors (µm) and friction forces (N) of the rows of `servo`, the first of
+    /// them row `first_row` of the run.
+    fn servo_series(&self, servo: &Stream, first_row: usize) -> Result<(), CliError> {
         for (entity, _, _, c) in Self::servo_channels(servo) {
             let k = if entity.starts_with("/series/following_error_um") {
                 1e6
             } else {
                 1.0
             };
-            self.send_blocks(&entity, &servo.times_s, &entity, |rows| {
+            self.send_blocks(&entity, (&servo.times_s, first_row), &entity, |rows| {
                 Scalars::new(rows.map(|i| c.values[i] * k)).columns_of_unit_batches()
             })?;
         }
