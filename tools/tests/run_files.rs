@@ -104,14 +104,31 @@ fn a_step_too_coarse_for_the_stiffest_mode_is_refused_with_the_largest_stable_st
     assert!(e.contains(&expected), "{e}\nexpected: {expected}");
 }
 
-/// A short circular test (a quarter circle of 50 mm at 3000 mm/min, CCW) with the built-in
-/// noise and set-up eccentricity.
-/// `run` names its output folder.
+/// A short circular test: a quarter circle of 50 mm at 3000 mm/min, CCW.
+const QUARTER_JOB: &str = "[job]\nkind = \"ballbar\"\nplane = \"XY\"\n\
+    center_mm = [250.0, 200.0, 200.0]\nradius_mm = 50.0\nfeed_mm_min = 3000.0\narc_deg = 90.0\n\
+    directions = [\"ccw\"]";
+
+/// The names in folder `dir`, sorted.
+fn names_in(dir: &Path) -> Vec<String> {
+    let mut names: Vec<String> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    names
+}
+
+/// [`QUARTER_JOB`] with the built-in noise and set-up eccentricity; `run` names its output
+/// folder.
 fn quarter(dir: &Path, seed: u64, run: &str) -> Vec<u8> {
-    let job = "[job]\nkind = \"ballbar\"\nplane = \"XY\"\ncenter_mm = [250.0, 200.0, 200.0]\n\
-               radius_mm = 50.0\nfeed_mm_min = 3000.0\narc_deg = 90.0\ndirections = [\"ccw\"]";
     let name = format!("s{seed}.toml");
-    let s = scenario(dir, &name, job, &[("seed = 1", &format!("seed = {seed}"))]);
+    let s = scenario(
+        dir,
+        &name,
+        QUARTER_JOB,
+        &[("seed = 1", &format!("seed = {seed}"))],
+    );
     let out = dir.join(run);
     let o = vmt(&["run", &s, "--out", out.to_str().unwrap(), "--quiet"]);
     assert!(o.status.success(), "{}", stderr(&o));
@@ -135,10 +152,8 @@ fn the_same_scenario_and_seed_give_byte_identical_mcap_files() {
 #[test]
 fn the_mcap_written_while_the_job_runs_equals_the_finished_runs() {
     let dir = tempfile::tempdir().unwrap();
-    let job = "[job]\nkind = \"ballbar\"\nplane = \"XY\"\ncenter_mm = [250.0, 200.0, 200.0]\n\
-               radius_mm = 50.0\nfeed_mm_min = 3000.0\narc_deg = 90.0\ndirections = [\"ccw\"]";
     let edit = ("log_rate_hz = 1000.0", "log_rate_hz = 8000.0");
-    let s = scenario(dir.path(), "s.toml", job, &[edit]);
+    let s = scenario(dir.path(), "s.toml", QUARTER_JOB, &[edit]);
     let out = dir.path().join("out");
     let o = vmt(&["run", &s, "--out", out.to_str().unwrap(), "--quiet"]);
     assert!(o.status.success(), "{}", stderr(&o));
@@ -168,11 +183,7 @@ fn the_mcap_written_while_the_job_runs_equals_the_finished_runs() {
     );
     assert_eq!(a["entities"], b["entities"]);
     assert_eq!(a["entities"]["/series/following_error_um/x"]["rows"], rows);
-    let mut names: Vec<String> = std::fs::read_dir(&out)
-        .unwrap()
-        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
-        .collect();
-    names.sort();
+    let names = names_in(&out);
     assert_eq!(
         names,
         [
@@ -189,9 +200,7 @@ fn the_mcap_written_while_the_job_runs_equals_the_finished_runs() {
 #[test]
 fn a_file_that_cannot_be_written_stops_the_job_and_leaves_nothing_half_written() {
     let dir = tempfile::tempdir().unwrap();
-    let job = "[job]\nkind = \"ballbar\"\nplane = \"XY\"\ncenter_mm = [250.0, 200.0, 200.0]\n\
-               radius_mm = 50.0\nfeed_mm_min = 3000.0\narc_deg = 90.0\ndirections = [\"ccw\"]";
-    let s = scenario(dir.path(), "s.toml", job, &[]);
+    let s = scenario(dir.path(), "s.toml", QUARTER_JOB, &[]);
     let out = dir.path().join("out");
     // A folder where the MCAP file's partial file goes.
     std::fs::create_dir_all(out.join("run.mcap.partial")).unwrap();
@@ -199,11 +208,7 @@ fn a_file_that_cannot_be_written_stops_the_job_and_leaves_nothing_half_written()
     assert!(!o.status.success());
     let e = stderr(&o);
     assert!(e.contains("run.mcap") && !e.contains("partial"), "{e}");
-    let mut names: Vec<String> = std::fs::read_dir(&out)
-        .unwrap()
-        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
-        .collect();
-    names.sort();
+    let names = names_in(&out);
     assert_eq!(names, ["run.mcap.partial"], "{e}");
     assert!(out.join("run.mcap.partial").is_dir());
 }
@@ -213,19 +218,14 @@ fn a_file_that_cannot_be_written_stops_the_job_and_leaves_nothing_half_written()
 #[test]
 fn a_run_has_both_files_or_neither() {
     let dir = tempfile::tempdir().unwrap();
-    let job = "[job]\nkind = \"ballbar\"\nplane = \"XY\"\ncenter_mm = [250.0, 200.0, 200.0]\n\
-               radius_mm = 50.0\nfeed_mm_min = 3000.0\narc_deg = 90.0\ndirections = [\"ccw\"]";
-    let s = scenario(dir.path(), "s.toml", job, &[]);
+    let s = scenario(dir.path(), "s.toml", QUARTER_JOB, &[]);
     let out = dir.path().join("out");
     std::fs::create_dir_all(out.join("run.rrd")).unwrap();
     let o = vmt(&["run", &s, "--out", out.to_str().unwrap(), "--quiet"]);
     assert!(!o.status.success());
     let e = stderr(&o);
     assert!(e.contains("run.rrd"), "{e}");
-    let names: Vec<String> = std::fs::read_dir(&out)
-        .unwrap()
-        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
-        .collect();
+    let names = names_in(&out);
     assert_eq!(names, ["run.rrd"], "{e}");
 }
 
