@@ -355,7 +355,7 @@ fn rows_of(s: &Stream, rows: std::ops::Range<usize>) -> Stream {
 /// and the failed file is removed.
 #[test]
 fn files_written_in_blocks_name_a_bad_row_by_its_place_in_the_run() {
-    use vmt_tools::formats::{mcap::McapFile, rerun::RrdFile};
+    use vmt_tools::formats::{RunFile, mcap::McapFile, rerun::RrdFile};
     let dir = tempfile::tempdir().expect("temp dir");
     let mut run = test_run();
     run.streams[0].times_s[13] = f64::NAN;

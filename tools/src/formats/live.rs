@@ -8,9 +8,9 @@
 //! [`write_rrd`](super::write_rrd)'s. The two files are renamed to their names together, once
 //! both are complete: a run has both or neither.
 
-use super::Partial;
 use super::mcap::McapFile;
 use super::rerun::RrdFile;
+use super::{Partial, RunFile};
 use crate::error::CliError;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -30,38 +30,6 @@ enum Message {
     Finish(Arc<Run>),
 }
 
-/// A file of a run written block by block.
-trait BlockFile: Sized {
-    fn create(path: &Path, opening: &Run) -> Result<Self, CliError>;
-    fn block(&mut self, streams: &[Stream], traces: &[BallbarTrace]) -> Result<(), CliError>;
-    /// The complete file, not yet renamed.
-    fn complete(self, run: &Run) -> Result<Partial, CliError>;
-}
-
-impl BlockFile for McapFile {
-    fn create(path: &Path, opening: &Run) -> Result<Self, CliError> {
-        McapFile::create(path, opening)
-    }
-    fn block(&mut self, streams: &[Stream], traces: &[BallbarTrace]) -> Result<(), CliError> {
-        McapFile::block(self, streams, traces)
-    }
-    fn complete(self, run: &Run) -> Result<Partial, CliError> {
-        McapFile::complete(self, run)
-    }
-}
-
-impl BlockFile for RrdFile {
-    fn create(path: &Path, opening: &Run) -> Result<Self, CliError> {
-        RrdFile::create(path, opening)
-    }
-    fn block(&mut self, streams: &[Stream], traces: &[BallbarTrace]) -> Result<(), CliError> {
-        RrdFile::block(self, streams, traces)
-    }
-    fn complete(self, run: &Run) -> Result<Partial, CliError> {
-        RrdFile::complete(self, run)
-    }
-}
-
 /// The complete file under its partial name, or none if the run ended without finishing.
 type Outcome = Result<Option<Partial>, CliError>;
 
@@ -73,7 +41,7 @@ struct Writer {
 }
 
 impl Writer {
-    fn spawn<F: BlockFile + 'static>(path: PathBuf, opening: Run) -> Self {
+    fn spawn<F: RunFile + 'static>(path: PathBuf, opening: Run) -> Self {
         let (queue, blocks) = sync_channel(QUEUE);
         let target = path.clone();
         let thread = std::thread::spawn(move || write::<F>(&target, &opening, blocks));
@@ -96,7 +64,7 @@ impl Writer {
 /// The body of a writer thread: creates the file, writes the blocks as they come and completes
 /// it with the run. A run that ends without [`Message::Finish`] (the simulation failed) drops
 /// the file, which removes it.
-fn write<F: BlockFile>(path: &Path, opening: &Run, blocks: Receiver<Message>) -> Outcome {
+fn write<F: RunFile>(path: &Path, opening: &Run, blocks: Receiver<Message>) -> Outcome {
     let mut file = F::create(path, opening)?;
     for m in blocks {
         match m {

@@ -59,7 +59,7 @@
 //! | `scenario` | `name`, `toml` (the scenario file that made the run) |
 //! | `ground_truth` | `json` (the ground truth as compact JSON, as on `/ground_truth`) |
 
-use super::{Partial, check_stream, check_trace, time_ns, unique_slugs};
+use super::{Partial, RunFile, check_stream, check_trace, time_ns, unique_slugs, write_whole};
 use crate::error::CliError;
 use ::mcap::records::{MessageHeader, Metadata};
 use ::mcap::{Compression, WriteOptions, Writer};
@@ -94,9 +94,7 @@ type McapWriter = Writer<BufWriter<File>>;
 /// times), when a sample time is negative or not finite, or when the file cannot be written.
 /// The file is the one [`McapFile`] writes block by block while the job runs, byte for byte.
 pub fn write_mcap(run: &Run, path: &Path) -> Result<(), CliError> {
-    let mut file = McapFile::create(path, run)?;
-    file.block(&run.streams, &run.ballbar)?;
-    file.finish(run)
+    write_whole::<McapFile>(run, path)
 }
 
 /// An MCAP file of a run written while its job runs: the streams' and traces' channels when
@@ -114,10 +112,9 @@ pub struct McapFile {
     data: Vec<u8>,
 }
 
-impl McapFile {
-    /// Creates the file for the run `opening` (its streams' channels and its traces, with or
-    /// without their samples) and adds the channels of its streams and traces.
-    pub fn create(path: &Path, opening: &Run) -> Result<Self, CliError> {
+impl RunFile for McapFile {
+    /// Creates the file and adds the channels of the streams and traces of `opening`.
+    fn create(path: &Path, opening: &Run) -> Result<Self, CliError> {
         let partial = Partial::new(path);
         let err = |e: ::mcap::McapError| CliError::output(path, e);
         let file = File::create(partial.path()).map_err(|e| CliError::output(path, e))?;
@@ -143,10 +140,8 @@ impl McapFile {
         })
     }
 
-    /// Writes every row of `streams` and every sample of `traces` (the run's streams and
-    /// traces, in the order of [`McapFile::create`]'s run, holding just the records of this
-    /// block), merged in time order.
-    pub fn block(&mut self, streams: &[Stream], traces: &[BallbarTrace]) -> Result<(), CliError> {
+    /// Writes the messages of the block merged in time order.
+    fn block(&mut self, streams: &[Stream], traces: &[BallbarTrace]) -> Result<(), CliError> {
         let path = self.partial.target().to_path_buf();
         let path = path.as_path();
         streams.iter().try_for_each(|s| check_stream(s, path))?;
@@ -183,31 +178,9 @@ impl McapFile {
         Ok(())
     }
 
-    /// Writes the message in the data buffer on `channel_id` at `time` (ns) and empties it.
-    fn message(&mut self, channel_id: u16, time: u64) -> Result<(), CliError> {
-        let seq = self.sequence.entry(channel_id).or_insert(0);
-        let header = MessageHeader {
-            channel_id,
-            sequence: *seq,
-            log_time: time,
-            publish_time: time,
-        };
-        *seq = seq.wrapping_add(1);
-        self.writer
-            .write_to_known_channel(&header, &self.data)
-            .map_err(|e| CliError::output(self.partial.target(), e))?;
-        self.data.clear();
-        Ok(())
-    }
-
     /// Writes the laser readings and the ground truth of the finished `run` and the metadata
-    /// records, completes the file and renames it to its path.
-    pub fn finish(self, run: &Run) -> Result<(), CliError> {
-        self.complete(run)?.commit()
-    }
-
-    /// [`McapFile::finish`] but for the rename: the complete file, still under its partial name.
-    pub(crate) fn complete(mut self, run: &Run) -> Result<Partial, CliError> {
+    /// records and completes the file.
+    fn complete(mut self, run: &Run) -> Result<Partial, CliError> {
         let path = self.partial.target().to_path_buf();
         let err = |e: ::mcap::McapError| CliError::output(&path, e);
         if let Some(l) = &run.laser {
@@ -251,6 +224,25 @@ impl McapFile {
             .into_inner()
             .map_err(|e| CliError::output(&path, e.error()))?;
         Ok(partial)
+    }
+}
+
+impl McapFile {
+    /// Writes the message in the data buffer on `channel_id` at `time` (ns) and empties it.
+    fn message(&mut self, channel_id: u16, time: u64) -> Result<(), CliError> {
+        let seq = self.sequence.entry(channel_id).or_insert(0);
+        let header = MessageHeader {
+            channel_id,
+            sequence: *seq,
+            log_time: time,
+            publish_time: time,
+        };
+        *seq = seq.wrapping_add(1);
+        self.writer
+            .write_to_known_channel(&header, &self.data)
+            .map_err(|e| CliError::output(self.partial.target(), e))?;
+        self.data.clear();
+        Ok(())
     }
 }
 

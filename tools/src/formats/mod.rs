@@ -1,4 +1,4 @@
-//! Run writers: a simulated [`Run`](vmt_sim::run::Run) as files that other tools open.
+//! Run writers: a simulated [`Run`] as files that other tools open.
 //!
 //! - [`mcap`]: an MCAP file of JSON messages with JSON-Schema schemas, for Foxglove and the
 //!   `mcap` readers (Python, C++, Rust, Go, ...).
@@ -18,10 +18,40 @@ pub mod rerun;
 use crate::error::CliError;
 use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
-use vmt_sim::run::{BallbarTrace, Stream};
+use vmt_sim::run::{BallbarTrace, Run, Stream};
 
 pub use self::mcap::write_mcap;
 pub use self::rerun::write_rrd;
+
+/// A file of a run written block by block: created for the run as it starts, given its records
+/// block by block (while the job runs, see [`live`]), completed with the finished run. Both
+/// writers ([`mcap::McapFile`], [`rerun::RrdFile`]) write `<path>.partial` and rename it when
+/// finished; dropped unfinished (an error), they remove it.
+pub trait RunFile: Sized {
+    /// Creates the file `path` for the run `opening`: its streams' channels and its traces,
+    /// with or without their samples.
+    fn create(path: &Path, opening: &Run) -> Result<Self, CliError>;
+
+    /// Writes every row of `streams` and every sample of `traces` (the run's streams and
+    /// traces, in the order of the opening run's, holding just the records of this block).
+    fn block(&mut self, streams: &[Stream], traces: &[BallbarTrace]) -> Result<(), CliError>;
+
+    /// Writes what needs the finished `run` and completes the file, still under its partial
+    /// name.
+    fn complete(self, run: &Run) -> Result<Partial, CliError>;
+
+    /// [`RunFile::complete`], then renamed to its path.
+    fn finish(self, run: &Run) -> Result<(), CliError> {
+        self.complete(run)?.commit()
+    }
+}
+
+/// `run` written whole to `path` as a file of kind `F`: all its records in one block.
+fn write_whole<F: RunFile>(run: &Run, path: &Path) -> Result<(), CliError> {
+    let mut file = F::create(path, run)?;
+    file.block(&run.streams, &run.ballbar)?;
+    file.finish(run)
+}
 
 /// Writes the file `path` through `write`, which is given a sibling path to write instead
 /// (see [`Partial`]). On an error the partial file is removed, and the error names `path`, the
@@ -42,10 +72,10 @@ pub(crate) fn atomically(
 
 /// A file written as `<path>.partial` until it is complete, then renamed to `path` in one
 /// step, so that no truncated `path` ever looks finished and a file from an earlier run stays
-/// whole until it is replaced. Dropped without [`Partial::commit`] (a write that failed: a full
+/// whole until it is replaced. Dropped before it is committed (a write that failed: a full
 /// disk, a folder in the way), the partial file is removed; a process killed while writing
 /// (Ctrl-C, kill -9) leaves it.
-pub(crate) struct Partial {
+pub struct Partial {
     target: PathBuf,
     partial: PathBuf,
     committed: bool,

@@ -71,7 +71,9 @@
 //! `defaults` and visualizer overrides. The entity paths are laid out so that the viewer's own
 //! heuristics give much the same views when the blueprint is reset.
 
-use super::{Partial, atomically, check_stream, check_trace, slug, unique_slugs};
+use super::{
+    Partial, RunFile, atomically, check_stream, check_trace, slug, unique_slugs, write_whole,
+};
 use crate::error::CliError;
 use rerun::blueprint::{
     Blueprint, ContainerLike, Horizontal, Spatial2DView, Spatial3DView, Tabs, TextDocumentView,
@@ -107,9 +109,7 @@ const SERIES_BLOCK: usize = 8192;
 /// Fails when the topology is not one of the 24, when a stream or trace is inconsistent, when a
 /// sample time is not finite or beyond ±292 years, or when the file cannot be written.
 pub fn write_rrd(run: &Run, path: &Path) -> Result<(), CliError> {
-    let mut file = RrdFile::create(path, run)?;
-    file.block(&run.streams, &run.ballbar)?;
-    file.finish(run)
+    write_whole::<RrdFile>(run, path)
 }
 
 /// A Rerun recording of a run written while its job runs: the layout, the machine and the
@@ -130,10 +130,9 @@ pub struct RrdFile {
     sent: (usize, Vec<usize>),
 }
 
-impl RrdFile {
-    /// Creates the recording for the run `opening` (its streams' channels and its traces, with
-    /// or without their samples) with its blueprint, information, machine and series styles.
-    pub fn create(path: &Path, opening: &Run) -> Result<Self, CliError> {
+impl RunFile for RrdFile {
+    /// Creates the recording with its blueprint, information, machine and series styles.
+    fn create(path: &Path, opening: &Run) -> Result<Self, CliError> {
         let topology: Topology = opening
             .machine
             .topology
@@ -178,16 +177,8 @@ impl RrdFile {
         Ok(file)
     }
 
-    fn logger(&self) -> Logger<'_> {
-        Logger {
-            rec: &self.rec,
-            path: self.partial.target(),
-        }
-    }
-
-    /// Sends every row of `streams` and every sample of `traces` (the run's streams and traces,
-    /// in the order of [`RrdFile::create`]'s run, holding just the records of this block).
-    pub fn block(&mut self, streams: &[Stream], traces: &[BallbarTrace]) -> Result<(), CliError> {
+    /// Sends the block's rows and samples and waits for them to be written.
+    fn block(&mut self, streams: &[Stream], traces: &[BallbarTrace]) -> Result<(), CliError> {
         if let Some(servo) = servo(streams) {
             extend_tool_path(&mut self.tool_path, servo);
         }
@@ -220,13 +211,8 @@ impl RrdFile {
     }
 
     /// Logs what needs the finished `run` (the tool path, the polar plots of its traces, its
-    /// laser readings and ground truth), completes the file and renames it to its path.
-    pub fn finish(self, run: &Run) -> Result<(), CliError> {
-        self.complete(run)?.commit()
-    }
-
-    /// [`RrdFile::finish`] but for the rename: the complete file, still under its partial name.
-    pub(crate) fn complete(self, run: &Run) -> Result<Partial, CliError> {
+    /// laser readings and ground truth) and completes the file.
+    fn complete(self, run: &Run) -> Result<Partial, CliError> {
         let log = self.logger();
         if !self.tool_path.is_empty() {
             let strip = LineStrips3D::new([&self.tool_path])
@@ -248,6 +234,15 @@ impl RrdFile {
         let Self { rec, partial, .. } = self;
         drop(rec);
         Ok(partial)
+    }
+}
+
+impl RrdFile {
+    fn logger(&self) -> Logger<'_> {
+        Logger {
+            rec: &self.rec,
+            path: self.partial.target(),
+        }
     }
 }
 
