@@ -191,7 +191,7 @@ pub fn simulate(
     scenario_toml: &str,
     progress: &mut dyn FnMut(f64),
 ) -> Result<Run, SimError> {
-    let (run, _) = simulate_with_replay(
+    simulate_logged(
         machine,
         axes,
         ipo,
@@ -199,9 +199,8 @@ pub fn simulate(
         settings,
         scenario_toml,
         progress,
-        false,
-    )?;
-    Ok(run)
+        None,
+    )
 }
 
 /// [`simulate`], and with `replayable` also what the ball bar read at every sample (axis
