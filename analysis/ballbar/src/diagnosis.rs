@@ -12,6 +12,7 @@ use crate::features::{self, Residual};
 use crate::iso230_4::{self, Figures};
 use crate::model::{Fit, FitError, Term, Terms, reversal_angles};
 use crate::samples::{Placement, Samples};
+use crate::signatures;
 use crate::trace::{Plane, Trace, TraceError};
 use serde::Serialize;
 use thiserror::Error;
@@ -361,6 +362,7 @@ fn residual<'a>(
     let g = s.sense.sign();
     let mut r = crate::samples::filled(s.len());
     model.residuals(g, s.cos, s.sin, s.progress, s.deviation_um, &mut r);
+    settle_flanks_at_reversals(&mut r, s, reversals, fit);
     let n = t.angle_deg.len();
     let dt_ms = match &t.time_s {
         Some(ts) => (ts[n - 1] - ts[0]) / (n - 1) as f64 * 1e3,
@@ -371,6 +373,49 @@ fn residual<'a>(
     };
     Residual::new(&t.angle_deg, s.cos, s.sin, s.sense, r, dt_ms, reversals)
         .settled_within(s.transient_deg())
+}
+
+/// |sin θ| (p) or |cos θ| (q) at or below which a sample is on the axis' reversal itself:
+/// rounding leaves 1e-16 where the angle is a multiple of 90°, a recorded 0.0001° is 2e-6.
+const ON_REVERSAL: f64 = 1e-9;
+
+/// A sample taken on an axis' reversal itself (the first or last sample of a run at 0°, 90°…,
+/// or one that falls on the turn) has no direction of motion to say which flank of its backlash
+/// the axis bears on: the model's backlash term there is 0 or the sign of a rounding error, and
+/// the flank the axis really bears on then leaves half the backlash or all of it in the
+/// residual, which the start transient and the spikes would take for a shape of their own.
+/// Such samples (only the ends and the neighbours of a sign change can be) take the flank that
+/// leaves the smaller residual.
+fn settle_flanks_at_reversals(r: &mut [f64], s: &Samples, reversals: &[Vec<usize>; 2], fit: &Fit) {
+    let n = r.len();
+    for (axis, at) in reversals.iter().enumerate() {
+        let Some((b, _)) = fit.get(Term::Backlash(axis)) else {
+            continue;
+        };
+        let mut near: Vec<usize> = [0, n - 1]
+            .into_iter()
+            .chain(at.iter().flat_map(|&i| [i - 1, i]))
+            .collect();
+        near.sort_unstable();
+        near.dedup();
+        for i in near {
+            let pt = s.point(i);
+            let (along, across) = if axis == 0 {
+                (pt.sin, pt.cos)
+            } else {
+                (pt.cos, pt.sin)
+            };
+            if along.abs() > ON_REVERSAL || across == 0.0 {
+                continue;
+            }
+            let term = |flank: f64| b * signatures::backlash_on_flank(&pt, axis, flank);
+            let as_fitted = r[i] + term(signatures::sign(along));
+            r[i] = [as_fitted - term(1.0), as_fitted - term(-1.0)]
+                .into_iter()
+                .min_by(|x, y| x.abs().total_cmp(&y.abs()))
+                .unwrap_or(r[i]);
+        }
+    }
 }
 
 /// Key, name and unit of a fitted term in `plane`.

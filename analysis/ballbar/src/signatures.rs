@@ -92,9 +92,22 @@ pub fn servo_mismatch(pt: &Point) -> f64 {
 
 /// Δr per µm of backlash of p and of q.
 pub fn backlash(pt: &Point) -> [f64; 2] {
-    let (s, c) = (pt.sin, pt.cos);
+    [
+        backlash_on_flank(pt, 0, sign(pt.sin)),
+        backlash_on_flank(pt, 1, sign(pt.cos)),
+    ]
+}
+
+/// Δr per µm of backlash of `axis` (0 p, 1 q) bearing on the flank `flank` (±1: the sign of
+/// sin θ for p and of cos θ for q in [`backlash`], which the motion decides everywhere but at
+/// the reversal itself).
+pub fn backlash_on_flank(pt: &Point, axis: usize, flank: f64) -> f64 {
     let sg = pt.sense.sign();
-    [0.5 * sg * sign(s) * c, -0.5 * sg * sign(c) * s]
+    if axis == 0 {
+        0.5 * sg * flank * pt.cos
+    } else {
+        -0.5 * sg * flank * pt.sin
+    }
 }
 
 /// Δr per µm of lateral play of p and of q.

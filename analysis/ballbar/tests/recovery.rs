@@ -389,6 +389,42 @@ fn a_start_transient_at_a_reversal_is_bounded_by_the_spike() {
     }
 }
 
+/// Runs that start exactly on a reversal (X's at 0°, Y's at 90°), with 4 µm of backlash on that
+/// axis and no noise: nothing says which flank the first sample bears on, so it is tried on
+/// each (the synthetic trace's and the other, 4 µm away), and neither may show as a transient
+/// at the start (it did as half the backlash, 2 µm, taken for a transient and reported).
+#[test]
+fn a_run_starting_on_a_reversal_shows_no_transient_on_either_flank() {
+    for (axis, start_deg) in [(0, 0.0), (1, 90.0)] {
+        let mut e = Errors::default();
+        e.backlash_um[axis] = 4.0;
+        for other_flank in [false, true] {
+            let mut traces = runs_from(start_deg, &e);
+            if other_flank {
+                for t in &mut traces {
+                    let sg = t.sense.sign();
+                    let (s, c) = t.angle_deg[0].to_radians().sin_cos();
+                    // The synthetic flank: −(b/2) sign v along the axis (sign 0 taken as −1),
+                    // projected on the bar; the other flank is as far the other way.
+                    let (v, along_bar) = if axis == 0 { (-sg * s, c) } else { (sg * c, s) };
+                    let share = -2.0 * if v > 0.0 { 1.0 } else { -1.0 } * along_bar;
+                    t.deviation_um[0] -= 2.0 * share;
+                }
+            }
+            let d = diagnose(&traces, &Options::default()).expect("diagnosis");
+            let key = ["backlash_x", "backlash_y"][axis];
+            check(&d, key, 4.0, 0.1, true);
+            for key in ["start_transient_cw", "start_transient_ccw"] {
+                let f = d.finding(key).expect("transient");
+                assert!(
+                    f.value.abs() < 0.1 && !f.present,
+                    "start {start_deg}°, other flank {other_flank}: {f:?}"
+                );
+            }
+        }
+    }
+}
+
 /// A CW and a CCW run of a 150 mm circle at 1000 mm/min from `start_deg`, back to back.
 fn runs_from(start_deg: f64, e: &Errors) -> Vec<Trace> {
     [Sense::Cw, Sense::Ccw]
