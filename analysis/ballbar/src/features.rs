@@ -719,6 +719,56 @@ pub fn cyclic(
     })
 }
 
+/// The cyclic errors `found` with their amplitudes fitted again together, at their pitches, in
+/// the residuals `r` at `points` (weight `w` each): a linear least-squares fit of the sine and
+/// cosine amplitude of each (their radial shapes as in [`Cyclic::radial_um`]), the standard
+/// errors from the fit's covariance `σ² (AᵀWA)⁻¹` with the sample noise `sigma_um`. A singular
+/// fit leaves them as they were.
+pub fn refit_cyclic(
+    points: &[Point],
+    r: &[f64],
+    w: &[f64],
+    found: &[Cyclic],
+    sigma_um: f64,
+) -> Vec<Cyclic> {
+    let cols = 2 * found.len();
+    let mut ata = nalgebra::DMatrix::<f64>::zeros(cols, cols);
+    let mut atr = nalgebra::DVector::<f64>::zeros(cols);
+    let mut row = vec![0.0; cols];
+    for (pt, (r, w)) in points.iter().zip(r.iter().zip(w)) {
+        let radius_mm = pt.radius_um * 1e-3;
+        for (c, pair) in found.iter().zip(row.chunks_mut(2)) {
+            let g = if c.axis == 0 { pt.cos } else { pt.sin };
+            let (sin, cos) = (std::f64::consts::TAU * radius_mm * g / c.pitch_mm).sin_cos();
+            pair.copy_from_slice(&[g * sin, g * cos]);
+        }
+        for i in 0..cols {
+            atr[i] += w * row[i] * r;
+            for j in 0..cols {
+                ata[(i, j)] += w * row[i] * row[j];
+            }
+        }
+    }
+    let Some(inverse) = ata.try_inverse() else {
+        return found.to_vec();
+    };
+    let x = &inverse * atr;
+    found
+        .iter()
+        .enumerate()
+        .map(|(k, c)| {
+            let (a, b) = (x[2 * k], x[2 * k + 1]);
+            let variance = 0.5 * (inverse[(2 * k, 2 * k)] + inverse[(2 * k + 1, 2 * k + 1)]);
+            Cyclic {
+                amplitude_um: a.hypot(b),
+                std_error_um: sigma_um * variance.sqrt(),
+                sin_cos_um: [a, b],
+                ..*c
+            }
+        })
+        .collect()
+}
+
 /// Points each side of a source that the Gaussian is spread to in [`nufft`]: six give sums
 /// to about 1e-7 of Σ|coefficients|, far below what the noise leaves in a periodogram (twelve
 /// would give 12 digits at twice the cost).
