@@ -290,6 +290,16 @@ fn csv_trace_error(e: TraceError, file: &str, lines: &[usize], direction: &str) 
         let option = format!("--{}", what.replace('_', "-"));
         return CliError::Argument(format!("{option} {value}: {accepted}"));
     }
+    // The trace's own check allows an inclined bar's pace, which a CSV cannot state.
+    if let TraceError::FeedMismatch {
+        label,
+        implied,
+        radius_mm,
+        feed,
+    } = &e
+    {
+        return flat_feed_error(label, *implied, *radius_mm, *feed);
+    }
     match e.sample() {
         Some(i) => CliError::input(file, lines.get(i).copied(), e.to_string()),
         None => CliError::input(
@@ -385,15 +395,22 @@ fn check_flat_feed(t: &Trace, setup: CsvSetup) -> Result<(), CliError> {
     let Some(speed) = t.timed_speed_mm_min() else {
         return Ok(());
     };
-    let tolerance = vmt_ballbar::trace::FEED_TOLERANCE;
-    if (speed / setup.feed_mm_min - 1.0).abs() > tolerance {
-        return Err(CliError::Argument(format!(
-            "--feed-mm-min {}: the times of {} give {speed:.1} mm/min along the {} mm circle (within {} % is accepted); check the feed, --radius-mm and the unit of time_s (s)",
-            setup.feed_mm_min,
-            t.label,
+    if (speed / setup.feed_mm_min - 1.0).abs() > vmt_ballbar::trace::FEED_TOLERANCE {
+        return Err(flat_feed_error(
+            &t.label,
+            speed,
             setup.radius_mm,
-            tolerance * 100.0
-        )));
+            setup.feed_mm_min,
+        ));
     }
     Ok(())
+}
+
+/// The times of the trace `label` give `speed` (mm/min) on the circle of `radius_mm`, not the
+/// stated `feed`.
+fn flat_feed_error(label: &str, speed: f64, radius_mm: f64, feed: f64) -> CliError {
+    CliError::Argument(format!(
+        "--feed-mm-min {feed}: the times of {label} give {speed:.1} mm/min along the {radius_mm} mm circle (within {} % is accepted); check the feed, --radius-mm and the unit of time_s (s)",
+        vmt_ballbar::trace::FEED_TOLERANCE * 100.0
+    ))
 }

@@ -336,7 +336,8 @@ fn the_file_kind_decides_which_flags_apply_and_names_a_missing_column() {
 
 /// A CSV's times must give its feed within 10 % (a flat bar): at 1000 mm/min on 150 mm they
 /// pass; the same times stated as 250 mm/min (4x too low, which the trace alone would take for
-/// an inclined bar) are refused, naming the option.
+/// an inclined bar) or 2000 mm/min (whose message had offered the inclined bar's range) are
+/// refused, naming the option and the 10 %.
 #[test]
 fn csv_times_must_give_the_stated_feed() {
     let step_s = 150.0 * 0.5_f64.to_radians() / 1000.0 * 60.0;
@@ -349,20 +350,25 @@ fn csv_times_must_give_the_stated_feed() {
     let dir = tempfile::tempdir().unwrap();
     let p = dir.path().join("slow.csv");
     std::fs::write(&p, &text).unwrap();
-    let o = vmt(&[
-        "diagnose",
-        p.to_str().unwrap(),
-        "--radius-mm",
-        "150",
-        "--feed-mm-min",
-        "250",
-        "--plane",
-        "XY",
-    ]);
-    assert_eq!(o.status.code(), Some(2));
-    let e = stderr(&o);
-    assert!(
-        e.contains("--feed-mm-min 250: the times of") && e.contains("give 1000.0 mm/min"),
-        "{e}"
-    );
+    for feed in ["250", "2000"] {
+        let o = vmt(&[
+            "diagnose",
+            p.to_str().unwrap(),
+            "--radius-mm",
+            "150",
+            "--feed-mm-min",
+            feed,
+            "--plane",
+            "XY",
+        ]);
+        assert_eq!(o.status.code(), Some(2));
+        let e = stderr(&o);
+        assert!(
+            e.contains(&format!("--feed-mm-min {feed}: the times of"))
+                && e.contains("give 1000.0 mm/min")
+                && e.contains("within 10 % is accepted")
+                && !e.contains("inclined"),
+            "{e}"
+        );
+    }
 }
