@@ -378,6 +378,8 @@ fn draw_on<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, e: &Evaluation) ->
         .label_style((FONT, 14))
         .axis_desc_style((FONT, 15))
         .draw()?;
+    // The legend goes in the side panel: inside the chart it covered the curves.
+    let mut legend = Vec::new();
     for (name, pts, colour, dashed) in curves {
         let style = if dashed {
             colour.mix(0.5).stroke_width(1)
@@ -387,19 +389,11 @@ fn draw_on<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, e: &Evaluation) ->
         if !dashed {
             chart.draw_series(pts.iter().map(|p| Circle::new(*p, 3, colour.filled())))?;
         }
-        let drawn = chart.draw_series(LineSeries::new(pts, style))?;
+        chart.draw_series(LineSeries::new(pts, style))?;
         if !name.is_empty() {
-            drawn
-                .label(name)
-                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], style));
+            legend.push((name, style));
         }
     }
-    chart
-        .configure_series_labels()
-        .label_font((FONT, 14))
-        .background_style(WHITE.mix(0.8))
-        .border_style(BLACK)
-        .draw()?;
     let lines = [
         format!("A {:.3} µm", f.a_um),
         format!("A↑ {:.3} µm", f.a_forward_um),
@@ -420,6 +414,12 @@ fn draw_on<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, e: &Evaluation) ->
             (20, 80 + 26 * k as i32),
             (FONT, 17).into_font(),
         ))?;
+    }
+    let top = 80 + 26 * (lines.len() as i32 + 1);
+    for (k, (name, style)) in legend.into_iter().enumerate() {
+        let y = top + 24 * k as i32;
+        side.draw(&PathElement::new(vec![(20, y + 8), (44, y + 8)], style))?;
+        side.draw(&Text::new(name, (52, y), (FONT, 15).into_font()))?;
     }
     Ok(())
 }

@@ -20,6 +20,12 @@ const STANDARD_TARGETS: usize = 5;
 const STANDARD_TARGETS_PER_M: f64 = 5.0;
 /// Beyond this travel (m) the standard has another procedure (ISO 230-2:2014, 6.2).
 const LONG_AXIS_M: f64 = 2.0;
+/// A laser is zeroed at a datum target: mean deviations all this far from zero (µm) say it
+/// was not, or that the readings carry an offset.
+const NO_DATUM_UM: f64 = 100.0;
+/// A machine axis repeats to no better than some tens of nm: readings whose whole span is
+/// under this (µm) are most likely millimetres written as micrometres.
+const TOO_FLAT_UM: f64 = 0.01;
 
 /// Least-squares line through the mean bidirectional deviations.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
@@ -94,7 +100,7 @@ pub fn evaluate(run: &PositioningRun) -> Evaluation {
     Evaluation {
         axis: run.axis.clone(),
         runs,
-        notes: notes(run, runs, most),
+        notes: [notes(run, runs, most), offset_notes(run, &bidirectional)].concat(),
         iso230_2: iso,
         trend,
         compensation,
@@ -153,6 +159,35 @@ fn notes(run: &PositioningRun, runs: usize, most: usize) -> Vec<String> {
         notes.push(format!(
             "ISO 230-2 asks for at least {STANDARD_TARGETS} targets and {STANDARD_TARGETS_PER_M} per metre ({wanted} over {:.0} mm); this test has {n}",
             travel_m * 1e3
+        ));
+    }
+    notes
+}
+
+/// Readings that look offset or in the wrong unit (`bidirectional`: the mean bidirectional
+/// deviation at each target, µm).
+fn offset_notes(run: &PositioningRun, bidirectional: &[f64]) -> Vec<String> {
+    let mut notes = Vec::new();
+    let nearest = bidirectional
+        .iter()
+        .copied()
+        .min_by(|a, b| a.abs().total_cmp(&b.abs()))
+        .unwrap_or(0.0);
+    if nearest.abs() > NO_DATUM_UM {
+        notes.push(format!(
+            "no target's mean deviation is within ±{NO_DATUM_UM} µm (the nearest is {nearest:+.1} µm): a laser is zeroed at a datum target, so the readings look offset; an offset passes whole into the compensation table, though A, B, E, M and R do not depend on it"
+        ));
+    }
+    let (lo, hi) = run
+        .readings
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), r| {
+            (lo.min(r.deviation_um), hi.max(r.deviation_um))
+        });
+    if hi - lo < TOO_FLAT_UM {
+        notes.push(format!(
+            "every deviation lies within {:.4} µm of the others, less than a machine axis repeats to: if the values are in mm, write them in µm (deviation_um) or give reading_mm",
+            hi - lo
         ));
     }
     notes

@@ -135,6 +135,34 @@ fn fewer_runs_and_targets_than_the_standard_are_noted() {
     assert!(e.notes[1].contains("this test has 3"));
 }
 
+/// Readings 5 mm off at every target (a laser not zeroed at a datum) and readings in mm
+/// written as µm give the same figures' laws but are noted: the first would put −5 mm into
+/// every compensation, the second an A of some nm. The same test as written is not noted.
+#[test]
+fn offset_readings_and_readings_in_the_wrong_unit_are_noted() {
+    let targets: Vec<f64> = (0..6).map(|i| 100.0 * i as f64).collect();
+    let test = |offset: f64, scale: f64| {
+        let v = readings(&targets, 5, |t, a, j| {
+            let back = if a == Approach::Backward { -3.0 } else { 0.0 };
+            scale * (offset + 12e-3 * t + back + 0.1 * j as f64)
+        });
+        evaluate(&PositioningRun::new("X", v).unwrap())
+    };
+    assert!(test(0.0, 1.0).notes.is_empty());
+    // Just inside: a mean deviation of +99.6 µm at the first target.
+    assert!(test(99.6 - 0.3 + 1.5, 1.0).notes.is_empty());
+    let offset = test(5000.0, 1.0);
+    assert_eq!(offset.notes.len(), 1, "{:?}", offset.notes);
+    assert!(
+        offset.notes[0].contains("the nearest is +4998.8 µm"),
+        "{}",
+        offset.notes[0]
+    );
+    let mm = test(0.0, 1e-3);
+    assert_eq!(mm.notes.len(), 1, "{:?}", mm.notes);
+    assert!(mm.notes[0].contains("within 0.0094 µm"), "{}", mm.notes[0]);
+}
+
 /// Five targets per metre hold up to 2000 mm of travel; beyond it the standard's procedure for
 /// long axes (ISO 230-2, 6.2) applies, which the report says instead of asking for targets.
 #[test]
