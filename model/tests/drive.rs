@@ -54,6 +54,7 @@ fn table_drive(backlash_m: f64) -> (DriveParams, ServoParams) {
         acceleration_ff: 0.0,
         current_time_constant_s: 0.5e-3,
         force_limit_n: 6000.0,
+        following_error_limit_m: None,
     };
     (params, servo)
 }

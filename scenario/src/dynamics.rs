@@ -69,6 +69,9 @@ pub struct ServoToml {
     pub acceleration_ff: f64,
     pub current_time_constant_ms: f64,
     pub peak_torque_n_m: f64,
+    /// The excess-error alarm's limit; absent: the control's default (twice the lag at the
+    /// rapid rate).
+    pub following_error_limit_mm: Option<f64>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -492,6 +495,18 @@ pub fn servo(s: &ServoToml, drive: &DriveParams, p: &KeyPath) -> R<ServoParams> 
             &p.key("peak_torque_n_m"),
             "a peak torque (N·m)",
         )? / drive.screw.m_per_rad(),
+        following_error_limit_m: s
+            .following_error_limit_mm
+            .map(|mm| {
+                positive(
+                    mm,
+                    10_000.0,
+                    &p.key("following_error_limit_mm"),
+                    "a following-error limit (mm)",
+                )
+            })
+            .transpose()?
+            .map(|mm| mm * 1e-3),
     })
 }
 

@@ -1196,6 +1196,34 @@ fn a_dwell_or_peak_torque_beyond_any_test_or_motor_is_refused_at_its_key() {
     builtin_with("peak_torque_n_m = 12.0", "peak_torque_n_m = 1e5");
 }
 
+/// The excess-error limit is optional (the control's default), and one that is given must be a
+/// length from 0 to 10 m, refused at its key otherwise.
+#[test]
+fn a_following_error_limit_is_a_positive_length_at_its_key() {
+    let torque = "peak_torque_n_m = 12.0";
+    builtin_with(
+        torque,
+        "peak_torque_n_m = 12.0\nfollowing_error_limit_mm = 20.0",
+    );
+    let accepted = "a following-error limit (mm) from 0 to 10000 is accepted";
+    for (limit, why) in [
+        ("-1.0", accepted),
+        ("2e4", accepted),
+        (
+            "0.0",
+            "0 is not accepted; a following-error limit (mm) must be > 0",
+        ),
+    ] {
+        let by = format!("{torque}\nfollowing_error_limit_mm = {limit}");
+        assert_refused(
+            &with(torque, &by),
+            &format!("following_error_limit_mm = {limit}"),
+            "machine.axes.x.servo.following_error_limit_mm",
+            why,
+        );
+    }
+}
+
 /// The built-in machine with `replace` replaced by `by`, which must load.
 fn builtin_with(replace: &str, by: &str) {
     let text = with(replace, by);

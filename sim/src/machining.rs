@@ -30,8 +30,8 @@ use crate::milling::{
 use crate::nc::{Motion, Spindle};
 use crate::run::{Channel, Run, Stream};
 use crate::simulate::{
-    AxisDynamics, Job, SimError, SimSettings, build_plant, check_servo, check_step, check_strokes,
-    servo_tick, summary,
+    AxisDynamics, Job, SimError, SimSettings, build_plant, check_following_error, check_servo,
+    check_step, check_strokes, following_error_limits, servo_tick, summary,
 };
 use nalgebra::Vector3;
 use serde_json::json;
@@ -273,12 +273,14 @@ pub fn simulate_machining(
     };
     let mut before = tool_xy(plant.as_ref());
     let mut speed_taken_over = false;
+    let limits = following_error_limits(axes, ipo_config);
     while tau <= duration {
         let o = command.feed_override;
         let Some(sp) = setpoint_at(&ipo, tau, o, &mut cursor) else {
             break;
         };
         let commands = servo_tick(plant.as_mut(), &sp, &tcp, period, substeps);
+        check_following_error(plant.as_ref(), &limits, &sp, &job.program)?;
         k += 1;
         let t = k as f64 * period;
         let now = tool_xy(plant.as_ref());

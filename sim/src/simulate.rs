@@ -134,6 +134,23 @@ pub enum SimError {
         /// Stroke, mm.
         max_mm: f64,
     },
+    /// An axis' following error passed its excess-error limit: the drive is not following.
+    #[error(
+        "block at line {line}: the {axis} axis' following error reached {error_mm:.3} mm at {time_s:.3} s, beyond its excess-error limit of {limit_mm:.3} mm (scenario key machine.axes.{key}.servo.following_error_limit_mm; by default twice the lag at the axis' velocity limit): the drive cannot follow its command, as when its peak torque does not overcome friction and load, and the control stops the job",
+        key = axis.to_string().to_lowercase()
+    )]
+    ExcessError {
+        /// Source line of the block being executed.
+        line: usize,
+        /// The axis.
+        axis: Axis,
+        /// Time, s.
+        time_s: f64,
+        /// The following error, mm.
+        error_mm: f64,
+        /// Its limit, mm.
+        limit_mm: f64,
+    },
     /// The sampled servo loops of an axis are unstable.
     #[error(
         "the {axis} axis' velocity loop of {bandwidth_hz:.1} Hz is unstable at the servo period of {period_us:.1} µs (a disturbance grows {radius:.3}-fold per period, with its Kv, integral time, current loop and screw, linearised without friction or backlash): {stable}"
@@ -323,11 +340,13 @@ impl JobRun<'_> {
         let mut trackers =
             Axis::ALL.map(|a| DirectionTracker::new(start[a.index()], Direction::Forward, 0.05e-6));
         let mut cursor = Cursor::default();
+        let limits = following_error_limits(axes, ipo);
         for k in 0..ticks {
             let Some(sp) = interpolator.setpoint_from(k, &mut cursor) else {
                 break;
             };
             servo_tick(plant.as_mut(), &sp, &tcp, period, substeps);
+            check_following_error(plant.as_ref(), &limits, &sp, &job.program)?;
             let carriages = plant.carriages();
             let q = Vector3::from_fn(|i, _| carriages[i].position_m);
             let direction = directions(&mut trackers, &q);
@@ -397,6 +416,51 @@ pub(crate) fn servo_tick(
         plant.step(h);
     }
     commands
+}
+
+/// Each axis' excess-error limit, m ([`ServoParams::following_error_limit`] at its velocity
+/// limit in `ipo`).
+pub(crate) fn following_error_limits(
+    axes: &[AxisDynamics; 3],
+    ipo: &InterpolatorConfig,
+) -> [f64; 3] {
+    std::array::from_fn(|i| {
+        axes[i]
+            .servo
+            .following_error_limit(ipo.limits.axis_velocity_m_s[i])
+    })
+}
+
+/// The excess-error alarm, after the controllers' period at `sp`: a drive whose following
+/// error passed its limit (`limits`, m) is not following its command (its torque saturated
+/// against friction or load, a gain set wrong), and a control stops the job there, naming the
+/// block of `program` it was executing.
+pub(crate) fn check_following_error(
+    plant: &dyn Plant,
+    limits: &[f64; 3],
+    sp: &Setpoint,
+    program: &Program,
+) -> Result<(), SimError> {
+    for (i, axis) in Axis::ALL.into_iter().enumerate() {
+        let e = plant.drive(i).following_error_m();
+        if e.abs() > limits[i] {
+            return Err(SimError::ExcessError {
+                line: block_line(program, sp.block),
+                axis,
+                time_s: sp.time_s,
+                error_mm: e * 1e3,
+                limit_mm: limits[i] * 1e3,
+            });
+        }
+    }
+    Ok(())
+}
+
+/// The source line of block `block` of `program` (0 for none).
+fn block_line(program: &Program, block: Option<usize>) -> usize {
+    block
+        .and_then(|b| program.blocks.get(b))
+        .map_or(0, |b| b.span.line)
 }
 
 /// The axes' direction states after they moved to `q` (a loop: `array::from_fn` leaves its
@@ -491,10 +555,7 @@ pub(crate) fn check_strokes(
                 .take_while(|s| s.block == sp.block)
                 .map(|s| s.position[i] - tcp[i])
                 .fold(q[i], |m, x| if above { m.max(x) } else { m.min(x) });
-            let line = sp
-                .block
-                .and_then(|b| program.blocks.get(b))
-                .map_or(0, |b| b.span.line);
+            let line = block_line(program, sp.block);
             return Err(SimError::Stroke {
                 line,
                 axis,

@@ -205,3 +205,58 @@ fn a_scenario_with_an_unstable_servo_names_the_bandwidth_key() {
         "{e}"
     );
 }
+
+/// The excess-error alarm: an X drive whose peak force (60 N) cannot overcome its guideway and
+/// screw friction (80 N at breakaway) does not move, so its following error grows with the
+/// command until it passes the default limit, twice the lag at the axis' velocity limit
+/// (2 · 0.5 m/s / 33 s⁻¹ = 30.303 mm), and the run stops there naming the block, the axis and
+/// the limit. A limit set below the lag of a sound drive at 1000 mm/min
+/// (1000/60 mm/s / 33 s⁻¹ = 0.505 mm) stops it too; one above lets it run.
+#[test]
+fn a_drive_that_cannot_follow_stops_the_run_at_its_excess_error_limit() {
+    let mut weak = axes();
+    weak[0].servo.force_limit_n = 60.0;
+    let (e, started) = refuse(&weak, "G1 X400 F5000\n", 2);
+    assert!(started, "an alarm of the running job");
+    let SimError::ExcessError {
+        line,
+        axis,
+        error_mm,
+        limit_mm,
+        ..
+    } = e
+    else {
+        panic!("{e}")
+    };
+    assert_eq!((line, axis), (1, vmt_model::Axis::X));
+    assert!((limit_mm - 2.0 * 500.0 / 33.0).abs() < 1e-9, "{limit_mm}");
+    assert!(
+        error_mm > limit_mm && error_mm < limit_mm + 0.01,
+        "{error_mm}"
+    );
+    let mut strict = axes();
+    strict[0].servo.following_error_limit_m = Some(0.4e-3);
+    let (e, _) = refuse(&strict, "G1 X105 F1000\n", 2);
+    let m = e.to_string();
+    assert!(
+        m.starts_with("block at line 1: the X axis' following error reached 0.400")
+            && m.contains("beyond its excess-error limit of 0.400 mm")
+            && m.contains("machine.axes.x.servo.following_error_limit_mm"),
+        "{m}"
+    );
+    strict[0].servo.following_error_limit_m = Some(0.6e-3);
+    let machine = vmt_scenario::builtin().unwrap().machine;
+    let job = Job {
+        program: parse("G1 X105 F1000\n", Vector3::new(0.1, 0.1, 0.1)).unwrap(),
+        ballbar: vec![],
+        laser: None,
+    };
+    let settings = SimSettings {
+        fidelity: Fidelity::Reduced,
+        plant_substeps: 2,
+        log_rate_hz: 1000.0,
+        seed: 1,
+    };
+    let ipo = InterpolatorConfig::new(Limits::default());
+    simulate(&machine, &strict, &ipo, &job, &settings, "", &mut |_| {}).expect("0.505 mm of lag");
+}

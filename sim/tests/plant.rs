@@ -47,6 +47,7 @@ fn drive(mass: f64, backlash: f64, q0: f64) -> Drive {
         acceleration_ff: 0.0,
         current_time_constant_s: 0.5e-3,
         force_limit_n: 8000.0,
+        following_error_limit_m: None,
     };
     Drive::new(params, servo, q0)
 }

@@ -58,6 +58,20 @@ pub struct ServoParams {
     pub current_time_constant_s: f64,
     /// Peak motor force (torque · 2π / lead), N.
     pub force_limit_n: f64,
+    /// The excess-error alarm: the largest |following error| the control accepts before it
+    /// stops the job (Fanuc's "excess error", Siemens' contour monitoring), m; `None` for the
+    /// control's default ([`ServoParams::following_error_limit`]).
+    pub following_error_limit_m: Option<f64>,
+}
+
+impl ServoParams {
+    /// The excess-error limit, m, with `fastest_m_s` the axis' fastest speed (m/s): the set
+    /// one, else twice the lag of the P position loop at that speed, `2 v/Kv`, which a drive
+    /// that follows its command does not reach (feed-forward only shortens the lag).
+    pub fn following_error_limit(&self, fastest_m_s: f64) -> f64 {
+        self.following_error_limit_m
+            .unwrap_or(2.0 * fastest_m_s / self.kv_per_s)
+    }
 }
 
 /// Commanded motion of one axis for one servo period.

@@ -46,6 +46,7 @@ pub fn axis(moving_mass_kg: f64, backlash_m: f64, kv_per_s: f64) -> AxisDynamics
         acceleration_ff: 0.0,
         current_time_constant_s: 0.5e-3,
         force_limit_n: 8000.0,
+        following_error_limit_m: None,
     };
     AxisDynamics { drive, servo }
 }
