@@ -55,6 +55,9 @@ pub struct Execution {
     pub program_file: Option<String>,
     /// The cut of a `kind = "milling"` job.
     pub milling: Option<vmt_sim::machining::MillingJob>,
+    /// What the job accepts but will not do, to be said when it runs (an instrument with
+    /// nothing to record).
+    pub notes: Vec<String>,
 }
 
 impl Execution {
@@ -211,6 +214,7 @@ fn execution(
     }
     check_test_rates(&job, job_kind, &controller, program_file.as_deref())?;
     check_generated_travel(machine, &controller, &job, job_kind)?;
+    let notes = dynamics::ballbar_notes(job_kind, &raw.instruments, &job);
     Ok(Some(Execution {
         axes,
         controller,
@@ -218,6 +222,7 @@ fn execution(
         job,
         program_file,
         milling,
+        notes,
     }))
 }
 

@@ -891,7 +891,8 @@ fn directions(names: &[String], p: &KeyPath) -> R<Vec<ArcDirection>> {
 
 /// A job of an NC program file (relative to the scenario's folder). `ballbar` is `None` for a
 /// job that records no ball bar (milling), else the `[instruments.ballbar]` table if any: the
-/// bar then records every circle between the program's DATA markers ([`marked_ballbar`]).
+/// bar then records every circle between the program's DATA markers ([`marked_ballbar`]; a
+/// program without them records none, which [`ballbar_notes`] says).
 fn program_job(
     program: &str,
     tool_offset: Vector3<f64>,
@@ -929,8 +930,7 @@ fn program_job(
 
 /// The ball bar of a program job: one set-up per circle its DATA markers measure
 /// ([`marked_circles`]), the bar as `[instruments.ballbar]` gives it (or the default bar, as a
-/// ball-bar job has). A bar given to a program without markers is refused: it would record
-/// nothing.
+/// ball-bar job has).
 fn marked_ballbar(
     text: &str,
     program: &Program,
@@ -939,14 +939,6 @@ fn marked_ballbar(
 ) -> Result<Vec<BallbarSetup>, BuildError> {
     let circles = marked_circles(text, program)
         .map_err(|e| crate::build::external(file, Some((e.line, e.column)), e.message.clone()))?;
-    if circles.is_empty() && bar.is_some() {
-        let msg = format!(
-            "{file} has no data arc for the ball bar to record: mark each run's data arc with \
-             (DATA CW START) ... (DATA CW END) lines (or CCW), as `vmt program ballbar` writes \
-             them, or remove [instruments.ballbar]"
-        );
-        return Err(Invalid::new(KeyPath::of(&["instruments", "ballbar"]), msg).into());
-    }
     let spec = ballbar_spec(bar)?;
     Ok(circles
         .into_iter()
@@ -961,6 +953,21 @@ fn marked_ballbar(
             circle: None,
         })
         .collect())
+}
+
+/// What the job accepts but does not do, for the command running it to say: a program job
+/// given `[instruments.ballbar]` whose program marks no data arc records no trace.
+pub fn ballbar_notes(j: &JobToml, instruments: &InstrumentsToml, job: &Job) -> Vec<String> {
+    match j {
+        JobToml::Program { program } if instruments.ballbar.is_some() && job.ballbar.is_empty() => {
+            vec![format!(
+                "[instruments.ballbar] records nothing: {program} marks no data arc with \
+                 (DATA CW START) ... (DATA CW END) lines (or CCW), as `vmt program ballbar` \
+                 writes them"
+            )]
+        }
+        _ => Vec::new(),
+    }
 }
 
 /// Most circles of one ball-bar job.

@@ -188,27 +188,23 @@ fn a_program_job_records_the_ball_bar_between_its_data_markers() {
     assert_eq!(Some(bar.data.clone()), test.data_blocks(&job.program));
 }
 
-/// A ball bar given to a program it cannot record on is refused at [instruments.ballbar];
-/// a data arc that is not one circle, or runs faster than the controller allows, at its line.
+/// A ball bar given to a program without DATA markers records nothing, and the job says so;
+/// a data arc that is not one circle, or runs faster than the controller allows, is refused at
+/// its line.
 #[test]
-fn a_program_job_refuses_a_bar_it_cannot_use() {
+fn a_program_job_says_when_its_bar_records_nothing_and_refuses_bad_data_arcs() {
     let dir = tempfile::tempdir().unwrap();
     let plain = "G21 G90 G94 G17\nF1000\nG1 X250 Y200 Z100\nM30\n";
-    let text = program_scenario(dir.path(), plain, true);
-    let e = load(&text, Some(dir.path())).expect_err("no markers");
-    assert_eq!(e.key.as_deref(), Some("instruments.ballbar"), "{e}");
-    assert!(
-        e.message
-            .contains("p.nc has no data arc for the ball bar to record"),
-        "{e}"
-    );
-    // Without the instrument the program runs as it is.
-    let text = program_scenario(dir.path(), plain, false);
-    assert!(
-        job_of(&load(&text, Some(dir.path())).unwrap())
-            .ballbar
-            .is_empty()
-    );
+    for (bar, notes) in [(true, 1), (false, 0)] {
+        let s = load(&program_scenario(dir.path(), plain, bar), Some(dir.path())).unwrap();
+        let e = s.execution.unwrap();
+        assert!(e.job.ballbar.is_empty());
+        assert_eq!(e.notes.len(), notes, "{:?}", e.notes);
+        if bar {
+            let says = "[instruments.ballbar] records nothing: p.nc marks no data arc";
+            assert!(e.notes[0].starts_with(says), "{:?}", e.notes);
+        }
+    }
 
     let program = zx_220_test().gcode();
     let first_data = program
