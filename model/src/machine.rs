@@ -60,6 +60,14 @@ impl Machine {
             .find(|a| !self.axis(*a).contains(position[a.index()]))
     }
 
+    /// The nominal tool point (relative to the workpiece, m) with every carriage at the middle
+    /// of its stroke: the carriage positions plus the tool offset, so that a test circle
+    /// programmed about it (programs give the tool point) is centred in the carriages' travel.
+    pub fn mid_stroke_tool_point(&self) -> Vector3<f64> {
+        let middle = Vector3::from_fn(|k, _| (self.axes[k].min_m + self.axes[k].max_m) / 2.0);
+        self.volumetric.nominal_tool_point(&middle)
+    }
+
     /// The thermal deformation at node temperatures `temps_c` (°C); zero without a thermal model.
     pub fn thermal_deformation(
         &self,

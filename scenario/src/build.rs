@@ -55,6 +55,9 @@ pub struct Execution {
     pub program_file: Option<String>,
     /// The cut of a `kind = "milling"` job.
     pub milling: Option<vmt_sim::machining::MillingJob>,
+    /// What the job accepts but will not do, to be said when it runs (an instrument with
+    /// nothing to record).
+    pub notes: Vec<String>,
 }
 
 impl Execution {
@@ -186,7 +189,6 @@ fn execution(
         substeps,
         controller.servo_period_s,
     )?;
-    let tool = machine.volumetric.kinematics.tool_offset;
     let program_file = match (job, base_dir) {
         (dynamics::JobToml::Program { program }, Some(dir)) => {
             Some(dir.join(program).display().to_string())
@@ -206,12 +208,13 @@ fn execution(
         _ => None,
     };
     let job_kind = job;
-    let job = dynamics::job(job, &raw.instruments, tool, base_dir)?;
+    let job = dynamics::job(job, &raw.instruments, machine, base_dir)?;
     if let (Some(m), Some(file)) = (&milling, &program_file) {
         check_program_cut(m, &job.program, file)?;
     }
-    check_test_rates(&job, job_kind, &controller)?;
+    check_test_rates(&job, job_kind, &controller, program_file.as_deref())?;
     check_generated_travel(machine, &controller, &job, job_kind)?;
+    let notes = dynamics::ballbar_notes(job_kind, &raw.instruments, &job);
     Ok(Some(Execution {
         axes,
         controller,
@@ -219,6 +222,7 @@ fn execution(
         job,
         program_file,
         milling,
+        notes,
     }))
 }
 
@@ -231,6 +235,7 @@ fn check_test_rates(
     job: &vmt_sim::simulate::Job,
     kind: &crate::dynamics::JobToml,
     controller: &vmt_sim::interpolator::InterpolatorConfig,
+    program_file: Option<&str>,
 ) -> Result<()> {
     // Back in the units of the keys, rounded off the m/s conversion.
     let max_mm_min = user(controller.limits.max_feed_m_s * 60_000.0);
@@ -238,14 +243,25 @@ fn check_test_rates(
         crate::dynamics::JobToml::KwonSevenStep { .. } => KeyPath::of(&["job", "steps"]),
         _ => KeyPath::of(&["job", "feed_mm_min"]),
     };
-    let feeds = job.ballbar.iter().map(|b| b.feed_m_s);
-    for feed in feeds.chain(job.laser.iter().map(|l| l.test.feed_m_s)) {
+    // A program's circle has its feed on the line of its first data arc.
+    let refuse = |b: Option<&vmt_sim::simulate::BallbarSetup>, msg: String| -> BuildError {
+        let block = b.and_then(|b| b.data.first()).map(|(_, r)| r.start);
+        match (program_file, block) {
+            (Some(file), Some(k)) => {
+                let span = job.program.blocks[k].span;
+                external(file, Some((span.line, span.column)), msg)
+            }
+            _ => Invalid::new(feed_key.clone(), msg).into(),
+        }
+    };
+    let feeds = job.ballbar.iter().map(|b| (Some(b), b.feed_m_s));
+    for (b, feed) in feeds.chain(job.laser.iter().map(|l| (None, l.test.feed_m_s))) {
         let mm_min = user(feed * 60_000.0);
         if mm_min > max_mm_min {
             let msg = format!(
                 "a test feed of {mm_min} mm/min is not accepted: the controller's largest feed is {max_mm_min} mm/min (controller.max_feed_mm_min), to which it would clamp the test"
             );
-            return Err(Invalid::new(feed_key.clone(), msg).into());
+            return Err(refuse(b, msg));
         }
     }
     // On its circle the interpolator also slows a test down to what the plane's axes allow
@@ -264,7 +280,7 @@ fn check_test_rates(
                 "a test feed of {mm_min} mm/min is not accepted on a circle of {} mm: the controller runs it at most at {limit_mm_min:.1} mm/min (the plane axes' velocity, controller.rapid_mm_min, and acceleration, controller.axis_accel_m_s2, with v²/r at 90 % of it)",
                 user(radius * 1e3)
             );
-            return Err(Invalid::new(feed_key.clone(), msg).into());
+            return Err(refuse(Some(b), msg));
         }
     }
     // Compared exactly, as the run compares them (with its 1e-9 tolerance); rounded only in
@@ -353,7 +369,14 @@ fn check_generated_travel(
     use crate::dynamics::JobToml;
     let (key, fix) = match kind {
         JobToml::Program { .. } | JobToml::Milling(_) => return Ok(()),
-        JobToml::Ballbar { .. } => ("center_mm", "move the centre or shorten job.radius_mm"),
+        JobToml::Ballbar(b) if b.center_mm.is_some() => {
+            ("center_mm", "move the centre or shorten job.radius_mm")
+        }
+        // The default centre is the strokes' middle: only a smaller circle fits.
+        JobToml::Ballbar(_) => (
+            "radius_mm",
+            "shorten job.radius_mm (the circle is centred in the strokes)",
+        ),
         JobToml::KwonSevenStep { .. } => ("pivot_mm", "move the pivot"),
         JobToml::Iso230_2(_) => ("axis", "bring the targets and overrun within the stroke"),
     };

@@ -9,10 +9,12 @@ use serde::Deserialize;
 use std::path::Path;
 use vmt_model::Axis;
 use vmt_model::drive::{DriveParams, Feedback, LuGreParams, ScrewParams, ServoParams};
+use vmt_model::machine::Machine;
 use vmt_sim::ballbar::BallbarSpec;
 use vmt_sim::interpolator::{InterpolatorConfig, Limits};
 use vmt_sim::laser::{LaserSetup, LaserSpec, PositioningTest};
-use vmt_sim::nc::{ArcDirection, CircularTest, Plane, kwon_steps, parse};
+use vmt_sim::nc::ballbar::default_start_deg;
+use vmt_sim::nc::{ArcDirection, CircularTest, Plane, Program, kwon_steps, marked_circles, parse};
 use vmt_sim::plant::Fidelity;
 use vmt_sim::simulate::{AxisDynamics, BallbarSetup, Job, SimSettings};
 
@@ -113,16 +115,7 @@ fn khz() -> f64 {
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields, tag = "kind", rename_all = "lowercase")]
 pub enum JobToml {
-    Ballbar {
-        plane: String,
-        center_mm: Numbers<3>,
-        radius_mm: f64,
-        feed_mm_min: f64,
-        #[serde(default = "full")]
-        arc_deg: f64,
-        #[serde(default = "both")]
-        directions: Vec<String>,
-    },
+    Ballbar(BallbarJobToml),
     Program {
         program: String,
     },
@@ -139,6 +132,35 @@ pub enum JobToml {
         #[serde(default = "all_steps")]
         steps: Vec<u8>,
     },
+}
+
+/// An ISO 230-4 ball-bar job; the keys of `vmt program ballbar`'s options.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BallbarJobToml {
+    plane: String,
+    /// Default: the tool point with every carriage at the middle of its stroke.
+    pub center_mm: Option<Numbers<3>>,
+    radius_mm: f64,
+    feed_mm_min: f64,
+    #[serde(default = "full")]
+    arc_deg: f64,
+    /// Default: `vmt_sim::nc::ballbar::default_start_deg` (over the top in ZX and YZ).
+    start_deg: Option<f64>,
+    #[serde(default = "overshoot")]
+    overshoot_deg: f64,
+    #[serde(default = "feed_in")]
+    feed_in_mm: f64,
+    #[serde(default = "both")]
+    directions: Vec<String>,
+}
+
+fn overshoot() -> f64 {
+    vmt_sim::nc::ballbar::DEFAULT_OVERSHOOT_DEG
+}
+
+fn feed_in() -> f64 {
+    vmt_sim::nc::ballbar::DEFAULT_FEED_IN_M * 1e3
 }
 
 #[derive(Debug, Deserialize)]
@@ -778,95 +800,120 @@ fn plane_of(name: &str, path: KeyPath) -> R<Plane> {
     }
 }
 
-/// The job, its program and instruments; `base_dir` resolves program files.
+/// The job, its program and instruments, on `machine` (its strokes give a ball-bar job's
+/// default centre, its tool offset a program's start); `base_dir` resolves program files.
 pub fn job(
     j: &JobToml,
     instruments: &InstrumentsToml,
-    tool_offset: Vector3<f64>,
+    machine: &Machine,
     base_dir: Option<&Path>,
 ) -> Result<Job, BuildError> {
     let p = KeyPath::of(&["job"]);
+    let tool_offset = machine.volumetric.kinematics.tool_offset;
     match j {
-        JobToml::Ballbar {
-            plane,
-            center_mm,
-            radius_mm,
-            feed_mm_min,
-            arc_deg,
-            directions,
-        } => {
-            let plane = plane_of(plane, p.key("plane"))?;
-            // Each direction is a whole circle in the generated program and its traces.
-            if directions.len() > MAX_DIRECTIONS {
-                let msg = format!(
-                    "{} directions are not accepted; a list of up to {MAX_DIRECTIONS} directions (cw, ccw) is accepted",
-                    directions.len()
-                );
-                return Err(Invalid::new(p.key("directions"), msg).into());
-            }
-            let dirs = directions
-                .iter()
-                .enumerate()
-                .map(|(i, d)| match d.to_ascii_lowercase().as_str() {
-                    "cw" => Ok(ArcDirection::Cw),
-                    "ccw" => Ok(ArcDirection::Ccw),
-                    other => Err(Invalid::new(
-                        p.key("directions").index(i),
-                        format!("`{other}` is not accepted; cw or ccw"),
-                    )),
-                })
-                .collect::<R<Vec<_>>>()?;
-            let center = Vector3::from(center_mm.0) * 1e-3;
-            let mut test =
-                CircularTest::iso230_4(plane, center, radius_mm * 1e-3, feed_mm_min / 60_000.0);
-            test.arc_deg = *arc_deg;
-            test.directions = dirs;
-            test.validate().map_err(|e| {
-                use vmt_sim::nc::ballbar::TestParameter as T;
-                let key = match e.parameter {
-                    T::Center => p.key("center_mm"),
-                    T::Radius => p.key("radius_mm"),
-                    T::Feed => p.key("feed_mm_min"),
-                    T::Arc => p.key("arc_deg"),
-                    T::Directions => p.key("directions"),
-                    // Not keys of [job]: the generator's defaults.
-                    T::Start | T::Overshoot | T::FeedIn | T::Approach => p.clone(),
-                };
-                Invalid::new(key, e.to_string())
-            })?;
-            let program = parse(&test.gcode(), test.start_point())
-                .map_err(|e| Invalid::new(p.clone(), e.to_string()))?;
-            let data = test.data_blocks(&program).unwrap_or_default();
-            let spec = ballbar_spec(instruments.ballbar.as_ref())?;
-            let ballbar = vec![BallbarSetup {
-                name: None,
-                spec,
-                center,
-                radius_m: test.radius_m,
-                plane,
-                feed_m_s: test.feed_m_s,
-                data,
-                circle: None,
-            }];
-            Ok(Job {
-                program,
-                ballbar,
-                laser: None,
-            })
+        JobToml::Ballbar(b) => Ok(ballbar_job(b, instruments, machine)?),
+        JobToml::Program { program } => {
+            let bar = instruments.ballbar.as_ref();
+            program_job(program, tool_offset, base_dir, &p, Some(bar))
         }
-        JobToml::Program { program } => program_job(program, tool_offset, base_dir, &p),
-        JobToml::Milling(m) => program_job(&m.program, tool_offset, base_dir, &p),
+        JobToml::Milling(m) => program_job(&m.program, tool_offset, base_dir, &p, None),
         JobToml::Iso230_2(t) => Ok(positioning_job(t, instruments)?),
         JobToml::KwonSevenStep { pivot_mm, steps } => Ok(kwon_job(pivot_mm, steps, instruments)?),
     }
 }
 
-/// A job of an NC program file (relative to the scenario's folder).
+fn ballbar_job(b: &BallbarJobToml, instruments: &InstrumentsToml, machine: &Machine) -> R<Job> {
+    let p = KeyPath::of(&["job"]);
+    let test = circular_test(b, machine, &p)?;
+    let program = parse(&test.gcode(), test.start_point())
+        .map_err(|e| Invalid::new(p.clone(), e.to_string()))?;
+    let data = test.data_blocks(&program).unwrap_or_default();
+    let ballbar = vec![BallbarSetup {
+        name: None,
+        spec: ballbar_spec(instruments.ballbar.as_ref())?,
+        center: test.center,
+        radius_m: test.radius_m,
+        plane: test.plane,
+        feed_m_s: test.feed_m_s,
+        data,
+        circle: None,
+    }];
+    Ok(Job {
+        program,
+        ballbar,
+        laser: None,
+    })
+}
+
+/// The ball-bar job's test, validated, each refusal at its key.
+fn circular_test(b: &BallbarJobToml, machine: &Machine, p: &KeyPath) -> R<CircularTest> {
+    let plane = plane_of(&b.plane, p.key("plane"))?;
+    let center = match &b.center_mm {
+        Some(c) => Vector3::from(c.0) * 1e-3,
+        None => machine.mid_stroke_tool_point(),
+    };
+    let mut test =
+        CircularTest::iso230_4(plane, center, b.radius_mm * 1e-3, b.feed_mm_min / 60_000.0);
+    test.arc_deg = b.arc_deg;
+    test.start_deg = b
+        .start_deg
+        .unwrap_or_else(|| default_start_deg(plane, b.arc_deg));
+    test.overshoot_deg = b.overshoot_deg;
+    test.feed_in_m = b.feed_in_mm * 1e-3;
+    test.directions = directions(&b.directions, p)?;
+    test.validate().map_err(|e| {
+        use vmt_sim::nc::ballbar::TestParameter as T;
+        let key = match e.parameter {
+            T::Center => p.key("center_mm"),
+            T::Radius => p.key("radius_mm"),
+            T::Feed => p.key("feed_mm_min"),
+            T::Arc => p.key("arc_deg"),
+            T::Start => p.key("start_deg"),
+            T::Overshoot => p.key("overshoot_deg"),
+            T::FeedIn => p.key("feed_in_mm"),
+            T::Directions => p.key("directions"),
+            // Not a key of [job]: the generator's default.
+            T::Approach => p.clone(),
+        };
+        Invalid::new(key, e.to_string())
+    })?;
+    Ok(test)
+}
+
+/// The runs of a ball-bar job, each `cw` or `ccw`.
+fn directions(names: &[String], p: &KeyPath) -> R<Vec<ArcDirection>> {
+    // Each direction is a whole circle in the generated program and its traces.
+    if names.len() > MAX_DIRECTIONS {
+        let msg = format!(
+            "{} directions are not accepted; a list of up to {MAX_DIRECTIONS} directions (cw, ccw) is accepted",
+            names.len()
+        );
+        return Err(Invalid::new(p.key("directions"), msg));
+    }
+    names
+        .iter()
+        .enumerate()
+        .map(|(i, d)| match d.to_ascii_lowercase().as_str() {
+            "cw" => Ok(ArcDirection::Cw),
+            "ccw" => Ok(ArcDirection::Ccw),
+            other => Err(Invalid::new(
+                p.key("directions").index(i),
+                format!("`{other}` is not accepted; cw or ccw"),
+            )),
+        })
+        .collect()
+}
+
+/// A job of an NC program file (relative to the scenario's folder). `ballbar` is `None` for a
+/// job that records no ball bar (milling), else the `[instruments.ballbar]` table if any: the
+/// bar then records every circle between the program's DATA markers ([`marked_ballbar`]; a
+/// program without them records none, which [`ballbar_notes`] says).
 fn program_job(
     program: &str,
     tool_offset: Vector3<f64>,
     base_dir: Option<&Path>,
     p: &KeyPath,
+    ballbar: Option<Option<&BallbarToml>>,
 ) -> Result<Job, BuildError> {
     let Some(dir) = base_dir else {
         return Err(Invalid::new(
@@ -885,11 +932,57 @@ fn program_job(
         let msg = "the program has no blocks to run (no motion, dwell or spindle command)";
         return Err(crate::build::external(&file, None, msg.to_string()));
     }
+    let ballbar = match ballbar {
+        Some(bar) => marked_ballbar(&text, &program, bar, &file)?,
+        None => Vec::new(),
+    };
     Ok(Job {
         program,
-        ballbar: Vec::new(),
+        ballbar,
         laser: None,
     })
+}
+
+/// The ball bar of a program job: one set-up per circle its DATA markers measure
+/// ([`marked_circles`]), the bar as `[instruments.ballbar]` gives it (or the default bar, as a
+/// ball-bar job has).
+fn marked_ballbar(
+    text: &str,
+    program: &Program,
+    bar: Option<&BallbarToml>,
+    file: &str,
+) -> Result<Vec<BallbarSetup>, BuildError> {
+    let circles = marked_circles(text, program)
+        .map_err(|e| crate::build::external(file, Some((e.line, e.column)), e.message.clone()))?;
+    let spec = ballbar_spec(bar)?;
+    Ok(circles
+        .into_iter()
+        .map(|c| BallbarSetup {
+            name: None,
+            spec,
+            center: c.center,
+            radius_m: c.radius_m,
+            plane: c.plane,
+            feed_m_s: c.feed_m_s,
+            data: c.runs,
+            circle: None,
+        })
+        .collect())
+}
+
+/// What the job accepts but does not do, for the command running it to say: a program job
+/// given `[instruments.ballbar]` whose program marks no data arc records no trace.
+pub fn ballbar_notes(j: &JobToml, instruments: &InstrumentsToml, job: &Job) -> Vec<String> {
+    match j {
+        JobToml::Program { program } if instruments.ballbar.is_some() && job.ballbar.is_empty() => {
+            vec![format!(
+                "[instruments.ballbar] records nothing: {program} marks no data arc with \
+                 (DATA CW START) ... (DATA CW END) lines (or CCW), as `vmt program ballbar` \
+                 writes them"
+            )]
+        }
+        _ => Vec::new(),
+    }
 }
 
 /// Most circles of one ball-bar job.

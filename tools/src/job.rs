@@ -91,6 +91,9 @@ fn execute_into(
             crate::errln!("note: {note}");
         }
     }
+    for note in &exec.notes {
+        crate::errln!("note: {note}");
+    }
     let bar = if quiet {
         ProgressBar::hidden()
     } else {

@@ -281,7 +281,8 @@ fn positioning_report(
 #[derive(Subcommand)]
 enum ProgramCommand {
     /// A ball-bar circular test (ISO 230-4): feed-in, overshoot, data arc, overshoot, feed-out,
-    /// for each direction; the data arcs lie between (DATA CW START) and (DATA CW END) comments.
+    /// for each direction; the data arcs lie between (DATA CW START) and (DATA CW END) comments,
+    /// where the ball bar records when the program runs as a scenario's kind = "program" job.
     ///
     /// Example:
     ///   vmt program ballbar --plane XY --radius-mm 150 --feed-mm-min 1000 --directions cw,ccw

@@ -4,8 +4,11 @@ use crate::CliError;
 use clap::Args;
 use nalgebra::Vector3;
 use std::path::PathBuf;
-use vmt_sim::nc::ballbar::{CircularTest, TestParameter};
-use vmt_sim::nc::{ArcDirection, Plane};
+use vmt_scenario::Scenario;
+use vmt_sim::interpolator::InterpolatorConfig;
+use vmt_sim::nc::ballbar::{CircularTest, TestParameter, default_start_deg};
+use vmt_sim::nc::{ArcDirection, Plane, parse};
+use vmt_sim::simulate::{Job, SimError, check_travel, travel_extent};
 
 /// Arguments of `vmt program ballbar`. Lengths in mm, feed in mm/min, angles in degrees.
 #[derive(Args, Debug, Clone)]
@@ -25,16 +28,18 @@ pub struct BallbarArgs {
     /// The runs in order, comma-separated: cw, ccw (or g2, g3).
     #[arg(long, value_delimiter = ',', default_value = "cw,ccw", value_parser = parse_direction)]
     pub directions: Vec<ArcDirection>,
-    /// Centre of the circle, mm, as x,y,z (default: the middle of the built-in machine's
-    /// strokes).
+    /// Centre of the circle, mm, as x,y,z: the tool point, as the program gives it (default:
+    /// the tool point with every carriage at the middle of its stroke, the machine's tool length
+    /// included; for the built-in machine X250 Y200 Z100).
     // No `num_args = 3`: clap counts `250,200,100` as one argument; the length is checked in
     // `center`.
     #[arg(long, value_delimiter = ',', allow_negative_numbers = true)]
     pub center_mm: Option<Vec<f64>>,
     /// Angle where the data arc starts, degrees, from the plane's first axis (+X in XY, +Z in
-    /// ZX, +Y in YZ) towards its second.
-    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
-    pub start_deg: f64,
+    /// ZX, +Y in YZ) towards its second (default: 0 for a full circle or in XY; a partial arc in
+    /// ZX or YZ lies over the top, symmetric about +Z: -arc/2 in ZX, 90 - arc/2 in YZ).
+    #[arg(long, allow_negative_numbers = true)]
+    pub start_deg: Option<f64>,
     /// Run-in and run-out arcs before and after the data arc, degrees.
     #[arg(long, default_value_t = vmt_sim::nc::ballbar::DEFAULT_OVERSHOOT_DEG)]
     pub overshoot_deg: f64,
@@ -45,6 +50,12 @@ pub struct BallbarArgs {
     /// there), so that the test starts with Z last moved down.
     #[arg(long, default_value_t = 0.0)]
     pub approach_from_above_mm: f64,
+    /// The machine the program is for (scenario TOML; default: the built-in machine). Its
+    /// strokes give the default centre, and a program leaving them is refused; without
+    /// --scenario a program about an explicit --center-mm is not checked (the machine is
+    /// unknown).
+    #[arg(long)]
+    pub scenario: Option<PathBuf>,
     /// Write the program to this file (default: stdout).
     #[arg(long)]
     pub out: Option<PathBuf>,
@@ -82,31 +93,43 @@ fn flag(parameter: TestParameter) -> &'static str {
     }
 }
 
-/// The circle's centre, m: `--center-mm`, or the middle of the built-in machine's strokes.
-fn center(args: &BallbarArgs) -> Result<Vector3<f64>, CliError> {
+/// The circle's centre, m, and the machine the program is checked against: `--center-mm`, or
+/// the tool point at the middle of the strokes of `--scenario`'s machine or the built-in one;
+/// the machine is `None` when neither `--scenario` nor the default centre names one.
+fn center(args: &BallbarArgs) -> Result<(Vector3<f64>, Option<Scenario>), CliError> {
+    let scenario = args
+        .scenario
+        .as_deref()
+        .map(vmt_scenario::load)
+        .transpose()?;
     match &args.center_mm {
-        Some(c) if c.len() == 3 => Ok(Vector3::new(c[0], c[1], c[2]) * 1e-3),
+        Some(c) if c.len() == 3 => Ok((Vector3::new(c[0], c[1], c[2]) * 1e-3, scenario)),
         Some(_) => Err(CliError::Argument(
             "--center-mm takes three numbers, x,y,z in mm".into(),
         )),
         None => {
-            let machine = vmt_scenario::builtin()?.machine;
-            Ok(Vector3::from_fn(|k, _| {
-                (machine.axes[k].min_m + machine.axes[k].max_m) / 2.0
-            }))
+            let s = match scenario {
+                Some(s) => s,
+                None => vmt_scenario::builtin()?,
+            };
+            Ok((s.machine.mid_stroke_tool_point(), Some(s)))
         }
     }
 }
 
-/// The circular test the arguments describe, validated.
+/// The circular test the arguments describe, validated, and within the strokes of the machine
+/// when it is known.
 pub fn ballbar_test(args: &BallbarArgs) -> Result<CircularTest, CliError> {
+    let (center, machine) = center(args)?;
     let test = CircularTest {
         plane: args.plane,
-        center: center(args)?,
+        center,
         radius_m: args.radius_mm * 1e-3,
         feed_m_s: args.feed_mm_min / 6e4,
         arc_deg: args.arc_deg,
-        start_deg: args.start_deg,
+        start_deg: args
+            .start_deg
+            .unwrap_or_else(|| default_start_deg(args.plane, args.arc_deg)),
         directions: args.directions.clone(),
         feed_in_m: args.feed_in_mm * 1e-3,
         overshoot_deg: args.overshoot_deg,
@@ -114,7 +137,51 @@ pub fn ballbar_test(args: &BallbarArgs) -> Result<CircularTest, CliError> {
     };
     test.validate()
         .map_err(|e| CliError::Argument(format!("{} ({})", e, flag(e.parameter))))?;
+    if let Some(s) = &machine {
+        within_strokes(&test, s)?;
+    }
     Ok(test)
+}
+
+/// Refuses `test` when its program (feed-in, overshoots, data arc, approach), interpolated as
+/// the scenario's controller would (the defaults without one), leaves a stroke of its machine:
+/// the check `vmt run` makes.
+fn within_strokes(test: &CircularTest, scenario: &Scenario) -> Result<(), CliError> {
+    let program = parse(&test.gcode(), test.start_point())
+        .map_err(|e| CliError::Argument(format!("the generated program: {e}")))?;
+    let job = Job {
+        program,
+        ballbar: Vec::new(),
+        laser: None,
+    };
+    let ipo = scenario
+        .execution
+        .as_ref()
+        .map_or_else(InterpolatorConfig::default, |e| e.controller);
+    let machine = &scenario.machine;
+    let refused =
+        |e: SimError| CliError::Argument(format!("the test cannot run on {}: {e}", machine.name));
+    match check_travel(machine, &ipo, &job) {
+        Ok(()) => Ok(()),
+        Err(SimError::Stroke {
+            axis,
+            min_mm,
+            max_mm,
+            ..
+        }) => {
+            let (lo, hi) = travel_extent(machine, &ipo, &job).map_err(refused)?;
+            let i = axis.index();
+            Err(CliError::Argument(format!(
+                "the test (circle, feed-in and overshoots) takes the {axis} axis from {:.3} to \
+                 {:.3} mm, beyond its stroke {min_mm} to {max_mm} mm on {}: move the centre \
+                 (--center-mm, the tool point) or shorten --radius-mm",
+                lo[i] * 1e3,
+                hi[i] * 1e3,
+                machine.name
+            )))
+        }
+        Err(e) => Err(refused(e)),
+    }
 }
 
 /// The G-code of the ball-bar test the arguments describe (see `vmt_sim::nc::ballbar` for the

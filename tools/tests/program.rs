@@ -104,24 +104,165 @@ fn partial_arc_in_a_vertical_plane_to_a_file() {
     );
 }
 
+/// `vmt program ballbar` with `args` after `ballbar`: the program, or the failed output.
+fn program(args: &[&str]) -> Result<String, std::process::Output> {
+    let o = vmt(&[&["program", "ballbar"], args].concat());
+    if o.status.success() {
+        Ok(String::from_utf8(o.stdout).unwrap())
+    } else {
+        Err(o)
+    }
+}
+
+/// The built-in machine's carriages travel Z 0..400 mm with a 100 mm tool: the default centre
+/// is the tool point at mid-stroke, Z 100 mm (Z 200 mm, the carriage's middle, put a vertical
+/// 150 mm circle up to Z 451.5 mm).
 #[test]
-fn default_centre_is_the_middle_of_the_built_in_strokes() {
-    let o = vmt(&[
-        "program",
-        "ballbar",
+fn default_centre_is_the_tool_point_at_the_middle_of_the_built_in_strokes() {
+    let text = program(&[
         "--plane",
         "XY",
         "--radius-mm",
         "100",
         "--feed-mm-min",
         "800",
-    ]);
-    assert!(o.status.success(), "{}", stderr(&o));
-    let text = String::from_utf8(o.stdout).unwrap();
+    ])
+    .unwrap();
     assert!(
-        text.contains("(centre X250.0000 Y200.0000 Z200.0000 mm; radius 100.0000 mm)"),
+        text.contains("(centre X250.0000 Y200.0000 Z100.0000 mm; radius 100.0000 mm)"),
         "{text}"
     );
+    // The vertical circles of the review fit now.
+    for arc in ["360", "220", "180"] {
+        for plane in ["ZX", "YZ"] {
+            let args = [
+                "--plane",
+                plane,
+                "--radius-mm",
+                "150",
+                "--feed-mm-min",
+                "1000",
+            ];
+            let got = program(&[&args[..], &["--arc-deg", arc]].concat());
+            assert!(got.is_ok(), "{plane} {arc}: {}", stderr(&got.unwrap_err()));
+        }
+    }
+}
+
+/// A partial arc in ZX or YZ lies over the top, symmetric about +Z, unless --start-deg says
+/// otherwise; a full circle and XY start at 0°.
+#[test]
+fn partial_vertical_arcs_lie_over_the_top_by_default() {
+    for (plane, arc, start, from) in [
+        ("ZX", "180", None, "-90"),
+        ("ZX", "220", None, "-110"),
+        ("YZ", "180", None, "0"),
+        ("YZ", "220", None, "-20"),
+        ("XY", "180", None, "0"),
+        ("ZX", "360", None, "0"),
+        ("ZX", "180", Some("0"), "0"),
+        ("YZ", "220", Some("-40"), "-40"),
+    ] {
+        let mut args = vec![
+            "--plane",
+            plane,
+            "--radius-mm",
+            "150",
+            "--feed-mm-min",
+            "1000",
+        ];
+        args.extend(["--arc-deg", arc]);
+        if let Some(s) = start {
+            args.extend(["--start-deg", s]);
+        }
+        let text = program(&args).unwrap_or_else(|o| panic!("{args:?}: {}", stderr(&o)));
+        let want = format!("data arc {arc} deg from {from} deg;");
+        assert!(text.contains(&want), "{args:?}: {text}");
+    }
+}
+
+/// A circle leaving a stroke of a known machine (--scenario, or the built-in one the default
+/// centre comes from) is refused with the axis, the travel and the stroke; without either the
+/// machine is unknown and the program is written.
+#[test]
+fn a_circle_beyond_the_strokes_of_a_known_machine_is_refused() {
+    let scenario = concat!(env!("CARGO_MANIFEST_DIR"), "/../scenarios/vmc500.toml");
+    let zx = ["--plane", "ZX", "--feed-mm-min", "1000"];
+    let centre = ["--center-mm", "250,200,200", "--radius-mm", "150"];
+    for (args, says) in [
+        (
+            [&zx[..], &["--radius-mm", "250"]].concat(),
+            "takes the Z axis from -50.000 to 450.000 mm, beyond its stroke 0 to 400 mm on \
+             VMC-500 (built-in default)",
+        ),
+        (
+            [&zx[..], &centre, &["--scenario", scenario]].concat(),
+            "takes the Z axis from 150.000 to 450.000 mm, beyond its stroke 0 to 400 mm",
+        ),
+    ] {
+        let o = program(&args).expect_err(says);
+        assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+        assert!(stderr(&o).contains(says), "{args:?}: {}", stderr(&o));
+        assert!(
+            stderr(&o)
+                .contains("move the centre (--center-mm, the tool point) or shorten --radius-mm"),
+            "{}",
+            stderr(&o)
+        );
+    }
+    assert!(program(&[&zx[..], &centre].concat()).is_ok());
+}
+
+/// The program `vmt program ballbar` writes is the program of the equivalent scenario ball-bar
+/// job, and run as a program job its DATA markers give the job's ball-bar set-up (the traces
+/// then agree: `scenario/tests/ballbar_jobs.rs`).
+#[test]
+fn a_written_program_runs_as_the_equivalent_ball_bar_job() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("p.nc");
+    let args = [
+        "--plane",
+        "YZ",
+        "--radius-mm",
+        "150",
+        "--feed-mm-min",
+        "1000",
+    ];
+    let o = vmt(&[
+        &["program", "ballbar"],
+        &args[..],
+        &["--arc-deg", "180", "--out", out.to_str().unwrap()],
+    ]
+    .concat());
+    assert!(o.status.success(), "{}", stderr(&o));
+    let builtin = vmt_scenario::BUILTIN_DEFAULT;
+    let xy = "plane = \"XY\"\ncenter_mm = [250.0, 200.0, 200.0]\nradius_mm = 150.0\n\
+              feed_mm_min = 1000.0\narc_deg = 360.0\ndirections = [\"cw\", \"ccw\"]\n";
+    let yz = "plane = \"YZ\"\nradius_mm = 150.0\nfeed_mm_min = 1000.0\narc_deg = 180.0\n";
+    let job = |text: &str| {
+        let s = vmt_scenario::parse(text, "s.toml", Some(dir.path())).unwrap();
+        s.execution.unwrap().job
+    };
+    let from_job = job(&builtin.replacen(xy, yz, 1));
+    let from_program = job(&builtin.replacen(
+        &format!("kind = \"ballbar\"\n{xy}"),
+        "kind = \"program\"\nprogram = \"p.nc\"\n",
+        1,
+    ));
+    let motions = |j: &vmt_sim::simulate::Job| -> Vec<Motion> {
+        j.program.blocks.iter().map(|b| b.motion.clone()).collect()
+    };
+    assert_eq!(motions(&from_job), motions(&from_program));
+    let (a, b) = (&from_job.ballbar, &from_program.ballbar);
+    assert_eq!((a.len(), b.len()), (1, 1));
+    let (a, b) = (&a[0], &b[0]);
+    assert_eq!(
+        (a.plane, a.radius_m, a.feed_m_s),
+        (b.plane, b.radius_m, b.feed_m_s)
+    );
+    assert!((a.center - b.center).norm() < 1e-12);
+    assert_eq!(a.data, b.data);
+    assert_eq!(a.spec, b.spec);
 }
 
 #[test]

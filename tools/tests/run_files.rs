@@ -230,7 +230,8 @@ fn a_run_has_both_files_or_neither() {
 }
 
 /// A program feed above the controller's largest runs at that largest, as on a controller, and
-/// the run says so, naming the line.
+/// the run says so, naming the line; the built-in's ball bar, with no DATA markers in the
+/// program to record, is noted too.
 #[test]
 fn a_feed_above_the_controllers_largest_is_noted_at_its_line() {
     let (code, e, written) = run_program(&format!("{MOVE}G1 X300 F50000\nG1 X200 F500\n"), &[]);
@@ -241,6 +242,10 @@ fn a_feed_above_the_controllers_largest_is_noted_at_its_line() {
         "{e}"
     );
     assert!(!e.contains("bad.nc:3:"), "{e}");
+    assert!(
+        e.contains("note: [instruments.ballbar] records nothing: bad.nc marks no data arc"),
+        "{e}"
+    );
 }
 
 #[test]

@@ -16,7 +16,12 @@
 //! | ZX (G18) | +Z | +X | +Y |
 //! | YZ (G19) | +Y | +Z | +X |
 //!
-//! The data arc covers the angles from `start_deg` to `start_deg + arc_deg`. A CCW run travels
+//! The data arc covers the angles from `start_deg` to `start_deg + arc_deg`; by default
+//! ([`default_start_deg`]) a full circle starts at 0° and a partial arc in a vertical plane lies
+//! over the top, symmetric about +Z (the spindle side, away from the table, as ISO 230-4 and
+//! ball-bar practice run them): in ZX from −arc/2 to +arc/2, in YZ from 90° − arc/2 to
+//! 90° + arc/2 (a 180° arc from one horizontal over the top to the other, 220° from 20° below
+//! one horizontal to 20° below the other). A CCW run travels
 //! it from `start_deg` upwards, a CW run from `start_deg + arc_deg` downwards, so both
 //! directions measure the same part of the circle (for a partial arc, e.g. the upper half of a
 //! vertical circle, the machine never leaves it).
@@ -177,6 +182,23 @@ pub struct RunAngles {
     pub data_end_deg: f64,
     /// Angle of the feed-out move (end of the run-out overshoot), degrees.
     pub feed_out_deg: f64,
+}
+
+/// Where a data arc of `arc_deg` (degrees) starts when no start is given, degrees: 0 for a
+/// full circle or a partial arc in XY; in ZX and YZ the arc centred on the upward vertical,
+/// +Z, at 0° in ZX and 90° in YZ (see the module docs), so that it never runs under the centre
+/// ball into the table.
+pub fn default_start_deg(plane: Plane, arc_deg: f64) -> f64 {
+    let up_deg = match plane {
+        Plane::Xy => return 0.0,
+        Plane::Zx => 0.0,
+        Plane::Yz => 90.0,
+    };
+    if arc_deg >= 360.0 {
+        0.0
+    } else {
+        up_deg - arc_deg / 2.0
+    }
 }
 
 /// The unit vectors of the plane's first and second axis (see the module docs).
@@ -447,6 +469,148 @@ pub fn marked_data_blocks(
         }),
         None => Ok(arcs),
     }
+}
+
+/// One circle a program measures between DATA markers: where the ball bar is set up, and the
+/// runs on it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct MarkedCircle {
+    /// Plane of its arcs.
+    pub plane: Plane,
+    /// Centre of its arcs (the tool point, absolute), m.
+    pub center: Vector3<f64>,
+    /// Radius of its arcs, m, rounded to 0.1 µm (a program in mm with four decimals gives its
+    /// end points to that, so a 150 mm circle's blocks end 150 mm ± 0.07 µm from the centre).
+    pub radius_m: f64,
+    /// Programmed feed of its arcs, m/s.
+    pub feed_m_s: f64,
+    /// Its runs in program order: the marker's direction and the data blocks.
+    pub runs: Vec<(ArcDirection, Range<usize>)>,
+}
+
+/// Arcs further apart than this in centre or radius are different circles (the bar remounted),
+/// m: ten times the 0.1 µm a four-decimal program resolves.
+const SAME_CIRCLE_M: f64 = 1e-6;
+
+/// The circles measured by the data arcs of a marked program ([`marked_data_blocks`]): every
+/// block between a pair of markers must be an arc in the marker's direction, in its plane (no
+/// helix), on one circle at one feed; consecutive runs on the same circle at the same feed make
+/// one circle (one ball-bar set-up, as [`CircularTest::gcode`] runs CW then CCW). An error names
+/// the line of the block at fault.
+pub fn marked_circles(text: &str, program: &Program) -> Result<Vec<MarkedCircle>, NcError> {
+    let starts = block_starts(program);
+    let mut circles: Vec<MarkedCircle> = Vec::new();
+    for (direction, range) in marked_data_blocks(text, program)? {
+        let run = marked_run(program, &starts, direction, range)?;
+        match circles.last_mut() {
+            Some(c) if same_circle(c, &run) => c.runs.extend(run.runs),
+            _ => circles.push(run),
+        }
+    }
+    Ok(circles)
+}
+
+/// Where each block of `program` starts, m.
+fn block_starts(program: &Program) -> Vec<Vector3<f64>> {
+    let mut at = program.start;
+    program
+        .blocks
+        .iter()
+        .map(|b| {
+            let start = at;
+            if let Motion::Rapid { to } | Motion::Linear { to, .. } | Motion::Arc { to, .. } =
+                b.motion
+            {
+                at = to;
+            }
+            start
+        })
+        .collect()
+}
+
+fn same_circle(a: &MarkedCircle, b: &MarkedCircle) -> bool {
+    a.plane == b.plane
+        && (a.center - b.center).norm() <= SAME_CIRCLE_M
+        && (a.radius_m - b.radius_m).abs() <= SAME_CIRCLE_M
+        && a.feed_m_s == b.feed_m_s
+}
+
+/// One marked run (a non-empty `range`, as [`marked_data_blocks`] gives) as a circle of its
+/// own, every block checked against its first.
+fn marked_run(
+    program: &Program,
+    starts: &[Vector3<f64>],
+    direction: ArcDirection,
+    range: Range<usize>,
+) -> Result<MarkedCircle, NcError> {
+    let circle_of = |k: usize| data_arc(program, starts[k], k, direction, range.clone());
+    let first = circle_of(range.start)?;
+    for k in range.clone().skip(1) {
+        if !same_circle(&first, &circle_of(k)?) {
+            return Err(block_error(
+                program,
+                k,
+                format!(
+                    "the arcs between one pair of DATA {} markers lie on one circle at one \
+                     feed: this one has another plane, centre, radius or feed than the first",
+                    direction_name(direction)
+                ),
+            ));
+        }
+    }
+    Ok(first)
+}
+
+fn block_error(program: &Program, k: usize, message: String) -> NcError {
+    let span = program.blocks[k].span;
+    NcError {
+        line: span.line,
+        column: span.column,
+        message,
+    }
+}
+
+/// Block `k` (starting at `start`, m) of a run marked `direction` as the circle it lies on.
+fn data_arc(
+    program: &Program,
+    start: Vector3<f64>,
+    k: usize,
+    direction: ArcDirection,
+    range: Range<usize>,
+) -> Result<MarkedCircle, NcError> {
+    let name = direction_name(direction);
+    let Motion::Arc {
+        to,
+        center,
+        plane,
+        direction: d,
+        feed,
+    } = program.blocks[k].motion
+    else {
+        let msg = format!(
+            "a ball bar's data arc holds only arcs: this block between the DATA {name} markers \
+             is not a G2/G3 move"
+        );
+        return Err(block_error(program, k, msg));
+    };
+    if d != direction {
+        let msg = format!("this arc runs the other way than its DATA {name} markers say");
+        return Err(block_error(program, k, msg));
+    }
+    let n = plane.normal();
+    if (to - start).dot(&n).abs() > SAME_CIRCLE_M {
+        let msg = "a ball bar's data arc lies in its plane: this arc is a helix".to_string();
+        return Err(block_error(program, k, msg));
+    }
+    let r = start - center;
+    let radius_m = (r - n * r.dot(&n)).norm();
+    Ok(MarkedCircle {
+        plane,
+        center,
+        radius_m: (radius_m * 1e7).round() / 1e7,
+        feed_m_s: feed,
+        runs: vec![(direction, range)],
+    })
 }
 
 fn marker(line: &str) -> Option<(ArcDirection, bool)> {
@@ -1140,6 +1304,88 @@ mod tests {
         // CW first: its data starts at 180° (-Y) and the program starts 1.5 mm outside it.
         let start = t.start_point();
         assert!((start - (centre() + Vector3::new(0.0, -151.5, 0.0) * MM)).norm() < 1e-12);
+    }
+
+    #[test]
+    fn partial_vertical_arcs_lie_over_the_top_by_default() {
+        for (plane, arc, want) in [
+            (Plane::Zx, 180.0, -90.0),
+            (Plane::Zx, 220.0, -110.0),
+            (Plane::Yz, 180.0, 0.0),
+            (Plane::Yz, 220.0, -20.0),
+            (Plane::Xy, 180.0, 0.0),
+            (Plane::Zx, 360.0, 0.0),
+            (Plane::Yz, 360.0, 0.0),
+        ] {
+            let start = default_start_deg(plane, arc);
+            assert_eq!(start, want, "{plane:?} {arc}");
+            if plane == Plane::Xy || arc == 360.0 {
+                continue;
+            }
+            // Both ends at one height, 20° below the centre for 220° (level for 180°), and
+            // the middle at the top, +Z.
+            let mut t = CircularTest::iso230_4(plane, centre(), 150.0 * MM, 500.0 / 6e4);
+            (t.arc_deg, t.start_deg) = (arc, start);
+            let (a, b) = (t.point(start, t.radius_m), t.point(start + arc, t.radius_m));
+            let below = -150.0 * MM * ((arc - 180.0) / 2.0).to_radians().sin();
+            for end in [a, b] {
+                assert!(
+                    (end.z - centre().z - below).abs() < 1e-12,
+                    "{plane:?} {arc}"
+                );
+            }
+            let top = t.point(start + arc / 2.0, t.radius_m) - centre();
+            assert!((top - Vector3::z() * 150.0 * MM).norm() < 1e-12, "{top:?}");
+        }
+        // Kwon's half circles are those.
+        for s in &kwon_steps(centre())[5..] {
+            assert_eq!(s.test.start_deg, default_start_deg(s.test.plane, 180.0));
+        }
+    }
+
+    #[test]
+    fn marked_circles_are_the_tests_circles() {
+        let mut t = CircularTest::iso230_4(Plane::Zx, centre(), 150.0 * MM, 1000.0 / 6e4);
+        t.arc_deg = 220.0;
+        t.start_deg = default_start_deg(Plane::Zx, 220.0);
+        let mut other = CircularTest::iso230_4(Plane::Xy, centre(), 100.0 * MM, 500.0 / 6e4);
+        other.directions = vec![ArcDirection::Ccw];
+        // Two tests in a row, the second with its own start: two circles.
+        let end = t.gcode().replace("M30\n", "");
+        let text = format!("{end}{}", other.gcode());
+        let p = parse(&text, t.start_point()).unwrap();
+        let circles = marked_circles(&text, &p).unwrap();
+        assert_eq!(circles.len(), 2, "{circles:?}");
+        let (a, b) = (&circles[0], &circles[1]);
+        assert_eq!((a.plane, b.plane), (Plane::Zx, Plane::Xy));
+        assert_eq!((a.radius_m, b.radius_m), (0.15, 0.1));
+        assert_eq!((a.feed_m_s, b.feed_m_s), (1000.0 / 6e4, 500.0 / 6e4));
+        assert!((a.center - centre()).norm() < 1e-12);
+        let own = parse(&t.gcode(), t.start_point()).unwrap();
+        assert_eq!(Some(a.runs.clone()), t.data_blocks(&own));
+        assert_eq!(b.runs.len(), 1);
+        assert_eq!(b.runs[0].0, ArcDirection::Ccw);
+    }
+
+    #[test]
+    fn marked_data_that_is_not_one_arc_is_refused_at_its_line() {
+        let start = Vector3::new(0.1, 0.0, 0.0);
+        for (body, line, says) in [
+            ("G1 X0.2\n", 3, "not a G2/G3 move"),
+            ("G3 X-100 Y0 I-100 J0\n", 3, "the other way"),
+            ("G2 X-100 Y0 Z5 I-100 J0\n", 3, "helix"),
+            (
+                "G2 X0 Y-100 I-100 J0\nG2 X-50 Y-50 I0 J50\n",
+                4,
+                "another plane, centre, radius or feed",
+            ),
+        ] {
+            let text = format!("G17 G21 F1000\n(DATA CW START)\n{body}(DATA CW END)\n");
+            let p = parse(&text, start * 1e3 * MM).unwrap();
+            let e = marked_circles(&text, &p).unwrap_err();
+            assert_eq!(e.line, line, "{body}: {e}");
+            assert!(e.message.contains(says), "{body}: {e}");
+        }
     }
 
     #[test]

@@ -11,6 +11,8 @@ pub mod ballbar;
 pub mod parse;
 pub mod program;
 
-pub use ballbar::{CircularTest, InvalidTest, KwonStep, kwon_seven_step, kwon_steps};
+pub use ballbar::{
+    CircularTest, InvalidTest, KwonStep, MarkedCircle, kwon_seven_step, kwon_steps, marked_circles,
+};
 pub use parse::{NcError, parse};
 pub use program::{ArcDirection, Block, Motion, Plane, Program, SourceSpan, Spindle};
