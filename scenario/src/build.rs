@@ -289,11 +289,15 @@ fn check_test_rates(
     let above_servo = |rate: f64| rate > exact_servo_hz * (1.0 + 1e-9);
     let servo_hz = user(exact_servo_hz);
     for b in &job.ballbar {
-        if above_servo(b.spec.sample_rate_hz) {
-            let msg = format!(
-                "{} Hz is not accepted: the ball bar is sampled at servo ticks, at most {servo_hz} Hz (1 / controller.servo_period_us)",
-                b.spec.sample_rate_hz
-            );
+        let rate = b.spec.sample_rate_hz;
+        let msg = if above_servo(rate) {
+            Some(format!(
+                "{rate} Hz is not accepted: the ball bar is sampled at servo ticks, at most {servo_hz} Hz (1 / controller.servo_period_us)",
+            ))
+        } else {
+            crate::dynamics::off_the_ticks(rate, controller.servo_period_s, "the ball bar")
+        };
+        if let Some(msg) = msg {
             let key = KeyPath::of(&["instruments", "ballbar", "sample_rate_hz"]);
             return Err(Invalid::new(key, msg).into());
         }
@@ -308,7 +312,11 @@ fn check_test_rates(
             );
             return Err(Invalid::new(laser.key("sample_rate_hz"), msg).into());
         }
-        // The sampled ticks are the sample period rounded to whole servo periods.
+        if let Some(msg) =
+            crate::dynamics::off_the_ticks(rate, controller.servo_period_s, "the laser")
+        {
+            return Err(Invalid::new(laser.key("sample_rate_hz"), msg).into());
+        }
         let every = l.spec.sample_every(controller.servo_period_s);
         let exact_interval_s = every as f64 * controller.servo_period_s;
         let interval_s = user(exact_interval_s);

@@ -634,19 +634,43 @@ pub fn simulation(s: &SimulationToml, substeps: usize, servo_period_s: f64) -> R
 const DEFAULT_LOG_RATE_HZ: f64 = 1000.0;
 
 /// A log rate above 0 and at most the servo rate (the run's own check, made here where the
-/// error can name the key).
+/// error can name the key), and a whole number of servo ticks per sample.
 fn log_rate(rate: f64, servo_period_s: f64, path: &KeyPath) -> R<f64> {
     let servo_hz = 1.0 / servo_period_s;
-    if rate > 0.0 && rate <= servo_hz {
-        return Ok(rate);
+    if !(rate > 0.0 && rate <= servo_hz) {
+        return Err(Invalid::new(
+            path.clone(),
+            format!(
+                "{} is out of range; a log rate in Hz above 0 and up to the servo rate, {} (1 / controller.servo_period_us), is accepted",
+                typed(rate),
+                (servo_hz * 1e6).round() / 1e6
+            ),
+        ));
     }
-    Err(Invalid::new(
-        path.clone(),
-        format!(
-            "{} is out of range; a log rate in Hz above 0 and up to the servo rate, {} (1 / controller.servo_period_us), is accepted",
-            typed(rate),
-            (servo_hz * 1e6).round() / 1e6
-        ),
+    match off_the_ticks(rate, servo_period_s, "the log") {
+        Some(msg) => Err(Invalid::new(path.clone(), msg)),
+        None => Ok(rate),
+    }
+}
+
+/// Why `rate` (Hz, at most the servo rate) cannot be a rate of `what`, sampled at servo ticks of
+/// `servo_period_s`: it is no whole number of ticks per sample (a rate of 3 kHz at 8 kHz would
+/// be taken every 3 ticks, at 2.667 kHz). The run rounds within 1e-9, as it counts ticks.
+pub(crate) fn off_the_ticks(rate: f64, servo_period_s: f64, what: &str) -> Option<String> {
+    let servo_hz = 1.0 / servo_period_s;
+    let ticks = servo_hz / rate;
+    let every = ticks.round().max(1.0);
+    if (ticks / every - 1.0).abs() <= 1e-9 {
+        return None;
+    }
+    let (fewer, more) = (ticks.floor().max(1.0), ticks.ceil());
+    let hz = |n: f64| (servo_hz / n * 1e3).round() / 1e3;
+    Some(format!(
+        "{} Hz is not accepted: {what} is sampled at servo ticks ({} Hz, 1 / controller.servo_period_us), so its rate is the servo rate over a whole number of ticks; the nearest are {} Hz (every {fewer} ticks) and {} Hz (every {more})",
+        typed(rate),
+        hz(1.0),
+        hz(fewer),
+        hz(more),
     ))
 }
 

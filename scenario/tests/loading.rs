@@ -1224,6 +1224,41 @@ fn a_following_error_limit_is_a_positive_length_at_its_key() {
     }
 }
 
+/// Instruments and the log are sampled at servo ticks (8 kHz on the built-in machine): a rate
+/// that is no whole number of ticks per sample (3 kHz would have been taken every 3 ticks, at
+/// 2.667 kHz, with no word) is refused at its key, naming the nearest rates; 4 kHz and 2 kHz
+/// are accepted.
+#[test]
+fn rates_off_the_servo_ticks_are_refused_naming_the_nearest() {
+    let nearest = "the nearest are 4000 Hz (every 2 ticks) and 2666.667 Hz (every 3)";
+    for (replace, by, key) in [
+        (
+            "log_rate_hz = 1000.0",
+            "log_rate_hz = 3000.0",
+            "simulation.log_rate_hz",
+        ),
+        (
+            "sample_rate_hz = 1000.0",
+            "sample_rate_hz = 3000.0",
+            "instruments.ballbar.sample_rate_hz",
+        ),
+    ] {
+        assert_refused(&with(replace, by), by, key, nearest);
+        for fine in ["4000.0", "2000.0"] {
+            builtin_with(replace, &by.replace("3000.0", fine));
+        }
+    }
+    assert_edits_refused(
+        "iso230_2_x.toml",
+        &[(
+            "sample_rate_hz = 1000.0",
+            "sample_rate_hz = 3000.0",
+            "instruments.laser.sample_rate_hz",
+            nearest,
+        )],
+    );
+}
+
 /// The built-in machine with `replace` replaced by `by`, which must load.
 fn builtin_with(replace: &str, by: &str) {
     let text = with(replace, by);
