@@ -169,7 +169,8 @@ pub enum SimError {
     },
     /// The plant step is beyond the stability limit of a drive mode.
     #[error(
-        "a plant step of {step_us:.2} µs is too coarse for the {mode} of the {axis} drive: the largest stable step is {limit_us:.2} µs; raise plant_substeps (scenario key controller.plant_substeps) to {substeps_needed} or more"
+        "a plant step of {step_us:.2} µs is too coarse for the {mode} of the {axis} drive: the largest stable step is {limit_us:.2} µs, and up to half of it ({accepted_us:.2} µs) is accepted, where the step keeps that mode's frequency within 5 %; raise plant_substeps (scenario key controller.plant_substeps) to {substeps_needed} or more",
+        accepted_us = limit_us * STABLE_STEP_FRACTION
     )]
     StepTooCoarse {
         /// The axis.
@@ -588,8 +589,15 @@ fn check_laser(spec: &LaserSpec, period_s: f64) -> Result<(), SimError> {
     Ok(())
 }
 
+/// The share of a drive mode's largest stable step that [`check_step`] accepts. At the limit
+/// `h = 2/ω` (undamped) semi-implicit Euler's discrete mode has `cos ω_d h = 1 − (ωh)²/2`, so
+/// ω_d = π/h, 57 % above ω, and the mode rings at the Nyquist rate; at half of it `ω_d h =
+/// π/3`, 4.7 % above.
+pub const STABLE_STEP_FRACTION: f64 = 0.5;
+
 /// Checks the plant step `period_s / substeps` against the largest stable step of every
-/// drive ([`DriveParams::largest_stable_step_s`]).
+/// drive ([`DriveParams::largest_stable_step_s`]), of which [`STABLE_STEP_FRACTION`] is
+/// accepted.
 pub fn check_step(
     axes: &[AxisDynamics; 3],
     period_s: f64,
@@ -598,12 +606,13 @@ pub fn check_step(
     let h = period_s / substeps.max(1) as f64;
     for (a, d) in Axis::ALL.into_iter().zip(axes) {
         let (limit, mode) = d.drive.largest_stable_step_s();
+        let accepted = limit * STABLE_STEP_FRACTION;
         // A limit that is not a number (parameters beyond any drive's) refuses too.
-        if h > limit || limit.is_nan() {
+        if h > accepted || limit.is_nan() {
             // Saturating: a limit many orders below the period (absurd stiffness) must still
             // give an error, not an overflow.
-            let mut needed = (period_s / limit).ceil() as usize;
-            if period_s / needed as f64 > limit {
+            let mut needed = (period_s / accepted).ceil() as usize;
+            if period_s / needed as f64 > accepted {
                 needed = needed.saturating_add(1);
             }
             return Err(SimError::StepTooCoarse {

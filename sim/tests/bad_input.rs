@@ -54,9 +54,10 @@ fn travel_beyond_the_stroke_is_refused_before_the_run_naming_the_line() {
 
 /// Semi-implicit Euler on a mode `m x'' = -k x - c x'` is stable for
 /// h < (2/ω)(√(1+ζ²) - ζ), ω = √(k/m), ζ = c / (2√(k m)). Bristles of 1e11 N/m (a very stiff
-/// contact) under the 250 kg X carriage with σ1 + σ2 = 3.02e4 N·s/m: 99.7 µs, so the 125 µs
-/// step of one substep per servo period is refused, naming the scenario key and the two
-/// substeps (62.5 µs) that are needed, and two substeps are accepted.
+/// contact) under the 250 kg X carriage with σ1 + σ2 = 3.02e4 N·s/m: 99.7 µs, of which half,
+/// 49.85 µs, is accepted. The 125 µs step of one substep per servo period is refused, naming
+/// the scenario key and the three substeps (41.7 µs) that are needed; two (62.5 µs, stable but
+/// ringing 8 % fast) are refused too, and three are accepted.
 #[test]
 fn a_step_too_coarse_for_the_stiffest_mode_is_refused_stating_the_largest_stable_step() {
     let mut a = axes();
@@ -70,11 +71,16 @@ fn a_step_too_coarse_for_the_stiffest_mode_is_refused_stating_the_largest_stable
     let msg = e.to_string();
     let expected = format!(
         "a plant step of 125.00 µs is too coarse for the guideway friction bristles of the X \
-         drive: the largest stable step is {limit_us:.2} µs; raise plant_substeps (scenario key \
-         controller.plant_substeps) to 2 or more"
+         drive: the largest stable step is {limit_us:.2} µs, and up to half of it ({:.2} µs) is \
+         accepted, where the step keeps that mode's frequency within 5 %; raise plant_substeps \
+         (scenario key controller.plant_substeps) to 3 or more",
+        limit_us / 2.0
     );
     assert_eq!(msg, expected);
-    // Two substeps are within the limit: the check passes and the (short) job runs.
+    // Two substeps (62.5 µs) are stable but beyond half the limit: refused, asking for three.
+    let (e, _) = refuse(&a, "G1 X101 F1000\n", 2);
+    assert!(e.to_string().ends_with("to 3 or more"), "{e}");
+    // Three substeps are within it: the check passes and the (short) job runs.
     let machine = vmt_scenario::builtin().unwrap().machine;
     let job = Job {
         program: parse("G1 X100.1 F1000\n", Vector3::new(0.1, 0.1, 0.1)).unwrap(),
@@ -83,7 +89,7 @@ fn a_step_too_coarse_for_the_stiffest_mode_is_refused_stating_the_largest_stable
     };
     let settings = SimSettings {
         fidelity: Fidelity::Reduced,
-        plant_substeps: 2,
+        plant_substeps: 3,
         log_rate_hz: 1000.0,
         seed: 1,
     };
