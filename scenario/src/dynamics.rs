@@ -255,6 +255,12 @@ pub struct BallbarToml {
     pub bar_temperature_c: f64,
     #[serde(default = "steel")]
     pub bar_alpha_per_k: f64,
+    #[serde(default = "one_mm_in_um")]
+    pub range_um: f64,
+}
+
+fn one_mm_in_um() -> f64 {
+    1000.0
 }
 
 fn tenth() -> f64 {
@@ -726,6 +732,12 @@ fn ballbar_spec(b: Option<&BallbarToml>) -> R<BallbarSpec> {
             (-5e-6, 5e-5),
             "an expansion coefficient (1/K)",
         )?,
+        range_m: within(
+            b.range_um,
+            "range_um",
+            (1.0, 2000.0),
+            "a measuring range (± µm; ball bars read ±1000)",
+        )? * 1e-6,
     })
 }
 

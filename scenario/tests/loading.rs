@@ -1259,6 +1259,22 @@ fn rates_off_the_servo_ticks_are_refused_naming_the_nearest() {
     );
 }
 
+/// The ball bar's measuring range is ±1 µm to ±2 mm (bars read ±1 mm), refused at its key.
+#[test]
+fn a_ball_bar_range_beyond_any_bar_is_refused_at_its_key() {
+    let alpha = "bar_alpha_per_k = 11.5e-6";
+    builtin_with(alpha, "bar_alpha_per_k = 11.5e-6\nrange_um = 2000.0");
+    for range in ["0.5", "3000.0"] {
+        let by = format!("{alpha}\nrange_um = {range}");
+        assert_refused(
+            &with(alpha, &by),
+            &format!("range_um = {range}"),
+            "instruments.ballbar.range_um",
+            "a measuring range (± µm; ball bars read ±1000) from 1 to 2000",
+        );
+    }
+}
+
 /// The built-in machine with `replace` replaced by `by`, which must load.
 fn builtin_with(replace: &str, by: &str) {
     let text = with(replace, by);

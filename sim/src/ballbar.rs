@@ -37,6 +37,9 @@ pub struct BallbarSpec {
     pub bar_temperature_c: f64,
     /// Expansion coefficient of the bar body, 1/K.
     pub bar_alpha_per_k: f64,
+    /// Measuring range of the transducer about the nominal length, ± m (±1 mm for the
+    /// Renishaw QC20-W and the Heidenhain DBB): a reading beyond it stops the capture.
+    pub range_m: f64,
 }
 
 impl Default for BallbarSpec {
@@ -49,6 +52,7 @@ impl Default for BallbarSpec {
             setup_drift_m_per_s: Vector3::zeros(),
             bar_temperature_c: 20.0,
             bar_alpha_per_k: 11.5e-6,
+            range_m: 1e-3,
         }
     }
 }
@@ -82,6 +86,11 @@ impl Ballbar {
             rng: StdRng::seed_from_u64(seed),
             set_up_s: None,
         }
+    }
+
+    /// The settings.
+    pub fn spec(&self) -> &BallbarSpec {
+        &self.spec
     }
 
     /// Where the pivot is at `time_s` (s), m.

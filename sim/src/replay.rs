@@ -151,6 +151,7 @@ fn replay_moved(
             let (_, evaluator) = current.as_ref().expect("set above");
             let tool = evaluator.tool_point(&moved(s.state));
             let (reading, angle) = bars[test].read(&tool, s.time_s);
+            crate::simulate::check_range(&bars[test], &trace, s.time_s, reading, angle)?;
             push_sample(&mut trace, s.time_s, angle, reading);
         }
         out.push(trace);

@@ -151,6 +151,22 @@ pub enum SimError {
         /// Its limit, mm.
         limit_mm: f64,
     },
+    /// A ball-bar reading beyond the transducer's measuring range.
+    #[error(
+        "{trace}: the ball bar read {reading_um:+.1} µm at {angle_deg:.1}° ({time_s:.3} s), beyond its measuring range of ±{range_um} µm (instruments.ballbar.range_um): a ball-bar system stops the capture there; the machine or the set-up (the centre, the pivot's eccentricity) is off by more than the bar can read"
+    )]
+    BallbarOutOfRange {
+        /// The trace's label.
+        trace: String,
+        /// Time, s.
+        time_s: f64,
+        /// The bar's angle, deg.
+        angle_deg: f64,
+        /// The reading, µm.
+        reading_um: f64,
+        /// The range, ± µm.
+        range_um: f64,
+    },
     /// The sampled servo loops of an axis are unstable.
     #[error(
         "the {axis} axis' velocity loop of {bandwidth_hz:.1} Hz is unstable at the servo period of {period_us:.1} µs (a disturbance grows {radius:.3}-fold per period, with its Kv, integral time, current loop and screw, linearised without friction or backlash): {stable}"
@@ -455,6 +471,28 @@ pub(crate) fn check_following_error(
         }
     }
     Ok(())
+}
+
+/// The ball bar's reading `reading` (m) at `angle` (rad) and `time_s` for `trace`, refused
+/// beyond its measuring range.
+pub(crate) fn check_range(
+    bar: &Ballbar,
+    trace: &BallbarTrace,
+    time_s: f64,
+    reading: f64,
+    angle: f64,
+) -> Result<(), SimError> {
+    let range = bar.spec().range_m;
+    if reading.abs() <= range {
+        return Ok(());
+    }
+    Err(SimError::BallbarOutOfRange {
+        trace: trace.label.clone(),
+        time_s,
+        angle_deg: angle.to_degrees(),
+        reading_um: reading * 1e6,
+        range_um: range * 1e6,
+    })
 }
 
 /// The source line of block `block` of `program` (0 for none).
@@ -988,6 +1026,7 @@ impl Recorder {
             }
             let bar = &mut self.ballbar[self.data[j].0];
             let (reading, angle) = bar.read(&tool, sp.time_s);
+            check_range(bar, &self.traces[j], sp.time_s, reading, angle)?;
             let pivot = bar.pivot(sp.time_s);
             match &mut self.closing[j] {
                 Some(c) => c.pivot_end = pivot,

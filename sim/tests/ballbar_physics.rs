@@ -10,7 +10,7 @@ use vmt_sim::interpolator::{InterpolatorConfig, Limits};
 use vmt_sim::nc::{CircularTest, Plane, parse};
 use vmt_sim::plant::{Fidelity, MultibodyPlant, Plant, layout};
 use vmt_sim::run::{BallbarTrace, Run};
-use vmt_sim::simulate::{AxisDynamics, BallbarSetup, Job, SimSettings, simulate};
+use vmt_sim::simulate::{AxisDynamics, BallbarSetup, Job, SimError, SimSettings, simulate};
 
 fn machine() -> Machine {
     let mut m = vmt_scenario::builtin().unwrap().machine;
@@ -31,6 +31,16 @@ fn circle_run_with(
     fidelity: Fidelity,
     spec: BallbarSpec,
 ) -> Run {
+    try_circle_run(axes, feed_mm_min, fidelity, spec).unwrap()
+}
+
+/// [`circle_run_with`], or why it stopped.
+fn try_circle_run(
+    axes: [AxisDynamics; 3],
+    feed_mm_min: f64,
+    fidelity: Fidelity,
+    spec: BallbarSpec,
+) -> Result<Run, SimError> {
     let m = machine();
     let center = Vector3::new(0.25, 0.2, 0.2);
     let test = CircularTest::iso230_4(Plane::Xy, center, 0.15, feed_mm_min / 60_000.0);
@@ -58,7 +68,50 @@ fn circle_run_with(
         seed: 7,
     };
     let ipo = InterpolatorConfig::new(Limits::default());
-    simulate(&m, &axes, &ipo, &job, &settings, "", &mut |_| {}).unwrap()
+    simulate(&m, &axes, &ipo, &job, &settings, "", &mut |_| {})
+}
+
+/// A pivot set 300 µm off along +X shortens the bar by 300 µm at 0° (and lengthens it at
+/// 180°): a bar with a ±200 µm range stops the capture at its first reading, near 0°, naming the
+/// trace, the reading and the range; one of ±400 µm reads the whole test.
+#[test]
+fn a_reading_beyond_the_bars_range_stops_the_capture() {
+    let axes = [
+        common::axis(250.0, 0.0, 33.0),
+        common::axis(450.0, 0.0, 33.0),
+        common::axis(180.0, 0.0, 33.0),
+    ];
+    let spec = BallbarSpec {
+        setup_eccentricity_m: Vector3::new(300e-6, 0.0, 0.0),
+        range_m: 200e-6,
+        ..BallbarSpec::default()
+    };
+    let e = try_circle_run(axes, 2000.0, Fidelity::Reduced, spec).unwrap_err();
+    let SimError::BallbarOutOfRange {
+        angle_deg,
+        reading_um,
+        range_um,
+        ..
+    } = &e
+    else {
+        panic!("{e}")
+    };
+    // The first reading, 0.4° into the CW run, with the feed-in's following error.
+    assert!(angle_deg.abs() < 1.0, "{e}");
+    assert!((reading_um + 300.0).abs() < 10.0, "{e}");
+    assert_eq!(*range_um, 200.0);
+    assert!(
+        e.to_string().contains("instruments.ballbar.range_um"),
+        "{e}"
+    );
+    let wide = BallbarSpec {
+        range_m: 400e-6,
+        ..spec
+    };
+    let run = try_circle_run(axes, 2000.0, Fidelity::Reduced, wide).expect("within ±400 µm");
+    let ccw = trace(&run, "ccw");
+    let widest = ccw.deviation_um.iter().fold(0.0f64, |m, d| m.max(d.abs()));
+    assert!((widest - 300.0).abs() < 10.0, "{widest}");
 }
 
 fn trace<'a>(run: &'a Run, dir: &str) -> &'a BallbarTrace {
