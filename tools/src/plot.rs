@@ -85,7 +85,7 @@ pub(crate) fn render(
     format: Format,
     size: (u32, u32),
 ) -> Result<(), CliError> {
-    let err = |e: &dyn std::fmt::Display| CliError::output(path, e);
+    let err = |e: &dyn std::error::Error| CliError::output(path, e);
     match format {
         Format::Png => {
             let root = BitMapBackend::new(path, size).into_drawing_area();

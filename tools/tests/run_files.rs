@@ -262,3 +262,27 @@ fn an_output_folder_that_cannot_be_made_is_refused_before_the_run() {
         assert!(took < 4.0, "refused after {took} s: after the simulation");
     }
 }
+
+/// A file that outgrows the file size limit (as on a full disk) stops the job with the
+/// operating system's reason under the writer's own error, not the writer's error alone.
+#[test]
+fn a_write_error_gives_the_operating_systems_reason() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = scenario(dir.path(), "s.toml", QUARTER_JOB, &[]);
+    let out = dir.path().join("out");
+    // SIGXFSZ ignored, so the write fails with EFBIG instead of the signal ending the process;
+    // 100 KiB is less than the MCAP file of the quarter circle.
+    let o = std::process::Command::new("bash")
+        .arg("-c")
+        .arg(format!(
+            "trap '' XFSZ; ulimit -f 100; exec timeout 300 {} run {s} --out {} --quiet",
+            env!("CARGO_BIN_EXE_vmt"),
+            out.display()
+        ))
+        .output()
+        .unwrap();
+    assert!(!o.status.success());
+    let e = stderr(&o);
+    assert!(e.contains("cannot write"), "{e}");
+    assert!(e.contains("File too large (os error 27)"), "{e}");
+}
