@@ -127,14 +127,18 @@ fn execute_into(
             sink,
         ),
     }
-    .map_err(|e| match (&e, &exec.program_file) {
-        (SimError::Stroke { line, .. }, Some(file)) => {
-            CliError::Model(format!("{file}:{line}: {e}"))
-        }
-        _ => CliError::Model(e.to_string()),
-    })?;
+    .map_err(|e| sim_error(&e, exec.program_file.as_deref()))?;
     bar.finish_and_clear();
     Ok(run)
+}
+
+/// A simulation error as `vmt` prints it: one about a block of the program file `file` starts
+/// with `file:line:`, as the program's parse errors do.
+fn sim_error(e: &SimError, file: Option<&str>) -> CliError {
+    match (e.line(), file) {
+        (Some(line), Some(file)) => CliError::Model(format!("{file}:{line}: {e}")),
+        _ => CliError::Model(e.to_string()),
+    }
 }
 
 /// The feeds of a program file above the controller's largest, which it clamps to it as a

@@ -80,6 +80,31 @@ fn travel_beyond_a_stroke_is_refused_before_the_run() {
     assert!(e.contains("beyond its stroke 0 to 500 mm"), "{e}");
 }
 
+/// A program longer than the interpolator holds is refused at the file and line of the block
+/// that passes the limit, in whole seconds (it printed `600001.1140000001 s` without the file).
+#[test]
+fn a_program_too_long_names_file_and_line_in_whole_seconds() {
+    for (block, line) in [("G1 X110 F500\nG1 X101 F0.0001\n", 3), ("G4 P100000\n", 2)] {
+        let (code, e, written) = run_program(&format!("{MOVE}{block}"), &[]);
+        assert_eq!(code, Some(2), "{e}");
+        assert!(!written);
+        let at = format!("bad.nc:{line}: the program lasts about ");
+        assert!(e.contains(&at), "{e}");
+        assert!(
+            e.contains("longer than the 16777 s the interpolator holds"),
+            "{e}"
+        );
+        let seconds = e
+            .split("lasts about ")
+            .nth(1)
+            .unwrap()
+            .split(' ')
+            .next()
+            .unwrap();
+        assert!(seconds.parse::<u64>().is_ok(), "{seconds}: {e}");
+    }
+}
+
 /// One 2.5 ms step per servo period is beyond the X screw mode's limit
 /// h < (2/ω)(√(1+ζ²) - ζ): k = 180 N/µm on the reduced mass of the 250 kg table and the motor
 /// (0.003 kg·m² through a 10 mm lead: 1184 kg), c = 2e4 N·s/m.
