@@ -1,7 +1,8 @@
 //! `vmt run` and `vmt demo`: execute a scenario's job and write its files.
 //!
 //! Writes into the output folder: `run.mcap` (Foxglove, Python `mcap`), `run.rrd` (Rerun
-//! viewer 0.36), `ballbar_polar.png` (one polar plot of all ball-bar traces), for a positioning
+//! viewer 0.36), one polar plot per circular test (`ballbar_polar.png`, or
+//! `ballbar_polar_<n>_<plane>_<radius>mm.png` for each of several tests), for a positioning
 //! test `laser_iso230_2.json` (the ISO 230-2 figures of the laser readings), and
 //! `ground_truth.json`.
 
@@ -14,7 +15,7 @@ use std::path::{Path, PathBuf};
 use vmt_scenario::Scenario;
 use vmt_sim::machining::simulate_machining;
 use vmt_sim::plant::Fidelity;
-use vmt_sim::run::{LogSink, Run};
+use vmt_sim::run::{BallbarTrace, LogSink, Run};
 use vmt_sim::simulate::{SimError, simulate_logged};
 
 /// The files a run wrote.
@@ -182,17 +183,7 @@ pub fn write(run: &Run, dir: &Path) -> Result<Written, CliError> {
 /// Writes the files of the run but `run.mcap` and `run.rrd` into `dir`: the polar plot, the
 /// ISO 230-2 figures and the ground truth.
 fn write_others(run: &Run, dir: &Path) -> Result<Vec<PathBuf>, CliError> {
-    let mut files = Vec::new();
-    if !run.ballbar.is_empty() {
-        let polar = dir.join("ballbar_polar.png");
-        plot::draw_polar(
-            &run.ballbar,
-            &polar,
-            Format::Png,
-            Some(&summary_figures(run)),
-        )?;
-        files.push(polar);
-    }
+    let mut files = write_polars(run, dir)?;
     if let Some(l) = &run.laser {
         let path = dir.join("laser_iso230_2.json");
         let text =
@@ -206,6 +197,49 @@ fn write_others(run: &Run, dir: &Path) -> Result<Vec<PathBuf>, CliError> {
     std::fs::write(&truth, text).map_err(|e| CliError::output(&truth, e))?;
     files.push(truth);
     Ok(files)
+}
+
+/// One polar plot per circular test (its CW and CCW runs) with its traces' figures:
+/// `ballbar_polar.png` for a run of one test, `ballbar_polar_<n>_<plane>_<radius>mm.png` (n
+/// from 1 in run order, as `vmt diagnose` numbers the tests) for each of several.
+fn write_polars(run: &Run, dir: &Path) -> Result<Vec<PathBuf>, CliError> {
+    let tests = crate::traces::run_tests(&run.ballbar);
+    let mut files = Vec::new();
+    for (i, test) in tests.iter().enumerate() {
+        let name = match (tests.len(), test.first()) {
+            (1, _) | (_, None) => "ballbar_polar.png".to_string(),
+            (_, Some(t)) => format!(
+                "ballbar_polar_{}_{}_{}mm.png",
+                i + 1,
+                t.plane.to_ascii_lowercase(),
+                t.radius_mm
+            ),
+        };
+        let path = dir.join(name);
+        let figures: Vec<String> = test.iter().map(trace_figures).collect();
+        plot::draw_polar(test, &path, Format::Png, Some(&figures.join("\n")))?;
+        files.push(path);
+    }
+    Ok(files)
+}
+
+/// A trace's label, radial span and mean, on two lines (the plot's text block is narrower
+/// than both together).
+fn trace_figures(t: &BallbarTrace) -> String {
+    let (lo, hi) = t
+        .deviation_um
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
+            (a.min(*v), b.max(*v))
+        });
+    let mean = t.deviation_um.iter().sum::<f64>() / t.deviation_um.len().max(1) as f64;
+    format!(
+        "{}:\n  span {:.2} um, mean {:+.2} um, {} samples",
+        t.label,
+        hi - lo,
+        mean,
+        t.deviation_um.len()
+    )
 }
 
 /// One line per ball-bar trace: radial span (max - min of the deviation, the ISO 230-4 radial
@@ -228,23 +262,7 @@ pub fn summary_figures(run: &Run) -> String {
     });
     run.ballbar
         .iter()
-        .map(|t| {
-            let (lo, hi) = t
-                .deviation_um
-                .iter()
-                .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
-                    (a.min(*v), b.max(*v))
-                });
-            let mean = t.deviation_um.iter().sum::<f64>() / t.deviation_um.len().max(1) as f64;
-            format!(
-                // Two lines per trace: the plot's text block is narrower than label and figures.
-                "{}:\n  span {:.2} um, mean {:+.2} um, {} samples",
-                t.label,
-                hi - lo,
-                mean,
-                t.deviation_um.len()
-            )
-        })
+        .map(trace_figures)
         .chain(laser)
         .collect::<Vec<_>>()
         .join("\n")

@@ -58,7 +58,8 @@ enum Command {
     Program(ProgramCommand),
     /// Run a scenario's job (a ball-bar test, a laser positioning test or a milling job) through
     /// the controller, drives and error chain; writes run.mcap, run.rrd and ground_truth.json,
-    /// and ballbar_polar.png for ball-bar traces or laser_iso230_2.json for a positioning test.
+    /// and a polar plot per circular test (ballbar_polar.png, or ballbar_polar_<n>_<plane>_<radius>mm.png
+    /// for each test of a job of several) or laser_iso230_2.json for a positioning test.
     Run(RunArgs),
     /// The built-in machine runs the ISO 230-4 XY test (150 mm, 1000 mm/min, CW and CCW);
     /// writes the MCAP, the Rerun recording and the polar plot, diagnoses the traces and prints

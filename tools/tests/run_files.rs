@@ -311,3 +311,46 @@ fn a_write_error_gives_the_operating_systems_reason() {
     assert!(e.contains("cannot write"), "{e}");
     assert!(e.contains("File too large (os error 27)"), "{e}");
 }
+
+/// Kwon's procedure with `steps` only, written to `dir/kwon.toml`.
+fn kwon_steps(dir: &Path, steps: &str) -> String {
+    let text = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../scenarios/kwon_seven_step.toml"
+    ))
+    .unwrap();
+    let all = "steps = [1, 2, 3, 4, 5, 6, 7]";
+    assert!(text.contains(all));
+    let p = dir.join("kwon.toml");
+    std::fs::write(&p, text.replace(all, &format!("steps = {steps}"))).unwrap();
+    p.display().to_string()
+}
+
+/// A job of several circular tests gets one polar plot per test (its CW and CCW runs), named
+/// by the test's number, plane and radius; a job of one test keeps `ballbar_polar.png`.
+#[test]
+fn a_job_of_several_tests_gets_one_polar_plot_per_test() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = kwon_steps(dir.path(), "[5, 7]");
+    let out = dir.path().join("out");
+    let o = vmt(&["run", &s, "--out", out.to_str().unwrap(), "--quiet"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let polar: Vec<String> = names_in(&out)
+        .into_iter()
+        .filter(|n| n.ends_with(".png"))
+        .collect();
+    assert_eq!(
+        polar,
+        [
+            "ballbar_polar_1_xy_100mm.png",
+            "ballbar_polar_2_yz_150mm.png"
+        ]
+    );
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert!(stdout.contains("wrote ") && stdout.contains("ballbar_polar_2_yz_150mm.png"));
+    let s = scenario(dir.path(), "one.toml", QUARTER_JOB, &[]);
+    let one = dir.path().join("one");
+    let o = vmt(&["run", &s, "--out", one.to_str().unwrap(), "--quiet"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(one.join("ballbar_polar.png").is_file());
+}
