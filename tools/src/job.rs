@@ -199,6 +199,43 @@ fn write_others(run: &Run, dir: &Path) -> Result<Vec<PathBuf>, CliError> {
     Ok(files)
 }
 
+/// What `vmt run --diagnose` made of a run: the report as printed and the files written.
+pub struct RunDiagnosis {
+    /// The report, as the diagnosing command prints it.
+    pub text: String,
+    /// The files written into the run's `diagnosis/` folder.
+    pub files: Vec<PathBuf>,
+}
+
+/// `vmt run --diagnose`: the run in `dir` read back from its `run.mcap`, as a real log would
+/// be, and evaluated into `dir/diagnosis` as the command for that kind of log does: `vmt
+/// diagnose` for ball-bar traces and for a positioning test, `vmt chatter detect` (report and
+/// per-window CSV) for a milling run's accelerometers. `None` for a run that recorded none of
+/// these (an NC program without instruments).
+pub fn diagnose(run: &Run, dir: &Path) -> Result<Option<RunDiagnosis>, CliError> {
+    let mcap = dir.join("run.mcap");
+    let into = dir.join(crate::outputs::DIAGNOSIS);
+    if !run.ballbar.is_empty() {
+        let options = vmt_ballbar::Options::default();
+        let d = crate::diagnose::diagnose_file(&mcap, None, &options)?;
+        let files = crate::diagnose::write(&d, &into)?;
+        let text = crate::diagnose::text(&d);
+        return Ok(Some(RunDiagnosis { text, files }));
+    }
+    if run.laser.is_some()
+        && let Some(p) = crate::positioning::read(&mcap, None)?
+    {
+        let files = crate::positioning::write(&p, &into)?;
+        let text = crate::positioning::text(&p);
+        return Ok(Some(RunDiagnosis { text, files }));
+    }
+    if run.streams.iter().any(|s| s.name == "accelerometer") {
+        let (text, files) = crate::chatter::diagnose_run(&mcap, &into)?;
+        return Ok(Some(RunDiagnosis { text, files }));
+    }
+    Ok(None)
+}
+
 /// One polar plot per circular test (its CW and CCW runs) with its traces' figures:
 /// `ballbar_polar.png` for a run of one test, `ballbar_polar_<n>_<plane>_<radius>mm.png` (n
 /// from 1 in run order, as `vmt diagnose` numbers the tests) for each of several.

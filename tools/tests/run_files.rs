@@ -354,3 +354,93 @@ fn a_job_of_several_tests_gets_one_polar_plot_per_test() {
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(one.join("ballbar_polar.png").is_file());
 }
+
+/// `vmt run ARGS --out DIR --quiet`, which must succeed; its standard error.
+fn run_into(dir: &Path, args: &[&str]) -> String {
+    let mut all = args.to_vec();
+    all.extend(["--out", dir.to_str().unwrap(), "--quiet"]);
+    let o = vmt(&all);
+    assert!(o.status.success(), "{}", stderr(&o));
+    stderr(&o)
+}
+
+/// A reused output folder holds one run's files: vmt's own names that the new run does not
+/// write are removed, and a note lists them; a user's files in the folder and in its
+/// diagnosis/ stay. (The demo's polar plot and diagnosis survived a later laser run, Kwon's
+/// later plots a demo.)
+#[test]
+fn a_reused_output_folder_keeps_only_this_runs_files() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out");
+    let laser = concat!(env!("CARGO_MANIFEST_DIR"), "/../scenarios/iso230_2_x.toml");
+    let kwon = kwon_steps(dir.path(), "[5, 7]");
+    std::fs::create_dir_all(out.join("diagnosis")).unwrap();
+    std::fs::write(out.join("notes.txt"), "mine").unwrap();
+    std::fs::write(out.join("diagnosis/mine.txt"), "mine").unwrap();
+    run_into(&out, &["run", &kwon, "--diagnose"]);
+    let e = run_into(&out, &["demo"]);
+    let note = e
+        .lines()
+        .find(|l| l.starts_with("note: removed"))
+        .unwrap_or("");
+    for gone in [
+        "ballbar_polar_1_xy_100mm.png",
+        "ballbar_polar_2_yz_150mm.png",
+        "diagnosis/diagnosis_2.png",
+    ] {
+        assert!(note.contains(gone), "{gone}: {e}");
+        assert!(!out.join(gone).exists(), "{gone}");
+    }
+    assert!(
+        !note.contains("diagnosis_1") && !note.contains("mine"),
+        "{e}"
+    );
+    let e = run_into(&out, &["run", laser]);
+    assert_eq!(
+        names_in(&out),
+        [
+            "diagnosis",
+            "ground_truth.json",
+            "laser_iso230_2.json",
+            "notes.txt",
+            "run.mcap",
+            "run.rrd"
+        ],
+        "{e}"
+    );
+    assert_eq!(names_in(&out.join("diagnosis")), ["mine.txt"], "{e}");
+    assert!(
+        e.contains(&format!(
+            "note: removed from {} what an earlier run left there and this run does not write: \
+             ballbar_polar.png, diagnosis/diagnosis_1.png, diagnosis/report.json, \
+             diagnosis/report.md, diagnosis/report.txt",
+            out.display()
+        )),
+        "{e}"
+    );
+    // Nothing of an earlier run left: no note; an emptied diagnosis/ goes too.
+    std::fs::remove_file(out.join("diagnosis/mine.txt")).unwrap();
+    let e = run_into(&out, &["run", laser, "--diagnose"]);
+    assert!(!e.contains("note: removed"), "{e}");
+    let e = run_into(&out, &["run", laser]);
+    assert!(
+        e.contains("diagnosis/report.txt") && e.contains(", diagnosis/"),
+        "{e}"
+    );
+    assert!(!out.join("diagnosis").exists());
+}
+
+/// A program job records nothing to diagnose: `--diagnose` says so instead of doing nothing.
+#[test]
+fn run_diagnose_of_a_job_with_nothing_to_diagnose_says_so() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("p.nc"), format!("{MOVE}G1 X110 F500\n")).unwrap();
+    let job = "[job]\nkind = \"program\"\nprogram = \"p.nc\"";
+    let s = scenario(dir.path(), "s.toml", job, &[]);
+    let e = run_into(&dir.path().join("out"), &["run", &s, "--diagnose"]);
+    assert!(
+        e.contains("note: --diagnose: the run recorded no ball-bar traces, laser readings or accelerometers to diagnose"),
+        "{e}"
+    );
+    assert!(!dir.path().join("out/diagnosis").exists());
+}
