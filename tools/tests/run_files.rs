@@ -290,26 +290,36 @@ fn an_output_folder_that_cannot_be_made_is_refused_before_the_run() {
 
 /// A file that outgrows the file size limit (as on a full disk) stops the job with the
 /// operating system's reason under the writer's own error, not the writer's error alone.
+/// A milling run writes its MCAP before its .rrd, so the MCAP writer meets the limit first.
 #[test]
 fn a_write_error_gives_the_operating_systems_reason() {
     let dir = tempfile::tempdir().unwrap();
-    let s = scenario(dir.path(), "s.toml", QUARTER_JOB, &[]);
+    let slot = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../scenarios/milling_slot.toml"
+    );
     let out = dir.path().join("out");
     // SIGXFSZ ignored, so the write fails with EFBIG instead of the signal ending the process;
-    // 100 KiB is less than the MCAP file of the quarter circle.
+    // 100 KiB is less than the slot's MCAP file.
     let o = std::process::Command::new("bash")
         .arg("-c")
         .arg(format!(
-            "trap '' XFSZ; ulimit -f 100; exec timeout 300 {} run {s} --out {} --quiet",
+            "trap '' XFSZ; ulimit -f 100; exec timeout 300 {} run {slot} --out {} --quiet",
             env!("CARGO_BIN_EXE_vmt"),
             out.display()
         ))
         .output()
         .unwrap();
-    assert!(!o.status.success());
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
     let e = stderr(&o);
-    assert!(e.contains("cannot write"), "{e}");
-    assert!(e.contains("File too large (os error 27)"), "{e}");
+    assert!(
+        e.contains(&format!(
+            "cannot write {}: I/O error from writing, or reading a compression stream: File too \
+             large (os error 27)",
+            out.join("run.mcap").display()
+        )),
+        "{e}"
+    );
 }
 
 /// Kwon's procedure with `steps` only, written to `dir/kwon.toml`.
