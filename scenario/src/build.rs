@@ -375,38 +375,27 @@ fn check_generated_travel(
     kind: &crate::dynamics::JobToml,
 ) -> Result<()> {
     use crate::dynamics::JobToml;
-    let (key, fix) = match kind {
-        JobToml::Program { .. } | JobToml::Milling(_) => return Ok(()),
-        JobToml::Ballbar(b) if b.center_mm.is_some() => {
-            ("center_mm", "move the centre or shorten job.radius_mm")
-        }
-        // The default centre is the strokes' middle: only a smaller circle fits.
-        JobToml::Ballbar(_) => (
-            "radius_mm",
-            "shorten job.radius_mm (the circle is centred in the strokes)",
-        ),
-        JobToml::KwonSevenStep { .. } => ("pivot_mm", "move the pivot"),
-        JobToml::Iso230_2(_) => ("axis", "bring the targets and overrun within the stroke"),
-    };
-    use vmt_sim::simulate::{SimError, check_travel, travel_extent};
+    use vmt_sim::simulate::{SimError, check_travel};
+    if matches!(kind, JobToml::Program { .. } | JobToml::Milling(_)) {
+        return Ok(());
+    }
     let invalid = |key: KeyPath, msg: String| -> BuildError { Invalid::new(key, msg).into() };
     match check_travel(machine, controller, job) {
         Ok(()) => Ok(()),
-        Err(SimError::Stroke {
-            axis,
-            min_mm,
-            max_mm,
-            ..
-        }) => {
-            let (lo, hi) = travel_extent(machine, controller, job)
-                .map_err(|e| invalid(KeyPath::of(&["job"]), e.to_string()))?;
-            let i = axis.index();
-            let msg = format!(
-                "the test takes the {axis} axis from {:.3} to {:.3} mm, beyond its stroke {min_mm} to {max_mm} mm: {fix}",
-                lo[i] * 1e3,
-                hi[i] * 1e3
-            );
-            Err(invalid(KeyPath::of(&["job", key]), msg))
+        Err(SimError::Stroke { axis, .. }) => {
+            let job_key = |key: &str, fix| (KeyPath::of(&["job", key]), fix);
+            let (key, fix) = match kind {
+                JobToml::Iso230_2(t) => t.travel_key(axis),
+                JobToml::KwonSevenStep { .. } => job_key("pivot_mm", "move the pivot"),
+                // The default centre is the strokes' middle: only a smaller circle fits.
+                JobToml::Ballbar(b) if b.center_mm.is_none() => job_key(
+                    "radius_mm",
+                    "shorten job.radius_mm (the circle is centred in the strokes)",
+                ),
+                _ => job_key("center_mm", "move the centre or shorten job.radius_mm"),
+            };
+            let msg = stroke_message(machine, controller, job, axis)?;
+            Err(invalid(key, format!("{msg}: {fix}")))
         }
         Err(SimError::Interpolator(vmt_sim::interpolator::InterpolatorError::ProgramTooLong {
             duration_s,
@@ -422,6 +411,25 @@ fn check_generated_travel(
         )),
         Err(e) => Err(invalid(KeyPath::of(&["job"]), e.to_string())),
     }
+}
+
+/// How far a generated test takes `axis`, against its stroke.
+fn stroke_message(
+    machine: &Machine,
+    controller: &vmt_sim::interpolator::InterpolatorConfig,
+    job: &vmt_sim::simulate::Job,
+    axis: vmt_model::Axis,
+) -> Result<String> {
+    let (lo, hi) = vmt_sim::simulate::travel_extent(machine, controller, job)
+        .map_err(|e| BuildError::from(Invalid::new(KeyPath::of(&["job"]), e.to_string())))?;
+    let (i, stroke) = (axis.index(), &machine.axes[axis.index()]);
+    Ok(format!(
+        "the test takes the {axis} axis from {:.3} to {:.3} mm, beyond its stroke {} to {} mm",
+        lo[i] * 1e3,
+        hi[i] * 1e3,
+        typed(user(stroke.min_m * 1e3)),
+        typed(user(stroke.max_m * 1e3))
+    ))
 }
 
 fn machine(m: &MachineToml, base_dir: Option<&Path>) -> Result<Machine> {

@@ -179,6 +179,38 @@ pub struct PositioningToml {
     beam_line_mm: Numbers<2>,
 }
 
+impl PositioningToml {
+    /// The key of `[job]` that takes `axis` beyond its stroke, and what to do about it: the
+    /// targets (with the overrun) for the test's own axis, the beam line's coordinate for the
+    /// others (which the test holds still on the line).
+    pub(crate) fn travel_key(&self, axis: Axis) -> (KeyPath, &'static str) {
+        let p = KeyPath::of(&["job"]);
+        let test = self
+            .axis
+            .to_ascii_uppercase()
+            .parse::<char>()
+            .ok()
+            .and_then(Axis::from_letter);
+        if test == Some(axis) {
+            let key = if self.targets_mm.is_some() {
+                "targets_mm"
+            } else {
+                "range_mm"
+            };
+            let fix = "bring the targets and overrun (job.overrun_mm) within the stroke";
+            return (p.key(key), fix);
+        }
+        // beam_line_mm lists the other two axes in X, Y, Z order.
+        let k = Axis::ALL
+            .into_iter()
+            .filter(|a| Some(*a) != test)
+            .position(|a| a == axis)
+            .unwrap_or(0);
+        let fix = "put the beam line within the strokes of the axes the test holds still";
+        (p.key("beam_line_mm").index(k), fix)
+    }
+}
+
 fn five() -> usize {
     5
 }

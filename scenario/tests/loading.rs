@@ -1374,3 +1374,39 @@ fn a_cut_needing_more_axial_disks_than_accepted_is_refused_at_its_depth() {
     let text = shipped_with("milling_slot.toml", "helix_deg = 0.0", "helix_deg = 89.9");
     parse(&text, "s.toml", Some(&scenarios())).expect("821 disks");
 }
+
+/// A positioning test beyond a stroke is refused at the key at fault: the beam line's
+/// coordinate for an axis the test holds still (it was blamed on `job.axis`), the targets for
+/// the test's own axis.
+#[test]
+fn a_positioning_test_beyond_a_stroke_is_refused_at_the_key_at_fault() {
+    let beam = "beam_line_mm = [900.0, 200.0]";
+    let text = shipped_with("iso230_2_x.toml", "beam_line_mm = [200.0, 200.0]", beam);
+    let e = parse(&text, "s.toml", Some(&scenarios())).expect_err("beam line off the stroke");
+    assert_eq!(e.key.as_deref(), Some("job.beam_line_mm[0]"), "{e}");
+    assert_eq!(e.position.map(|p| p.0), Some(line_of(&text, beam)), "{e}");
+    assert!(
+        e.message.contains(
+            "the test takes the Y axis from 900.000 to 900.000 mm, beyond its stroke 0 to 400 mm"
+        ) && e.message.contains("put the beam line within the strokes"),
+        "{e}"
+    );
+    let range = "range_mm = [25.0, 498.0]";
+    let text = shipped_with("iso230_2_x.toml", "range_mm = [25.0, 475.0]", range);
+    let e = parse(&text, "s.toml", Some(&scenarios())).expect_err("overrun off the stroke");
+    assert_eq!(e.key.as_deref(), Some("job.range_mm"), "{e}");
+    assert!(
+        e.message.contains("the test takes the X axis from")
+            && e.message.contains("beyond its stroke 0 to 500 mm")
+            && e.message.contains("job.overrun_mm"),
+        "{e}"
+    );
+    let text = shipped_with(
+        "iso230_2_x.toml",
+        "range_mm = [25.0, 475.0]",
+        "targets_mm = [25.0, 250.0, 498.0]",
+    )
+    .replacen("count = 11\n", "", 1);
+    let e = parse(&text, "s.toml", Some(&scenarios())).expect_err("targets off the stroke");
+    assert_eq!(e.key.as_deref(), Some("job.targets_mm"), "{e}");
+}

@@ -27,3 +27,34 @@ pub mod replay;
 pub mod run;
 pub mod simulate;
 pub mod truth;
+
+/// `x` to six significant digits without trailing zeros, for messages: `5400002`, not
+/// `5400002.0980000001`; `0.0000166667`, not `1.6666666666666667e-5`.
+pub(crate) fn short(x: f64) -> String {
+    if !x.is_finite() || x == 0.0 {
+        return x.to_string();
+    }
+    let decimals = (5 - x.abs().log10().floor() as i32).max(0) as usize;
+    let s = format!("{x:.decimals$}");
+    if s.contains('.') {
+        s.trim_end_matches('0').trim_end_matches('.').to_string()
+    } else {
+        s
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::short;
+
+    #[test]
+    fn short_keeps_six_significant_digits_and_drops_trailing_zeros() {
+        assert_eq!(short(600001.1140000001), "600001");
+        assert_eq!(short(16777.216), "16777.2");
+        assert_eq!(short(0.0001 / 60_000.0), "0.00000000166667");
+        assert_eq!(short(-0.30000000000000004), "-0.3");
+        assert_eq!(short(8000.0), "8000");
+        assert_eq!(short(0.0), "0");
+        assert_eq!(short(f64::NAN), "NaN");
+    }
+}

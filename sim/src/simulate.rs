@@ -120,7 +120,9 @@ pub enum SimError {
     Plant(#[from] PlantError),
     /// A block takes an axis beyond its stroke.
     #[error(
-        "block at line {line}: the {axis} axis would reach {position_mm:.3} mm, beyond its stroke {min_mm} to {max_mm} mm"
+        "block at line {line}: the {axis} axis would reach {position_mm:.3} mm, beyond its stroke {} to {} mm",
+        crate::short(*.min_mm),
+        crate::short(*.max_mm)
     )]
     Stroke {
         /// Source line of the block.
@@ -209,6 +211,23 @@ pub enum SimError {
     /// The [`LogSink`] of the run failed.
     #[error("{0}")]
     Log(String),
+}
+
+impl SimError {
+    /// The source line of the program block the error is about, if it is about one.
+    pub fn line(&self) -> Option<usize> {
+        match self {
+            Self::Interpolator(e) => e.line(),
+            Self::Stroke { line, .. } | Self::ExcessError { line, .. } => Some(*line),
+            Self::Plant(_)
+            | Self::BallbarOutOfRange { .. }
+            | Self::ServoUnstable { .. }
+            | Self::StepTooCoarse { .. }
+            | Self::Settings(_)
+            | Self::Thermal(_)
+            | Self::Log(_) => None,
+        }
+    }
 }
 
 /// Thermal update interval during a job, s.
@@ -324,8 +343,8 @@ impl JobRun<'_> {
         if !(settings.log_rate_hz > 0.0 && settings.log_rate_hz <= 1.0 / period) {
             return Err(SimError::Settings(format!(
                 "log rate {} Hz: from 0 to the servo rate {} Hz is accepted",
-                settings.log_rate_hz,
-                1.0 / period
+                crate::short(settings.log_rate_hz),
+                crate::short(1.0 / period)
             )));
         }
         if let Some(l) = &job.laser {
@@ -613,15 +632,17 @@ fn check_laser(spec: &LaserSpec, period_s: f64) -> Result<(), SimError> {
     let rate = spec.sample_rate_hz;
     if !(rate > 0.0 && rate <= 1.0 / period_s) {
         return Err(SimError::Settings(format!(
-            "laser sample rate {rate} Hz: from 0 to the servo rate {} Hz is accepted",
-            1.0 / period_s
+            "laser sample rate {} Hz: from 0 to the servo rate {} Hz is accepted",
+            crate::short(rate),
+            crate::short(1.0 / period_s)
         )));
     }
     let interval_s = spec.sample_every(period_s) as f64 * period_s;
     if spec.averaging_s < interval_s * (1.0 - 1e-9) {
         return Err(SimError::Settings(format!(
-            "laser averaging time {} s: it holds no sample at one sample every {interval_s} s; at least {interval_s} s is accepted",
-            spec.averaging_s
+            "laser averaging time {} s: it holds no sample at one sample every {every} s; at least {every} s is accepted",
+            crate::short(spec.averaging_s),
+            every = crate::short(interval_s)
         )));
     }
     Ok(())

@@ -676,6 +676,15 @@ fn invalid_blocks_name_their_line() {
         matches!(err, InterpolatorError::ArcRadiusMismatch { line: 11, .. }),
         "{err}"
     );
+    assert_eq!(err.line(), Some(11));
+    // In mm at six significant digits, not in m with every digit of a float.
+    assert!(
+        err.to_string().contains(
+            "the arc starts 10 mm from its centre but ends 20 mm from it; the difference may be \
+             at most 0.01 mm"
+        ),
+        "{err}"
+    );
 
     let nan = program(V3::zeros(), vec![line(v3(f64::NAN, 0.0, 0.0), 0.1)]);
     let err = Interpolator::new(&nan, &config()).unwrap_err();
@@ -695,6 +704,8 @@ fn invalid_blocks_name_their_line() {
         matches!(err, InterpolatorError::ProgramTooLong { line: 11, .. }),
         "{err}"
     );
+    assert_eq!(err.line(), Some(11));
+    assert!(err.to_string().contains("longer than the 16777 s"), "{err}");
     let dwell = program(
         V3::zeros(),
         vec![

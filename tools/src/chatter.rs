@@ -58,11 +58,29 @@ pub struct DetectArgs {
     #[arg(long)]
     pub limit: Option<f64>,
     /// Kim's pass band, Hz, as LOW,HIGH (stop edges 500 Hz outside it).
-    #[arg(long, value_delimiter = ',', default_values_t = [6000.0, 7000.0])]
+    #[arg(long, value_delimiter = ',', default_values_t = KIM_BAND_HZ)]
     pub band: Vec<f64>,
     /// Write the per-window figures of the detectors to this CSV file.
     #[arg(long)]
     pub csv: Option<PathBuf>,
+}
+
+/// Kim's pass band unless --band says otherwise, Hz (Kim, Song & Koh's 6–7 kHz).
+pub const KIM_BAND_HZ: [f64; 2] = [6000.0, 7000.0];
+
+impl DetectArgs {
+    /// `vmt chatter detect LOG` with every option at its default.
+    pub fn defaults(log: PathBuf) -> Self {
+        Self {
+            log,
+            detector: Which::Both,
+            spindle_rpm: None,
+            teeth: None,
+            limit: None,
+            band: KIM_BAND_HZ.to_vec(),
+            csv: None,
+        }
+    }
 }
 
 /// An accelerometer log.
@@ -506,6 +524,25 @@ pub fn write_csv(r: &Report, w: &mut impl Write) -> std::io::Result<()> {
         }
     }
     Ok(())
+}
+
+/// `vmt chatter detect RUN --csv DIR/chatter.csv` of a milling run, whose report also goes to
+/// `DIR/report.txt`: the report and the files written.
+pub fn diagnose_run(mcap: &Path, dir: &Path) -> Result<(String, Vec<PathBuf>), CliError> {
+    let args = DetectArgs::defaults(mcap.to_path_buf());
+    let log = read(mcap)?;
+    let report = detect(&log, &mcap.display().to_string(), &args)?;
+    let text = text(&log, &report);
+    std::fs::create_dir_all(dir).map_err(|e| CliError::output(dir, e))?;
+    let txt = dir.join("report.txt");
+    std::fs::write(&txt, &text).map_err(|e| CliError::output(&txt, e))?;
+    let csv = dir.join("chatter.csv");
+    let f = std::fs::File::create(&csv).map_err(|e| CliError::output(&csv, e))?;
+    let mut w = std::io::BufWriter::new(f);
+    write_csv(&report, &mut w)
+        .and_then(|_| w.flush())
+        .map_err(|e| CliError::output(&csv, e))?;
+    Ok((text, vec![txt, csv]))
 }
 
 /// `vmt chatter detect`.

@@ -46,7 +46,7 @@ impl CliError {
     }
 
     /// Standard output could not be written (closed, e.g. piped into `head`).
-    pub fn stdout(e: impl std::fmt::Display) -> Self {
+    pub fn stdout(e: std::io::Error) -> Self {
         Self::output(std::path::Path::new("<stdout>"), e)
     }
 
@@ -59,13 +59,35 @@ impl CliError {
         CliError::Argument(format!("{name} {value}: {accepted}"))
     }
 
-    /// An output error for `path`.
-    pub fn output(path: &std::path::Path, e: impl std::fmt::Display) -> Self {
+    /// An output error for `path`: the error and the causes under it (see [`with_causes`]).
+    pub fn output(path: &std::path::Path, e: impl std::error::Error) -> Self {
+        Self::output_message(path, with_causes(&e))
+    }
+
+    /// An output error for `path` with a reason in words (a check of ours, not an error value).
+    pub fn output_message(path: &std::path::Path, message: impl Into<String>) -> Self {
         CliError::Output {
             path: path.display().to_string(),
-            message: e.to_string(),
+            message: message.into(),
         }
     }
+}
+
+/// `e` and its chain of sources joined by `: `, each left out when the text so far holds it
+/// already. Writers wrap the operating system's error in their own ("I/O error from writing,
+/// or reading a compression stream"), whose text alone hides what happened ("File too large
+/// (os error 27)").
+pub fn with_causes(e: &dyn std::error::Error) -> String {
+    let mut text = e.to_string();
+    let mut source = e.source();
+    while let Some(cause) = source {
+        let more = cause.to_string();
+        if !text.contains(&more) {
+            text = format!("{text}: {more}");
+        }
+        source = cause.source();
+    }
+    text
 }
 
 /// Checks option `name`'s `value` against `lo..=hi`; the error names the option and value, the
@@ -130,5 +152,37 @@ pub fn check_positive(
             value,
             format!("must be > 0 and at most {hi} {unit} ({why})"),
         ))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A writer's error wrapping the operating system's, as the MCAP writer's does.
+    #[derive(Debug, Error)]
+    #[error("I/O error from writing")]
+    struct Wrapper(#[source] std::io::Error);
+
+    #[test]
+    fn an_output_error_names_the_cause_under_the_writers_error() {
+        let os = std::io::Error::from_raw_os_error(27);
+        let e = CliError::output(std::path::Path::new("out/run.mcap"), Wrapper(os));
+        assert_eq!(
+            e.to_string(),
+            "cannot write out/run.mcap: I/O error from writing: File too large (os error 27)"
+        );
+    }
+
+    /// A cause whose text the error's own text holds already (serde_json prints its I/O
+    /// error) is not repeated.
+    #[test]
+    fn a_cause_already_in_the_text_is_not_repeated() {
+        #[derive(Debug, Error)]
+        #[error("writing JSON: {0}")]
+        struct Says(#[source] std::io::Error);
+        let os = std::io::Error::from_raw_os_error(28);
+        let text = with_causes(&Says(os));
+        assert_eq!(text, "writing JSON: No space left on device (os error 28)");
     }
 }

@@ -1,7 +1,8 @@
 //! `vmt run` and `vmt demo`: execute a scenario's job and write its files.
 //!
 //! Writes into the output folder: `run.mcap` (Foxglove, Python `mcap`), `run.rrd` (Rerun
-//! viewer 0.36), `ballbar_polar.png` (one polar plot of all ball-bar traces), for a positioning
+//! viewer 0.36), one polar plot per circular test (`ballbar_polar.png`, or
+//! `ballbar_polar_<n>_<plane>_<radius>mm.png` for each of several tests), for a positioning
 //! test `laser_iso230_2.json` (the ISO 230-2 figures of the laser readings), and
 //! `ground_truth.json`.
 
@@ -14,7 +15,7 @@ use std::path::{Path, PathBuf};
 use vmt_scenario::Scenario;
 use vmt_sim::machining::simulate_machining;
 use vmt_sim::plant::Fidelity;
-use vmt_sim::run::{LogSink, Run};
+use vmt_sim::run::{BallbarTrace, LogSink, Run};
 use vmt_sim::simulate::{SimError, simulate_logged};
 
 /// The files a run wrote.
@@ -130,14 +131,18 @@ fn execute_into(
             sink,
         ),
     }
-    .map_err(|e| match (&e, &exec.program_file) {
-        (SimError::Stroke { line, .. }, Some(file)) => {
-            CliError::Model(format!("{file}:{line}: {e}"))
-        }
-        _ => CliError::Model(e.to_string()),
-    })?;
+    .map_err(|e| sim_error(&e, exec.program_file.as_deref()))?;
     bar.finish_and_clear();
     Ok(run)
+}
+
+/// A simulation error as `vmt` prints it: one about a block of the program file `file` starts
+/// with `file:line:`, as the program's parse errors do.
+fn sim_error(e: &SimError, file: Option<&str>) -> CliError {
+    match (e.line(), file) {
+        (Some(line), Some(file)) => CliError::Model(format!("{file}:{line}: {e}")),
+        _ => CliError::Model(e.to_string()),
+    }
 }
 
 /// The feeds of a program file above the controller's largest, which it clamps to it as a
@@ -181,17 +186,7 @@ pub fn write(run: &Run, dir: &Path) -> Result<Written, CliError> {
 /// Writes the files of the run but `run.mcap` and `run.rrd` into `dir`: the polar plot, the
 /// ISO 230-2 figures and the ground truth.
 fn write_others(run: &Run, dir: &Path) -> Result<Vec<PathBuf>, CliError> {
-    let mut files = Vec::new();
-    if !run.ballbar.is_empty() {
-        let polar = dir.join("ballbar_polar.png");
-        plot::draw_polar(
-            &run.ballbar,
-            &polar,
-            Format::Png,
-            Some(&summary_figures(run)),
-        )?;
-        files.push(polar);
-    }
+    let mut files = write_polars(run, dir)?;
     if let Some(l) = &run.laser {
         let path = dir.join("laser_iso230_2.json");
         let text =
@@ -205,6 +200,86 @@ fn write_others(run: &Run, dir: &Path) -> Result<Vec<PathBuf>, CliError> {
     std::fs::write(&truth, text).map_err(|e| CliError::output(&truth, e))?;
     files.push(truth);
     Ok(files)
+}
+
+/// What `vmt run --diagnose` made of a run: the report as printed and the files written.
+pub struct RunDiagnosis {
+    /// The report, as the diagnosing command prints it.
+    pub text: String,
+    /// The files written into the run's `diagnosis/` folder.
+    pub files: Vec<PathBuf>,
+}
+
+/// `vmt run --diagnose`: the run in `dir` read back from its `run.mcap`, as a real log would
+/// be, and evaluated into `dir/diagnosis` as the command for that kind of log does: `vmt
+/// diagnose` for ball-bar traces and for a positioning test, `vmt chatter detect` (report and
+/// per-window CSV) for a milling run's accelerometers. `None` for a run that recorded none of
+/// these (an NC program without instruments).
+pub fn diagnose(run: &Run, dir: &Path) -> Result<Option<RunDiagnosis>, CliError> {
+    let mcap = dir.join("run.mcap");
+    let into = dir.join(crate::outputs::DIAGNOSIS);
+    if !run.ballbar.is_empty() {
+        let options = vmt_ballbar::Options::default();
+        let d = crate::diagnose::diagnose_file(&mcap, None, &options)?;
+        let files = crate::diagnose::write(&d, &into)?;
+        let text = crate::diagnose::text(&d);
+        return Ok(Some(RunDiagnosis { text, files }));
+    }
+    if run.laser.is_some()
+        && let Some(p) = crate::positioning::read(&mcap, None)?
+    {
+        let files = crate::positioning::write(&p, &into)?;
+        let text = crate::positioning::text(&p);
+        return Ok(Some(RunDiagnosis { text, files }));
+    }
+    if run.streams.iter().any(|s| s.name == "accelerometer") {
+        let (text, files) = crate::chatter::diagnose_run(&mcap, &into)?;
+        return Ok(Some(RunDiagnosis { text, files }));
+    }
+    Ok(None)
+}
+
+/// One polar plot per circular test (its CW and CCW runs) with its traces' figures:
+/// `ballbar_polar.png` for a run of one test, `ballbar_polar_<n>_<plane>_<radius>mm.png` (n
+/// from 1 in run order, as `vmt diagnose` numbers the tests) for each of several.
+fn write_polars(run: &Run, dir: &Path) -> Result<Vec<PathBuf>, CliError> {
+    let tests = crate::traces::run_tests(&run.ballbar);
+    let mut files = Vec::new();
+    for (i, test) in tests.iter().enumerate() {
+        let name = match (tests.len(), test.first()) {
+            (1, _) | (_, None) => "ballbar_polar.png".to_string(),
+            (_, Some(t)) => format!(
+                "ballbar_polar_{}_{}_{}mm.png",
+                i + 1,
+                t.plane.to_ascii_lowercase(),
+                t.radius_mm
+            ),
+        };
+        let path = dir.join(name);
+        let figures: Vec<String> = test.iter().map(trace_figures).collect();
+        plot::draw_polar(test, &path, Format::Png, Some(&figures.join("\n")))?;
+        files.push(path);
+    }
+    Ok(files)
+}
+
+/// A trace's label, radial span and mean, on two lines (the plot's text block is narrower
+/// than both together).
+fn trace_figures(t: &BallbarTrace) -> String {
+    let (lo, hi) = t
+        .deviation_um
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
+            (a.min(*v), b.max(*v))
+        });
+    let mean = t.deviation_um.iter().sum::<f64>() / t.deviation_um.len().max(1) as f64;
+    format!(
+        "{}:\n  span {:.2} um, mean {:+.2} um, {} samples",
+        t.label,
+        hi - lo,
+        mean,
+        t.deviation_um.len()
+    )
 }
 
 /// One line per ball-bar trace: radial span (max - min of the deviation, the ISO 230-4 radial
@@ -227,23 +302,7 @@ pub fn summary_figures(run: &Run) -> String {
     });
     run.ballbar
         .iter()
-        .map(|t| {
-            let (lo, hi) = t
-                .deviation_um
-                .iter()
-                .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
-                    (a.min(*v), b.max(*v))
-                });
-            let mean = t.deviation_um.iter().sum::<f64>() / t.deviation_um.len().max(1) as f64;
-            format!(
-                // Two lines per trace: the plot's text block is narrower than label and figures.
-                "{}:\n  span {:.2} um, mean {:+.2} um, {} samples",
-                t.label,
-                hi - lo,
-                mean,
-                t.deviation_um.len()
-            )
-        })
+        .map(trace_figures)
         .chain(laser)
         .collect::<Vec<_>>()
         .join("\n")

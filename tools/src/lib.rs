@@ -13,6 +13,7 @@ pub mod job;
 pub mod lobes;
 pub mod map;
 pub mod out;
+pub mod outputs;
 pub mod plane;
 pub mod plot;
 pub mod points;

@@ -17,7 +17,7 @@ use vmt_scenario::Scenario;
 use vmt_tools::map::{self, Plane};
 use vmt_tools::plot::{self, Format};
 use vmt_tools::program::{self, BallbarArgs};
-use vmt_tools::{CliError, points, thermal};
+use vmt_tools::{CliError, outputs, points, thermal};
 
 /// vmt — a physics-based virtual three-axis machining centre.
 ///
@@ -58,7 +58,8 @@ enum Command {
     Program(ProgramCommand),
     /// Run a scenario's job (a ball-bar test, a laser positioning test or a milling job) through
     /// the controller, drives and error chain; writes run.mcap, run.rrd and ground_truth.json,
-    /// and ballbar_polar.png for ball-bar traces or laser_iso230_2.json for a positioning test.
+    /// and a polar plot per circular test (ballbar_polar.png, or ballbar_polar_<n>_<plane>_<radius>mm.png
+    /// for each test of a job of several) or laser_iso230_2.json for a positioning test.
     Run(RunArgs),
     /// The built-in machine runs the ISO 230-4 XY test (150 mm, 1000 mm/min, CW and CCW);
     /// writes the MCAP, the Rerun recording and the polar plot, diagnoses the traces and prints
@@ -350,7 +351,8 @@ struct ThermalArgs {
 struct RunArgs {
     /// Scenario file (TOML); the built-in default machine when omitted.
     scenario: Option<PathBuf>,
-    /// Output folder.
+    /// Output folder. Files of vmt's own that an earlier run left there and this run does not
+    /// write are removed once the run's files are complete (a note lists them).
     #[arg(long, default_value = "out")]
     out: PathBuf,
     /// Plant fidelity, overriding the scenario: reduced or multibody.
@@ -359,14 +361,17 @@ struct RunArgs {
     /// No progress bar.
     #[arg(long)]
     quiet: bool,
-    /// Diagnose the ball-bar traces of the run afterwards (`vmt diagnose` on its MCAP).
+    /// Evaluate what the run recorded into OUT/diagnosis: ball-bar traces and a positioning
+    /// test as `vmt diagnose` does on its MCAP, a milling run's accelerometers as `vmt chatter
+    /// detect` does (report.txt and chatter.csv).
     #[arg(long)]
     diagnose: bool,
 }
 
 #[derive(Args)]
 struct DemoArgs {
-    /// Output folder.
+    /// Output folder, as for `vmt run --out` (an earlier run's files of vmt's own that the
+    /// demo does not write are removed).
     #[arg(long, default_value = "out")]
     out: PathBuf,
     /// Plant fidelity: reduced or multibody.
@@ -413,17 +418,54 @@ fn run_job(args: RunArgs) -> Result<(), CliError> {
     for f in &written.files {
         vmt_tools::outln!("wrote {}", f.display())?;
     }
-    if args.diagnose && !run.ballbar.is_empty() {
-        // The diagnosis reads the traces back from the MCAP file, as it would a real log.
-        let mcap = args.out.join("run.mcap");
-        let d = vmt_tools::diagnose::diagnose_file(&mcap, None, &vmt_ballbar::Options::default())?;
-        vmt_tools::outln!()?;
-        vmt_tools::out!("{}", vmt_tools::diagnose::text(&d))?;
-        for f in vmt_tools::diagnose::write(&d, &args.out.join("diagnosis"))? {
-            vmt_tools::outln!("wrote {}", f.display())?;
+    // An earlier run's files go once this run's are complete: a run that fails leaves the
+    // earlier one whole.
+    let mut removed = outputs::remove_stale(&args.out, &written.files, outputs::is_run_file)?;
+    let diagnosed = if args.diagnose {
+        diagnose_run(&run, &args.out)
+    } else {
+        outputs::clear_diagnosis(&args.out)
+    };
+    match diagnosed {
+        Ok(stale) => removed.extend(stale),
+        Err(e) => {
+            // A failed diagnosis leaves no earlier one beside this run either.
+            removed.extend(outputs::clear_diagnosis(&args.out)?);
+            note_removed(&args.out, &removed);
+            return Err(e);
         }
     }
+    note_removed(&args.out, &removed);
     Ok(())
+}
+
+/// `vmt run --diagnose` after the run's files are written: prints the diagnosis and the files
+/// it wrote into DIR/diagnosis, or a note when the run recorded nothing to diagnose; returns
+/// what an earlier run left there that this one did not write, removed.
+fn diagnose_run(run: &vmt_sim::run::Run, dir: &Path) -> Result<Vec<PathBuf>, CliError> {
+    let Some(d) = vmt_tools::job::diagnose(run, dir)? else {
+        vmt_tools::errln!(
+            "note: --diagnose: the run recorded no ball-bar traces, laser readings or accelerometers to diagnose"
+        );
+        return outputs::clear_diagnosis(dir);
+    };
+    vmt_tools::outln!()?;
+    vmt_tools::out!("{}", d.text)?;
+    for f in &d.files {
+        vmt_tools::outln!("wrote {}", f.display())?;
+    }
+    outputs::remove_stale(
+        &dir.join(outputs::DIAGNOSIS),
+        &d.files,
+        outputs::is_diagnosis_file,
+    )
+}
+
+/// The note for the files removed from `dir`, if any.
+fn note_removed(dir: &Path, removed: &[PathBuf]) {
+    if let Some(note) = outputs::removed_note(dir, removed) {
+        vmt_tools::errln!("note: {note}");
+    }
 }
 
 fn main() -> ExitCode {

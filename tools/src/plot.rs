@@ -10,6 +10,7 @@ use plotters::style::FontStyle;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
 use std::path::Path;
 use std::sync::Once;
+use vmt_ballbar::samples::{TRANSIENT_MIN_DEG, TRANSIENT_S};
 use vmt_sim::run::BallbarTrace;
 
 /// Image formats.
@@ -85,7 +86,7 @@ pub(crate) fn render(
     format: Format,
     size: (u32, u32),
 ) -> Result<(), CliError> {
-    let err = |e: &dyn std::fmt::Display| CliError::output(path, e);
+    let err = |e: &dyn std::error::Error| CliError::output(path, e);
     match format {
         Format::Png => {
             let root = BitMapBackend::new(path, size).into_drawing_area();
@@ -349,15 +350,17 @@ pub const POLAR_SIZE: (u32, u32) = (1400, 1000);
 
 /// Draws ball-bar traces as the polar plot of ball-bar software: the nominal circle, the
 /// deviations (measured minus nominal length) magnified about it on a scale of round µm per
-/// division chosen so that the largest deviation fits the radial band, the division rings, the
-/// plane's axes and angles, the traces overlaid in colours (CCW blue, CW red when there is one of
-/// each) with a legend, a title with the radius and feed, and `iso_figures` (e.g. the ISO 230-4
-/// circular deviation G and hysteresis H, as ready text, one figure a line) beside the plot.
+/// division chosen from the traces without their end transients (samples beyond the outer ring
+/// are drawn on it and marked ▲), the division rings, the plane's axes and angles, the traces
+/// overlaid in colours (CCW blue, CW red when there is one of each) with a legend, a title with
+/// the radius and feed, and `iso_figures` (e.g. the ISO 230-4 circular deviation G and
+/// hysteresis H, as ready text, one figure a line) beside the plot, in a smaller font or
+/// wrapped where it would not fit.
 ///
-/// The plane and its axis names come from the first trace (`XY`: +X to the right, +Y up; `ZX`:
-/// +Z right, +X up; `YZ`: +Y right, +Z up), as in ISO 230-4. The image is
-/// [`POLAR_SIZE`] pixels. Fails when there is no trace with a finite sample or the file cannot be
-/// written.
+/// Meant for one test (its CW and CCW runs). The axis names come from the traces' plane (`XY`:
+/// +X to the right, +Y up; `ZX`: +Z right, +X up; `YZ`: +Y right, +Z up), as in ISO 230-4;
+/// traces of several planes get angles only. The image is [`POLAR_SIZE`] pixels. Fails when
+/// there is no trace with a finite sample or the file cannot be written.
 pub fn draw_polar(
     traces: &[BallbarTrace],
     path: &Path,
@@ -406,23 +409,54 @@ struct Polar {
     px_per_um: f64,
 }
 
+/// The angle at each end of a trace its scale leaves out, deg: the diagnosis' transient
+/// ([`TRANSIENT_S`] of travel at the feed, at least [`TRANSIENT_MIN_DEG`]).
+fn transient_deg(t: &BallbarTrace) -> f64 {
+    let travel_mm = t.feed_mm_min / 60.0 * TRANSIENT_S;
+    let deg = (travel_mm / t.radius_mm).to_degrees();
+    if deg.is_finite() {
+        deg.max(TRANSIENT_MIN_DEG)
+    } else {
+        TRANSIENT_MIN_DEG
+    }
+}
+
+/// The largest |deviation| of the finite samples of `traces` (µm), and of those more than
+/// [`transient_deg`] from either end of their trace; `None` without a finite sample.
+fn largest_deviations(traces: &[BallbarTrace]) -> Option<(f64, Option<f64>)> {
+    let mut all: Option<f64> = None;
+    let mut inner: Option<f64> = None;
+    for t in traces {
+        let finite: Vec<(f64, f64)> = t
+            .angle_deg
+            .iter()
+            .zip(&t.deviation_um)
+            .filter(|(a, d)| a.is_finite() && d.is_finite())
+            .map(|(a, d)| (*a, d.abs()))
+            .collect();
+        let (Some(first), Some(last)) = (finite.first(), finite.last()) else {
+            continue;
+        };
+        let ends = transient_deg(t);
+        for &(a, d) in &finite {
+            all = Some(all.map_or(d, |m| m.max(d)));
+            if (a - first.0).abs() >= ends && (last.0 - a).abs() >= ends {
+                inner = Some(inner.map_or(d, |m| m.max(d)));
+            }
+        }
+    }
+    all.map(|a| (a, inner))
+}
+
 impl Polar {
     /// The scale for `traces`: the smallest round division (1, 2, 5 × 10ⁿ µm) that shows the
-    /// largest deviation within three divisions either side of the nominal circle.
+    /// largest deviation within three divisions either side of the nominal circle, leaving out
+    /// the [`transient_deg`] at each end of a trace (all of a trace that short). A run without
+    /// overshoot starts with the carriages' lag at its feed-in corner (150 µm in Kwon's
+    /// programs), which would otherwise set a scale that hides errors of a few µm.
     fn new(traces: &[BallbarTrace]) -> Option<Self> {
-        let finite = traces
-            .iter()
-            .flat_map(|t| t.angle_deg.iter().zip(&t.deviation_um))
-            .filter(|(a, d)| a.is_finite() && d.is_finite());
-        let mut any = false;
-        let mut max_dev = 0.0_f64;
-        for (_, d) in finite {
-            any = true;
-            max_dev = max_dev.max(d.abs());
-        }
-        if !any {
-            return None;
-        }
+        let (all, inner) = largest_deviations(traces)?;
+        let max_dev = inner.unwrap_or(all);
         let div_um = nice_ceil_125((max_dev / 3.0).max(0.01));
         let divisions = ((max_dev / div_um).ceil() as u32).clamp(1, 3);
         let half = 420.0;
@@ -435,6 +469,11 @@ impl Polar {
             divisions,
             px_per_um: band / (f64::from(divisions) * div_um),
         })
+    }
+
+    /// The largest deviation drawn where it is, µm: the outer ring.
+    fn limit_um(&self) -> f64 {
+        f64::from(self.divisions) * self.div_um
     }
 
     /// The pixel of a point at radius `r_px` and `angle_deg` (counter-clockwise, y up).
@@ -455,14 +494,16 @@ impl Polar {
         root.fill(&WHITE)?;
         self.draw_title(root, traces)?;
         self.draw_grid(root)?;
-        self.draw_axes(root, traces.first().map_or("XY", |t| t.plane.as_str()))?;
+        let planes = distinct(traces.iter().map(|t| t.plane.to_uppercase()));
+        self.draw_axes(root, &planes)?;
         for (i, t) in traces.iter().enumerate() {
             self.draw_trace(root, t, trace_colour(traces, i))?;
         }
         self.draw_ring_labels(root)?;
         let y = self.draw_legend(root, traces)?;
+        let y = self.draw_clipped_note(root, traces, y)?;
         if let Some(text) = iso_figures {
-            draw_text_block(root, text, (1000, y + 40))?;
+            draw_text_block(root, text, (1000, y + 30))?;
         }
         Ok(())
     }
@@ -475,8 +516,15 @@ impl Polar {
         let plane = distinct(traces.iter().map(|t| t.plane.to_uppercase()));
         let radius = distinct(traces.iter().map(|t| format!("{}", t.radius_mm)));
         let feed = distinct(traces.iter().map(|t| format!("{}", t.feed_mm_min)));
-        let title =
-            format!("Ball-bar circular test, {plane} plane: R = {radius} mm, F = {feed} mm/min");
+        // Labels of a multi-test job start with the test's name: `step 4: XY 250 mm ...`.
+        let name = distinct(traces.iter().map(|t| match t.label.split_once(": ") {
+            Some((name, _)) => format!(" ({name})"),
+            None => String::new(),
+        }));
+        let name = if name.contains(" / ") { "" } else { &name };
+        let title = format!(
+            "Ball-bar circular test{name}, {plane} plane: R = {radius} mm, F = {feed} mm/min"
+        );
         root.draw(&Text::new(title, (30, 18), (FONT, 28).into_font()))?;
         // Short enough to end left of the +Y axis label.
         let sub = "Measured − nominal bar length, magnified";
@@ -550,19 +598,20 @@ impl Polar {
         root: &DrawingArea<DB, Shift>,
         plane: &str,
     ) -> DrawResult<DB> {
+        // Traces of several planes (`XY / ZX`) have no common axes: angles only.
         let letters: Vec<char> = plane.to_uppercase().chars().collect();
-        let (u, v) = match letters.as_slice() {
-            [u, v] => (*u, *v),
-            _ => ('X', 'Y'),
+        let axes = match letters.as_slice() {
+            [u, v] => Some((*u, *v)),
+            _ => None,
         };
         let centred = Pos::new(HPos::Center, VPos::Center);
         for k in 0..12 {
             let deg = k * 30;
-            let label = match deg {
-                0 => format!("+{u}"),
-                90 => format!("+{v}"),
-                180 => format!("−{u}"),
-                270 => format!("−{v}"),
+            let label = match (deg, axes) {
+                (0, Some((u, _))) => format!("+{u}"),
+                (90, Some((_, v))) => format!("+{v}"),
+                (180, Some((u, _))) => format!("−{u}"),
+                (270, Some((_, v))) => format!("−{v}"),
                 _ => format!("{deg}°"),
             };
             let (size, colour) = if deg % 90 == 0 {
@@ -583,22 +632,34 @@ impl Polar {
         t: &BallbarTrace,
         colour: RGBColor,
     ) -> DrawResult<DB> {
-        let mut points: Vec<(i32, i32)> = t
+        let limit = self.limit_um();
+        let at = |a: f64, d: f64| self.pixel(self.nominal_px + d * self.px_per_um, a);
+        let finite = t
             .angle_deg
             .iter()
             .zip(&t.deviation_um)
-            .filter(|(a, d)| a.is_finite() && d.is_finite())
-            .map(|(a, d)| self.pixel(self.nominal_px + d * self.px_per_um, *a))
+            .filter(|(a, d)| a.is_finite() && d.is_finite());
+        let mut points: Vec<(i32, i32)> = finite
+            .clone()
+            .map(|(a, d)| at(*a, d.clamp(-limit, limit)))
+            .collect();
+        let mut clipped: Vec<(i32, i32)> = finite
+            .filter(|(_, d)| d.abs() > limit)
+            .map(|(a, d)| at(*a, d.clamp(-limit, limit)))
             .collect();
         // A wide polyline turning back on itself (noise within a pixel or two) gets mitre joins
         // that plotters draws as long spikes; zero-length segments have no direction at all.
         // So: one point per pixel, and each segment drawn on its own, without joins.
         points.dedup();
+        clipped.dedup();
         if let Some(&start) = points.first() {
             root.draw(&Circle::new(start, 5, colour.filled()))?;
         }
         for w in points.windows(2) {
             root.draw(&PathElement::new(w.to_vec(), colour.stroke_width(2)))?;
+        }
+        for p in clipped {
+            root.draw(&TriangleMarker::new(p, 7, colour.filled()))?;
         }
         Ok(())
     }
@@ -637,18 +698,120 @@ impl Polar {
     }
 }
 
-/// Lines of text in the monospaced font, from `top_left` down.
+impl Polar {
+    /// Under the legend, one line per trace with samples beyond the outer ring: how many and
+    /// the farthest. Returns the y pixel below the lines.
+    fn draw_clipped_note<DB: DrawingBackend>(
+        &self,
+        root: &DrawingArea<DB, Shift>,
+        traces: &[BallbarTrace],
+        mut y: i32,
+    ) -> Result<i32, DrawingAreaErrorKind<DB::ErrorType>> {
+        let limit = self.limit_um();
+        for (i, t) in traces.iter().enumerate() {
+            let beyond: Vec<f64> = t
+                .deviation_um
+                .iter()
+                .copied()
+                .filter(|d| d.is_finite() && d.abs() > limit)
+                .collect();
+            let Some(far) = beyond
+                .iter()
+                .copied()
+                .reduce(|a, b| if b.abs() > a.abs() { b } else { a })
+            else {
+                continue;
+            };
+            let text = format!(
+                "▲ {}: {} samples beyond ±{} µm (to {far:+.1} µm)",
+                t.direction.to_uppercase(),
+                beyond.len(),
+                fmt_um(limit)
+            );
+            let font = (FONT, 14).into_font().color(&trace_colour(traces, i));
+            root.draw(&Text::new(text, (1000, y), font))?;
+            y += 22;
+        }
+        Ok(y)
+    }
+}
+
+/// Margin kept free at the right and bottom of an image, pixels.
+const TEXT_MARGIN: i32 = 20;
+/// The font sizes a text block may take, largest first, pixels.
+const TEXT_SIZES: [u32; 4] = [16, 14, 12, 10];
+
+/// Lines of text in the monospaced font, from `top_left` down, in the largest of
+/// [`TEXT_SIZES`] at which they fit between `top_left` and the image's right and bottom edges:
+/// lines too long for the width are wrapped at spaces (an indented continuation), and at the
+/// smallest size the lines that would pass the bottom are left out, the last line saying how
+/// many.
 fn draw_text_block<DB: DrawingBackend>(
     root: &DrawingArea<DB, Shift>,
     text: &str,
     top_left: (i32, i32),
 ) -> DrawResult<DB> {
-    let (x, mut y) = top_left;
-    for line in text.lines() {
-        root.draw(&Text::new(line.to_string(), (x, y), (MONO, 16).into_font()))?;
-        y += 24;
+    let (w, h) = root.dim_in_pixel();
+    let (width, height) = (
+        w as i32 - TEXT_MARGIN - top_left.0,
+        h as i32 - TEXT_MARGIN - top_left.1,
+    );
+    for (k, &size) in TEXT_SIZES.iter().enumerate() {
+        // Ten characters measured: one alone is rounded to a whole pixel.
+        let font = (MONO, size).into_font();
+        let (ten, _) = root.estimate_text_size("MMMMMMMMMM", &font.clone().into())?;
+        let columns = (width * 10 / (ten as i32).max(1)).max(1) as usize;
+        let mut lines = wrap(text, columns);
+        let step = line_step(size);
+        let rows = (height / step).max(1) as usize;
+        if lines.len() > rows && k + 1 < TEXT_SIZES.len() {
+            continue;
+        }
+        if lines.len() > rows {
+            let left_out = lines.len() - (rows - 1);
+            lines.truncate(rows - 1);
+            lines.push(format!("… {left_out} more lines"));
+        }
+        let (x, mut y) = top_left;
+        for line in lines {
+            root.draw(&Text::new(line, (x, y), (MONO, size).into_font()))?;
+            y += step;
+        }
+        break;
     }
     Ok(())
+}
+
+/// The distance between two lines of text of `size` pixels.
+fn line_step(size: u32) -> i32 {
+    (size as i32 * 3 + 1) / 2
+}
+
+/// The lines of `text` wrapped at spaces to at most `columns` characters, continuations
+/// indented by two spaces more than their line (a word longer than a line stays whole).
+fn wrap(text: &str, columns: usize) -> Vec<String> {
+    text.lines().flat_map(|l| wrap_line(l, columns)).collect()
+}
+
+fn wrap_line(line: &str, columns: usize) -> Vec<String> {
+    let indent = line.len() - line.trim_start().len();
+    let pad = " ".repeat((indent + 2).min(columns / 2));
+    let mut out = Vec::new();
+    let mut current = line[..indent].to_string();
+    let mut fresh = true;
+    for word in line.split_whitespace() {
+        if !fresh && current.chars().count() + 1 + word.chars().count() > columns {
+            out.push(std::mem::replace(&mut current, pad.clone()));
+            fresh = true;
+        }
+        if !fresh {
+            current.push(' ');
+        }
+        current.push_str(word);
+        fresh = false;
+    }
+    out.push(current);
+    out
 }
 
 /// The colour of trace `i`: CCW blue and CW red when each direction appears once, otherwise a
@@ -696,4 +859,126 @@ fn nice_ceil_125(x: f64) -> f64 {
 fn fmt_um(x: f64) -> String {
     let s = format!("{x:.3}");
     s.trim_end_matches('0').trim_end_matches('.').to_string()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A full circle at 500 mm/min on a 150 mm bar, one sample every 0.01°: `shape` at each
+    /// angle, plus a feed-in lag of 150 µm decaying over the first 0.1° (as Kwon's runs start).
+    fn trace(direction: &str, shape: impl Fn(f64) -> f64) -> BallbarTrace {
+        let angle_deg: Vec<f64> = (0..36_000).map(|k| f64::from(k) * 0.01).collect();
+        let deviation_um = angle_deg
+            .iter()
+            .map(|a| shape(*a) + 150.0 * (1.0 - a / 0.1).max(0.0))
+            .collect();
+        BallbarTrace {
+            label: format!("step 1: XY 150 mm 500 mm/min {}", direction.to_uppercase()),
+            plane: "XY".into(),
+            direction: direction.into(),
+            radius_mm: 150.0,
+            feed_mm_min: 500.0,
+            times_s: Vec::new(),
+            angle_deg,
+            deviation_um,
+        }
+    }
+
+    fn test_pair() -> Vec<BallbarTrace> {
+        let ellipse = |a: f64| 8.0 * (2.0 * a.to_radians()).cos();
+        vec![trace("cw", ellipse), trace("ccw", |a| -ellipse(a))]
+    }
+
+    /// The feed-in lag at a trace's start does not set the scale: the ±8 µm ellipse is shown
+    /// at 5 µm/div (the lag alone would take 50 µm/div) and the lag is drawn on the ring.
+    #[test]
+    fn the_scale_is_set_by_the_arc_without_its_start_transient() {
+        let polar = Polar::new(&test_pair()).unwrap();
+        assert_eq!((polar.div_um, polar.divisions), (5.0, 2));
+        assert_eq!(polar.limit_um(), 10.0);
+        // Without the lag the same scale.
+        let ellipse = |a: f64| 8.0 * (2.0 * a.to_radians()).cos();
+        let plain = trace("cw", ellipse);
+        let mut plain = plain.clone();
+        plain.deviation_um = plain.angle_deg.iter().map(|a| ellipse(*a)).collect();
+        assert_eq!(Polar::new(&[plain]).unwrap().div_um, 5.0);
+    }
+
+    /// A trace no longer than its two transients is scaled by all of it.
+    #[test]
+    fn a_trace_within_its_transients_is_scaled_by_all_its_samples() {
+        let mut short = trace("cw", |_| 0.0);
+        short.angle_deg.truncate(300);
+        short.deviation_um.truncate(300);
+        let polar = Polar::new(&[short]).unwrap();
+        assert_eq!(polar.div_um, 50.0);
+    }
+
+    #[test]
+    fn cw_is_red_and_ccw_blue() {
+        let pair = test_pair();
+        assert_eq!(trace_colour(&pair, 0), RGBColor(200, 30, 30));
+        assert_eq!(trace_colour(&pair, 1), RGBColor(30, 80, 200));
+    }
+
+    #[test]
+    fn long_lines_wrap_at_spaces_with_an_indented_continuation() {
+        let lines = wrap("step 1: XY 150 mm:\n  span 159.80 um, mean +0.29 um", 20);
+        assert_eq!(
+            lines,
+            [
+                "step 1: XY 150 mm:",
+                "  span 159.80 um,",
+                "    mean +0.29 um"
+            ]
+        );
+    }
+
+    /// The pixels of an image of POLAR_SIZE drawn by `draw`, RGB.
+    fn pixels(draw: impl Fn(&DrawingArea<BitMapBackend, Shift>)) -> Vec<u8> {
+        register_font();
+        register_mono_font();
+        let (w, h) = POLAR_SIZE;
+        let mut buffer = vec![0u8; (w * h * 3) as usize];
+        {
+            let root = BitMapBackend::with_buffer(&mut buffer, POLAR_SIZE).into_drawing_area();
+            draw(&root);
+            root.present().unwrap();
+        }
+        buffer
+    }
+
+    /// Whether any pixel in rows `rows` and columns `columns` is not white.
+    fn inked(buffer: &[u8], rows: std::ops::Range<u32>, columns: std::ops::Range<u32>) -> bool {
+        let w = POLAR_SIZE.0;
+        rows.flat_map(|y| columns.clone().map(move |x| ((y * w + x) * 3) as usize))
+            .any(|i| buffer[i..i + 3] != [255, 255, 255])
+    }
+
+    /// A text block too long for the image (Kwon's 14 traces' figures gave 28 lines) is
+    /// shrunk, cut with a note, and kept off the image's right and bottom margins.
+    #[test]
+    fn a_long_text_block_stays_within_the_image() {
+        let line = "step 1: XY 150 mm 500 mm/min CW: span 159.80 um, mean +0.29 um, 113178 samples";
+        let text = vec![line; 60].join("\n");
+        let (w, h) = POLAR_SIZE;
+        let buffer = pixels(|root| {
+            root.fill(&WHITE).unwrap();
+            draw_text_block(root, &text, (1000, 300)).unwrap();
+        });
+        let margin = TEXT_MARGIN as u32;
+        assert!(inked(&buffer, 300..h - margin, 1000..w - margin), "drawn");
+        assert!(!inked(&buffer, h - margin..h, 0..w), "bottom margin");
+        assert!(!inked(&buffer, 0..h, w - margin..w), "right margin");
+        // A short block keeps the full size: its first line is as tall as before.
+        let short = pixels(|root| {
+            root.fill(&WHITE).unwrap();
+            draw_text_block(root, "G CW 11.04 µm", (1000, 300)).unwrap();
+        });
+        let rows = (300..330)
+            .filter(|y| inked(&short, *y..y + 1, 1000..w))
+            .count();
+        assert!(rows >= 11, "{rows} rows of a 16 px line");
+    }
 }

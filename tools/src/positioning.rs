@@ -80,7 +80,12 @@ fn read_mcap(path: &Path, file: &str) -> Result<Option<(PositioningRun, Option<V
     let mut axis = None;
     let mut truth = None;
     for message in input::messages(path, file)? {
-        let m = message.map_err(|e| bad(format!("a damaged MCAP record: {e}")))?;
+        let m = message.map_err(|e| {
+            bad(format!(
+                "a damaged MCAP record: {}",
+                crate::error::with_causes(&e)
+            ))
+        })?;
         match m.channel.topic.as_str() {
             "/ground_truth" => {
                 truth = serde_json::from_slice::<Value>(&m.data)

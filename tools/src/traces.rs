@@ -51,22 +51,49 @@ pub fn from_run(t: &BallbarTrace, file: &str) -> Result<Trace, CliError> {
 /// Groups consecutive traces into tests: a new test starts when the plane, radius or feed
 /// changes or a direction repeats (the next test of a multi-step procedure).
 pub fn group_tests(traces: Vec<Trace>) -> Vec<Vec<Trace>> {
-    let mut tests: Vec<Vec<Trace>> = Vec::new();
-    for t in traces {
-        let joins = tests.last().is_some_and(|g: &Vec<Trace>| {
-            let f = &g[0];
-            g.len() < 2
-                && f.plane == t.plane
-                && f.radius_mm == t.radius_mm
-                && f.feed_mm_min == t.feed_mm_min
-                && f.sense != t.sense
-        });
-        match tests.last_mut() {
-            Some(g) if joins => g.push(t),
-            _ => tests.push(vec![t]),
+    let sizes = test_sizes(&traces, |a, b| {
+        a.plane == b.plane
+            && a.radius_mm == b.radius_mm
+            && a.feed_mm_min == b.feed_mm_min
+            && a.sense != b.sense
+    });
+    let mut rest = traces.into_iter();
+    sizes
+        .into_iter()
+        .map(|n| rest.by_ref().take(n).collect())
+        .collect()
+}
+
+/// The tests of a run's traces, as [`group_tests`] makes them of the traces read back.
+pub fn run_tests(traces: &[BallbarTrace]) -> Vec<&[BallbarTrace]> {
+    let sizes = test_sizes(traces, |a, b| {
+        a.plane.eq_ignore_ascii_case(&b.plane)
+            && a.radius_mm == b.radius_mm
+            && a.feed_mm_min == b.feed_mm_min
+            && !a.direction.eq_ignore_ascii_case(&b.direction)
+    });
+    let mut rest = traces;
+    sizes
+        .into_iter()
+        .map(|n| {
+            let (test, tail) = rest.split_at(n);
+            rest = tail;
+            test
+        })
+        .collect()
+}
+
+/// The number of traces of each test, in order: a trace joins the one before it when that one
+/// is alone in its test and `pair` says the two are its directions.
+fn test_sizes<T>(traces: &[T], pair: impl Fn(&T, &T) -> bool) -> Vec<usize> {
+    let mut sizes: Vec<usize> = Vec::new();
+    for (i, t) in traces.iter().enumerate() {
+        match sizes.last_mut() {
+            Some(n) if *n == 1 && pair(&traces[i - 1], t) => *n = 2,
+            _ => sizes.push(1),
         }
     }
-    tests
+    sizes
 }
 
 /// Reads `path`: an MCAP run (by its magic bytes) or a CSV trace file.
@@ -102,7 +129,12 @@ fn read_mcap(path: &Path, file: &str) -> Result<Recorded, CliError> {
     let mut channels: BTreeMap<u16, Channel> = BTreeMap::new();
     let mut truth = None;
     for message in input::messages(path, file)? {
-        let m = message.map_err(|e| bad(format!("a damaged MCAP record: {e}")))?;
+        let m = message.map_err(|e| {
+            bad(format!(
+                "a damaged MCAP record: {}",
+                crate::error::with_causes(&e)
+            ))
+        })?;
         let topic = m.channel.topic.as_str();
         if topic == "/ground_truth" {
             truth = serde_json::from_slice(&m.data).ok();

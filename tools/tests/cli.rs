@@ -343,7 +343,11 @@ fn help_defaults_and_plane_spellings_agree_with_what_is_accepted() {
     assert!(o.status.success(), "{}", stderr(&o));
     // Not every run draws a polar plot.
     let h = help(&["run", "--help"]);
-    assert!(h.contains("ballbar_polar.png for ball-bar traces"), "{h}");
+    assert!(h.contains("a polar plot per circular test"), "{h}");
+    assert!(
+        h.contains("ballbar_polar_<n>_<plane>_<radius>mm.png"),
+        "{h}"
+    );
     // One plane parser: zx is the xz map, as diagnose, program and gap accept it.
     for plane in ["zx", "XZ", "G18"] {
         let o = vmt(&[

@@ -130,3 +130,53 @@ fn a_program_whose_cut_cannot_be_milled_is_refused_at_its_line() {
         "{e}"
     );
 }
+
+/// `vmt run --diagnose` of a milling job does what `vmt chatter detect` does on the run's
+/// accelerometers: the same report, printed and in DIR/diagnosis/report.txt, and the
+/// per-window figures of `--csv` in DIR/diagnosis/chatter.csv.
+#[test]
+fn run_diagnose_of_a_milling_job_detects_chatter_as_chatter_detect_does() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = scenario(dir.path(), 0.5);
+    let out = dir.path().join("out");
+    let o = vmt(&[
+        "run",
+        s.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--quiet",
+        "--diagnose",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let printed = String::from_utf8_lossy(&o.stdout).into_owned();
+    let csv = dir.path().join("detect.csv");
+    let mcap = out.join("run.mcap");
+    let d = vmt(&[
+        "chatter",
+        "detect",
+        mcap.to_str().unwrap(),
+        "--csv",
+        csv.to_str().unwrap(),
+    ]);
+    assert!(d.status.success(), "{}", stderr(&d));
+    let detect = String::from_utf8_lossy(&d.stdout).into_owned();
+    let report = detect
+        .lines()
+        .filter(|l| !l.starts_with("wrote "))
+        .collect::<Vec<_>>();
+    let report = report.join("\n") + "\n";
+    assert!(
+        report.contains("kim:") && report.contains("better:"),
+        "{report}"
+    );
+    assert!(printed.contains(&report), "{printed}\n---\n{report}");
+    let diagnosis = out.join("diagnosis");
+    assert_eq!(
+        std::fs::read_to_string(diagnosis.join("report.txt")).unwrap(),
+        report
+    );
+    assert_eq!(
+        std::fs::read(diagnosis.join("chatter.csv")).unwrap(),
+        std::fs::read(&csv).unwrap()
+    );
+}

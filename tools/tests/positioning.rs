@@ -157,11 +157,8 @@ fn bad_laser_csvs_are_refused_naming_line_and_value() {
     }
 }
 
-/// The shipped ISO 230-2 scenario cut to three targets and two runs: `vmt run` then
-/// `vmt diagnose` of its MCAP; the measured figures against the noise-free truth of the run.
-#[test]
-fn a_simulated_laser_run_is_evaluated_against_its_truth() {
-    let dir = tempfile::tempdir().unwrap();
+/// The shipped ISO 230-2 scenario cut to three targets and two runs, written into `dir`.
+fn short_laser_test(dir: &Path) -> std::path::PathBuf {
     let text = std::fs::read_to_string(concat!(
         env!("CARGO_MANIFEST_DIR"),
         "/../scenarios/iso230_2_x.toml"
@@ -171,8 +168,17 @@ fn a_simulated_laser_run_is_evaluated_against_its_truth() {
     .replace("runs = 5", "runs = 2")
     .replace("dwell_s = 2.0", "dwell_s = 1.2")
     .replace("air_drift_k_per_h = 0.2", "air_drift_k_per_h = 0.0");
-    let scenario = dir.path().join("laser.toml");
+    let scenario = dir.join("laser.toml");
     std::fs::write(&scenario, text).unwrap();
+    scenario
+}
+
+/// The shipped ISO 230-2 scenario cut to three targets and two runs: `vmt run` then
+/// `vmt diagnose` of its MCAP; the measured figures against the noise-free truth of the run.
+#[test]
+fn a_simulated_laser_run_is_evaluated_against_its_truth() {
+    let dir = tempfile::tempdir().unwrap();
+    let scenario = short_laser_test(dir.path());
     let out = dir.path().join("run");
     let o = vmt(&[
         "run",
@@ -201,4 +207,56 @@ fn a_simulated_laser_run_is_evaluated_against_its_truth() {
     let o = vmt(&["diagnose", mcap.to_str().unwrap()]);
     let text = String::from_utf8(o.stdout).unwrap();
     assert!(text.contains("Against the run's ground truth"), "{text}");
+}
+
+/// `vmt run --diagnose` of a positioning test evaluates it into DIR/diagnosis as `vmt diagnose
+/// DIR/run.mcap --out` does (it did nothing for a laser run): the same report printed and the
+/// same files.
+#[test]
+fn run_diagnose_evaluates_a_laser_run_as_vmt_diagnose_does() {
+    let dir = tempfile::tempdir().unwrap();
+    let scenario = short_laser_test(dir.path());
+    let out = dir.path().join("run");
+    let o = vmt(&[
+        "run",
+        scenario.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--quiet",
+        "--diagnose",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let printed = String::from_utf8(o.stdout).unwrap();
+    let diagnosis = out.join("diagnosis");
+    let mut names: Vec<String> = std::fs::read_dir(&diagnosis)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    assert_eq!(
+        names,
+        ["positioning.png", "report.json", "report.md", "report.txt"]
+    );
+    let alone = dir.path().join("alone");
+    let mcap = out.join("run.mcap");
+    let d = vmt(&[
+        "diagnose",
+        mcap.to_str().unwrap(),
+        "--out",
+        alone.to_str().unwrap(),
+    ]);
+    assert!(d.status.success(), "{}", stderr(&d));
+    let report = String::from_utf8(d.stdout).unwrap();
+    assert!(
+        report.contains("Against the run's ground truth"),
+        "{report}"
+    );
+    assert!(printed.contains(&report), "{printed}\n---\n{report}");
+    for name in ["report.txt", "report.md", "report.json"] {
+        assert_eq!(
+            std::fs::read(diagnosis.join(name)).unwrap(),
+            std::fs::read(alone.join(name)).unwrap(),
+            "{name}"
+        );
+    }
 }

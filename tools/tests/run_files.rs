@@ -80,6 +80,31 @@ fn travel_beyond_a_stroke_is_refused_before_the_run() {
     assert!(e.contains("beyond its stroke 0 to 500 mm"), "{e}");
 }
 
+/// A program longer than the interpolator holds is refused at the file and line of the block
+/// that passes the limit, in whole seconds (it printed `600001.1140000001 s` without the file).
+#[test]
+fn a_program_too_long_names_file_and_line_in_whole_seconds() {
+    for (block, line) in [("G1 X110 F500\nG1 X101 F0.0001\n", 3), ("G4 P100000\n", 2)] {
+        let (code, e, written) = run_program(&format!("{MOVE}{block}"), &[]);
+        assert_eq!(code, Some(2), "{e}");
+        assert!(!written);
+        let at = format!("bad.nc:{line}: the program lasts about ");
+        assert!(e.contains(&at), "{e}");
+        assert!(
+            e.contains("longer than the 16777 s the interpolator holds"),
+            "{e}"
+        );
+        let seconds = e
+            .split("lasts about ")
+            .nth(1)
+            .unwrap()
+            .split(' ')
+            .next()
+            .unwrap();
+        assert!(seconds.parse::<u64>().is_ok(), "{seconds}: {e}");
+    }
+}
+
 /// One 2.5 ms step per servo period is beyond the X screw mode's limit
 /// h < (2/ω)(√(1+ζ²) - ζ): k = 180 N/µm on the reduced mass of the 250 kg table and the motor
 /// (0.003 kg·m² through a 10 mm lead: 1184 kg), c = 2e4 N·s/m.
@@ -267,4 +292,171 @@ fn an_output_folder_that_cannot_be_made_is_refused_before_the_run() {
         assert!(stderr(&o).contains(out.to_str().unwrap()), "{}", stderr(&o));
         assert!(took < 4.0, "refused after {took} s: after the simulation");
     }
+}
+
+/// A file that outgrows the file size limit (as on a full disk) stops the job with the
+/// operating system's reason under the writer's own error, not the writer's error alone.
+/// A milling run writes its MCAP before its .rrd, so the MCAP writer meets the limit first.
+#[test]
+fn a_write_error_gives_the_operating_systems_reason() {
+    let dir = tempfile::tempdir().unwrap();
+    let slot = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../scenarios/milling_slot.toml"
+    );
+    let out = dir.path().join("out");
+    // SIGXFSZ ignored, so the write fails with EFBIG instead of the signal ending the process;
+    // 100 KiB is less than the slot's MCAP file.
+    let o = std::process::Command::new("bash")
+        .arg("-c")
+        .arg(format!(
+            "trap '' XFSZ; ulimit -f 100; exec timeout 300 {} run {slot} --out {} --quiet",
+            env!("CARGO_BIN_EXE_vmt"),
+            out.display()
+        ))
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    let e = stderr(&o);
+    assert!(
+        e.contains(&format!(
+            "cannot write {}: I/O error from writing, or reading a compression stream: File too \
+             large (os error 27)",
+            out.join("run.mcap").display()
+        )),
+        "{e}"
+    );
+}
+
+/// Kwon's procedure with `steps` only, written to `dir/kwon.toml`.
+fn kwon_steps(dir: &Path, steps: &str) -> String {
+    let text = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../scenarios/kwon_seven_step.toml"
+    ))
+    .unwrap();
+    let all = "steps = [1, 2, 3, 4, 5, 6, 7]";
+    assert!(text.contains(all));
+    let p = dir.join("kwon.toml");
+    std::fs::write(&p, text.replace(all, &format!("steps = {steps}"))).unwrap();
+    p.display().to_string()
+}
+
+/// A job of several circular tests gets one polar plot per test (its CW and CCW runs), named
+/// by the test's number, plane and radius; a job of one test keeps `ballbar_polar.png`.
+#[test]
+fn a_job_of_several_tests_gets_one_polar_plot_per_test() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = kwon_steps(dir.path(), "[5, 7]");
+    let out = dir.path().join("out");
+    let o = vmt(&["run", &s, "--out", out.to_str().unwrap(), "--quiet"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let polar: Vec<String> = names_in(&out)
+        .into_iter()
+        .filter(|n| n.ends_with(".png"))
+        .collect();
+    assert_eq!(
+        polar,
+        [
+            "ballbar_polar_1_xy_100mm.png",
+            "ballbar_polar_2_yz_150mm.png"
+        ]
+    );
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert!(stdout.contains("wrote ") && stdout.contains("ballbar_polar_2_yz_150mm.png"));
+    let s = scenario(dir.path(), "one.toml", QUARTER_JOB, &[]);
+    let one = dir.path().join("one");
+    let o = vmt(&["run", &s, "--out", one.to_str().unwrap(), "--quiet"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(one.join("ballbar_polar.png").is_file());
+}
+
+/// `vmt run ARGS --out DIR --quiet`, which must succeed; its standard error.
+fn run_into(dir: &Path, args: &[&str]) -> String {
+    let mut all = args.to_vec();
+    all.extend(["--out", dir.to_str().unwrap(), "--quiet"]);
+    let o = vmt(&all);
+    assert!(o.status.success(), "{}", stderr(&o));
+    stderr(&o)
+}
+
+/// A reused output folder holds one run's files: vmt's own names that the new run does not
+/// write are removed, and a note lists them; a user's files in the folder and in its
+/// diagnosis/ stay. (The demo's polar plot and diagnosis survived a later laser run, Kwon's
+/// later plots a demo.)
+#[test]
+fn a_reused_output_folder_keeps_only_this_runs_files() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out");
+    let laser = concat!(env!("CARGO_MANIFEST_DIR"), "/../scenarios/iso230_2_x.toml");
+    let kwon = kwon_steps(dir.path(), "[5, 7]");
+    std::fs::create_dir_all(out.join("diagnosis")).unwrap();
+    std::fs::write(out.join("notes.txt"), "mine").unwrap();
+    std::fs::write(out.join("diagnosis/mine.txt"), "mine").unwrap();
+    run_into(&out, &["run", &kwon, "--diagnose"]);
+    let e = run_into(&out, &["demo"]);
+    let note = e
+        .lines()
+        .find(|l| l.starts_with("note: removed"))
+        .unwrap_or("");
+    for gone in [
+        "ballbar_polar_1_xy_100mm.png",
+        "ballbar_polar_2_yz_150mm.png",
+        "diagnosis/diagnosis_2.png",
+    ] {
+        assert!(note.contains(gone), "{gone}: {e}");
+        assert!(!out.join(gone).exists(), "{gone}");
+    }
+    assert!(
+        !note.contains("diagnosis_1") && !note.contains("mine"),
+        "{e}"
+    );
+    let e = run_into(&out, &["run", laser]);
+    assert_eq!(
+        names_in(&out),
+        [
+            "diagnosis",
+            "ground_truth.json",
+            "laser_iso230_2.json",
+            "notes.txt",
+            "run.mcap",
+            "run.rrd"
+        ],
+        "{e}"
+    );
+    assert_eq!(names_in(&out.join("diagnosis")), ["mine.txt"], "{e}");
+    assert!(
+        e.contains(&format!(
+            "note: removed from {} what an earlier run left there and this run does not write: \
+             ballbar_polar.png, diagnosis/diagnosis_1.png, diagnosis/report.json, \
+             diagnosis/report.md, diagnosis/report.txt",
+            out.display()
+        )),
+        "{e}"
+    );
+    // Nothing of an earlier run left: no note; an emptied diagnosis/ goes too.
+    std::fs::remove_file(out.join("diagnosis/mine.txt")).unwrap();
+    let e = run_into(&out, &["run", laser, "--diagnose"]);
+    assert!(!e.contains("note: removed"), "{e}");
+    let e = run_into(&out, &["run", laser]);
+    assert!(
+        e.contains("diagnosis/report.txt") && e.contains(", diagnosis/"),
+        "{e}"
+    );
+    assert!(!out.join("diagnosis").exists());
+}
+
+/// A program job records nothing to diagnose: `--diagnose` says so instead of doing nothing.
+#[test]
+fn run_diagnose_of_a_job_with_nothing_to_diagnose_says_so() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("p.nc"), format!("{MOVE}G1 X110 F500\n")).unwrap();
+    let job = "[job]\nkind = \"program\"\nprogram = \"p.nc\"";
+    let s = scenario(dir.path(), "s.toml", job, &[]);
+    let e = run_into(&dir.path().join("out"), &["run", &s, "--diagnose"]);
+    assert!(
+        e.contains("note: --diagnose: the run recorded no ball-bar traces, laser readings or accelerometers to diagnose"),
+        "{e}"
+    );
+    assert!(!dir.path().join("out/diagnosis").exists());
 }

@@ -1,11 +1,16 @@
 //! What can go wrong when a configuration or a program is handed to the interpolator.
 
+use crate::short;
+
 /// Why a configuration or a program was refused. Program errors name the block by the line (and
 /// column) of its source, and give the offending value in SI units.
 #[derive(Debug, thiserror::Error, Clone, PartialEq)]
 pub enum InterpolatorError {
     /// A configuration value is not a finite number greater than zero.
-    #[error("interpolator setting `{name}` = {value} is not valid: it must be a finite number > 0")]
+    #[error(
+        "interpolator setting `{name}` = {} is not valid: it must be a finite number > 0",
+        short(*.value)
+    )]
     InvalidSetting {
         /// The field, e.g. `limits.path_jerk_m_s3`.
         name: &'static str,
@@ -14,8 +19,10 @@ pub enum InterpolatorError {
     },
     /// The servo period does not divide the interpolation period into whole servo ticks.
     #[error(
-        "the servo period {servo_period_s} s does not divide the interpolation period \
-         {ipo_period_s} s into a whole number of servo ticks (e.g. 125 µs into 1 ms = 8 ticks)"
+        "the servo period {} s does not divide the interpolation period {} s into a whole \
+         number of servo ticks (e.g. 125 µs into 1 ms = 8 ticks)",
+        short(*.servo_period_s),
+        short(*.ipo_period_s)
     )]
     ServoPeriodNotDivisor {
         /// Servo period, s.
@@ -25,9 +32,10 @@ pub enum InterpolatorError {
     },
     /// The jerk filter window `a_max / j_max` is shorter than one interpolation period.
     #[error(
-        "the jerk filter window path_accel / path_jerk = {window_s} s is shorter than one \
-         interpolation period ({ipo_period_s} s): lower `path_jerk_m_s3` or raise \
-         `path_accel_m_s2`"
+        "the jerk filter window path_accel / path_jerk = {} s is shorter than one \
+         interpolation period ({} s): lower `path_jerk_m_s3` or raise `path_accel_m_s2`",
+        short(*.window_s),
+        short(*.ipo_period_s)
     )]
     JerkWindowTooShort {
         /// `a_max / j_max`, s.
@@ -37,7 +45,10 @@ pub enum InterpolatorError {
     },
     /// A block carries a value that is not usable (NaN, infinite, zero or negative feed, negative
     /// dwell, a length too large to represent).
-    #[error("block at line {line}, column {column}: {what} = {value} is not valid: {reason}")]
+    #[error(
+        "block at line {line}, column {column}: {what} = {} is not valid: {reason}",
+        short(*.value)
+    )]
     InvalidBlock {
         /// Source line, 1-based.
         line: usize,
@@ -60,8 +71,11 @@ pub enum InterpolatorError {
     },
     /// The end point of an arc is not on the circle through the start point.
     #[error(
-        "block at line {line}, column {column}: the arc starts {start_radius_m} m from its centre \
-         but ends {end_radius_m} m from it; the difference may be at most {tolerance_m} m"
+        "block at line {line}, column {column}: the arc starts {} mm from its centre but ends \
+         {} mm from it; the difference may be at most {} mm",
+        short(.start_radius_m * 1e3),
+        short(.end_radius_m * 1e3),
+        short(.tolerance_m * 1e3)
     )]
     ArcRadiusMismatch {
         /// Source line, 1-based.
@@ -77,8 +91,8 @@ pub enum InterpolatorError {
     },
     /// The program would need more interpolation samples than the interpolator holds.
     #[error(
-        "the program lasts about {duration_s} s by the block at line {line}, longer than the \
-         {max_duration_s} s the interpolator holds at this interpolation period"
+        "the program lasts about {duration_s:.0} s by the block at line {line}, longer than \
+         the {max_duration_s:.0} s the interpolator holds at this interpolation period"
     )]
     ProgramTooLong {
         /// Source line of the block at which the limit is passed, 1-based.
@@ -98,4 +112,20 @@ pub enum InterpolatorError {
         /// Source line of the first block of the motion, 1-based.
         line: usize,
     },
+}
+
+impl InterpolatorError {
+    /// The source line of the block a program error is about; `None` for a configuration error.
+    pub fn line(&self) -> Option<usize> {
+        match self {
+            Self::InvalidBlock { line, .. }
+            | Self::ArcRadiusZero { line, .. }
+            | Self::ArcRadiusMismatch { line, .. }
+            | Self::ProgramTooLong { line, .. }
+            | Self::Planning { line } => Some(*line),
+            Self::InvalidSetting { .. }
+            | Self::ServoPeriodNotDivisor { .. }
+            | Self::JerkWindowTooShort { .. } => None,
+        }
+    }
 }

@@ -57,7 +57,7 @@ impl Writer {
         drop(self.queue);
         self.thread
             .join()
-            .unwrap_or_else(|_| Err(CliError::output(&self.path, "its writer failed")))
+            .unwrap_or_else(|_| Err(CliError::output_message(&self.path, "its writer failed")))
     }
 }
 
@@ -107,7 +107,7 @@ impl RunFiles {
         let run = Arc::new(run);
         let sent = self.send(Message::Finish(Arc::clone(&run)));
         let made = self.join_all()?;
-        sent.map_err(|e| CliError::output(&self.dir, e))?;
+        sent.map_err(|e| CliError::output_message(&self.dir, e))?;
         let mut files = Vec::new();
         for p in made.into_iter().flatten() {
             let path = p.target().to_path_buf();

@@ -63,7 +63,7 @@ pub(crate) fn atomically(
     let partial = Partial::new(path);
     write(partial.path()).map_err(|e| match e {
         CliError::Output { path: p, message } if Path::new(&p) == partial.path() => {
-            CliError::output(path, message)
+            CliError::output_message(path, message)
         }
         e => e,
     })?;
@@ -168,7 +168,7 @@ pub(crate) fn time_ns(t_s: f64, what: &dyn Fn() -> String, path: &Path) -> Resul
     if ns.is_finite() && ns >= 0.0 && ns < u64::MAX as f64 {
         Ok(ns as u64)
     } else {
-        Err(CliError::output(
+        Err(CliError::output_message(
             path,
             format!(
                 "{}: time {t_s} s is not a finite, non-negative simulation time",
@@ -182,7 +182,7 @@ pub(crate) fn time_ns(t_s: f64, what: &dyn Fn() -> String, path: &Path) -> Resul
 pub(crate) fn check_stream(stream: &Stream, path: &Path) -> Result<(), CliError> {
     let n = stream.times_s.len();
     match stream.channels.iter().find(|c| c.values.len() != n) {
-        Some(c) => Err(CliError::output(
+        Some(c) => Err(CliError::output_message(
             path,
             format!(
                 "stream `{}`: channel `{}` has {} values for {n} sample times",
@@ -201,7 +201,7 @@ pub(crate) fn check_trace(trace: &BallbarTrace, path: &Path) -> Result<(), CliEr
     if trace.angle_deg.len() == n && trace.deviation_um.len() == n {
         Ok(())
     } else {
-        Err(CliError::output(
+        Err(CliError::output_message(
             path,
             format!(
                 "ball-bar trace `{}`: {} times, {} angles and {} deviations (they must match)",

@@ -384,7 +384,7 @@ struct Logger<'a> {
 }
 
 impl Logger<'_> {
-    fn err(&self, e: impl std::fmt::Display) -> CliError {
+    fn err(&self, e: impl std::error::Error) -> CliError {
         CliError::output(self.path, e)
     }
 
@@ -506,9 +506,10 @@ impl Logger<'_> {
             let ns = (t * 1e9).round();
             // i64::MIN is reserved by Rerun; keep well inside the range.
             if !(ns.is_finite() && ns.abs() < 9.2e18) {
-                return Err(self.err(format!(
-                    "`{what}`, sample {i}: time {t} s is not a finite simulation time"
-                )));
+                return Err(CliError::output_message(
+                    self.path,
+                    format!("`{what}`, sample {i}: time {t} s is not a finite simulation time"),
+                ));
             }
             nanos.push(ns as i64);
         }
@@ -973,7 +974,7 @@ fn write_band_file(
     report: &str,
     axes: &[AxisBands<'_>],
 ) -> Result<(), CliError> {
-    let err = |e: &dyn std::fmt::Display| CliError::output(path, e);
+    let err = |e: &dyn std::error::Error| CliError::output(path, e);
     let rec = rerun::RecordingStreamBuilder::new(APPLICATION_ID)
         .recording_id(recording_id)
         .enabled(true)
