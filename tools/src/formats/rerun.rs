@@ -202,7 +202,7 @@ impl RunFile for RrdFile {
         // Waits for the block to be on disk: the SDK would otherwise buffer up to 100 MB ahead
         // of a slow disk, and a file sink that has failed shows only here (its own error goes
         // to the log, not to us).
-        self.rec.flush_blocking().map_err(|e| log.err(e))?;
+        flush(&self.rec).map_err(|e| log.err(e))?;
         self.sent.0 += servo(streams).map_or(0, |s| s.times_s.len());
         for (sent, t) in self.sent.1.iter_mut().zip(traces) {
             *sent += t.times_s.len();
@@ -228,7 +228,7 @@ impl RunFile for RrdFile {
             log.laser_series(l)?;
         }
         log.ground_truth(&run.ground_truth)?;
-        self.rec.flush_blocking().map_err(|e| log.err(e))?;
+        flush(&self.rec).map_err(|e| log.err(e))?;
         // Completes the file (footer with the chunk manifest) before it is renamed.
         self.rec.finalize_deferred_sinks();
         let Self { rec, partial, .. } = self;
@@ -381,6 +381,37 @@ fn blueprint(groups: &[PolarGroup], has_ballbar: bool, has_laser: bool) -> Bluep
 struct Logger<'a> {
     rec: &'a RecordingStream,
     path: &'a Path,
+}
+
+/// How long a flush waits for the file writer. A block takes milliseconds on a local disk, but
+/// Rerun's file writer, once a write has failed (a full disk, a file-size limit), stops with
+/// its error in its own log and leaves a flush queued behind it waiting for ever.
+const FLUSH_TIMEOUT: std::time::Duration = std::time::Duration::from_secs(60);
+
+/// Why a recording could not be flushed to its file.
+#[derive(Debug, thiserror::Error)]
+enum FlushError {
+    #[error(
+        "the Rerun file writer took nothing for {} s: it stops on a write error (a full disk, a file-size limit), which Rerun reports only to its log",
+        FLUSH_TIMEOUT.as_secs()
+    )]
+    Stalled,
+    #[error(transparent)]
+    Sink(rerun::sink::SinkFlushError),
+}
+
+/// Flushes `rec` to its file within [`FLUSH_TIMEOUT`].
+fn flush(rec: &rerun::RecordingStream) -> Result<(), FlushError> {
+    match rec.flush_with_timeout(FLUSH_TIMEOUT) {
+        Ok(()) => Ok(()),
+        Err(rerun::sink::SinkFlushError::Timeout) => {
+            // Dropping the stream would join its thread, which waits on the dead writer for
+            // ever: the stalled stream is left to the end of the process instead.
+            std::mem::forget(rec.clone());
+            Err(FlushError::Stalled)
+        }
+        Err(e) => Err(FlushError::Sink(e)),
+    }
 }
 
 impl Logger<'_> {
@@ -1023,7 +1054,7 @@ fn write_band_file(
                 .with_labels(["measured", "model as given", "model with the effects"]),
         )?;
     }
-    rec.flush_blocking().map_err(|e| err(&e))?;
+    flush(&rec).map_err(|e| err(&e))?;
     rec.finalize_deferred_sinks();
     Ok(())
 }
