@@ -896,9 +896,9 @@ impl CyclicGroups {
 /// searched, and when both are present the first is searched again with the second taken out.
 fn cyclic_findings(fit: &Fit, g: &CyclicGroups) -> Vec<(features::Cyclic, Finding)> {
     let sigma = fit.sample_sigma_um;
-    let search = |axis: usize, taken_out: Option<features::Cyclic>| {
-        let r = g.with(taken_out.as_slice(), -1.0);
-        features::cyclic(&g.points, &r, &g.w, axis, sigma)
+    let search = |axis: usize, taken_out: Option<features::Cyclic>| match taken_out {
+        None => features::cyclic(&g.points, &g.r, &g.w, axis, sigma),
+        Some(c) => features::cyclic(&g.points, &g.with(&[c], -1.0), &g.w, axis, sigma),
     };
     let mut found = [search(0, None), search(1, None)];
     let significance = |c: &Option<features::Cyclic>| {
