@@ -477,8 +477,9 @@ pub(crate) fn check_following_error(
     sp: &Setpoint,
     program: &Program,
 ) -> Result<(), SimError> {
+    let errors = plant.following_errors();
     for (i, axis) in Axis::ALL.into_iter().enumerate() {
-        let e = plant.drive(i).following_error_m();
+        let e = errors[i];
         if e.abs() > limits[i] {
             return Err(SimError::ExcessError {
                 line: block_line(program, sp.block),

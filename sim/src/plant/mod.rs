@@ -40,6 +40,11 @@ pub trait Plant {
     fn drive(&self, i: usize) -> &Drive;
     /// The carriages of X, Y, Z in axis coordinates (position, velocity, guideway friction).
     fn carriages(&self) -> [CarriageState; 3];
+    /// The controllers' last following errors of X, Y, Z, m (one call per servo tick: the
+    /// excess-error alarm's).
+    fn following_errors(&self) -> [f64; 3] {
+        std::array::from_fn(|i| self.drive(i).following_error_m())
+    }
 }
 
 /// Which plant to build.
