@@ -214,7 +214,7 @@ fn execution(
     }
     check_test_rates(&job, job_kind, &controller, program_file.as_deref())?;
     check_generated_travel(machine, &controller, &job, job_kind)?;
-    let notes = dynamics::ballbar_notes(job_kind, &raw.instruments, &job);
+    let notes = dynamics::instrument_notes(job_kind, &raw.instruments, &job);
     Ok(Some(Execution {
         axes,
         controller,

@@ -975,7 +975,7 @@ fn directions(names: &[String], p: &KeyPath) -> R<Vec<ArcDirection>> {
 /// A job of an NC program file (relative to the scenario's folder). `ballbar` is `None` for a
 /// job that records no ball bar (milling), else the `[instruments.ballbar]` table if any: the
 /// bar then records every circle between the program's DATA markers ([`marked_ballbar`]; a
-/// program without them records none, which [`ballbar_notes`] says).
+/// program without them records none, which [`instrument_notes`] says).
 fn program_job(
     program: &str,
     tool_offset: Vector3<f64>,
@@ -1038,19 +1038,51 @@ fn marked_ballbar(
         .collect())
 }
 
-/// What the job accepts but does not do, for the command running it to say: a program job
-/// given `[instruments.ballbar]` whose program marks no data arc records no trace.
-pub fn ballbar_notes(j: &JobToml, instruments: &InstrumentsToml, job: &Job) -> Vec<String> {
-    match j {
-        JobToml::Program { program } if instruments.ballbar.is_some() && job.ballbar.is_empty() => {
-            vec![format!(
-                "[instruments.ballbar] records nothing: {program} marks no data arc with \
-                 (DATA CW START) ... (DATA CW END) lines (or CCW), as `vmt program ballbar` \
-                 writes them"
-            )]
-        }
-        _ => Vec::new(),
+/// What the job accepts but does not do, for the command running it to say: an instrument
+/// table the kind of job does not read (a ball bar on a cut, a laser on a circular test, an
+/// accelerometer off a cut), and a program job given `[instruments.ballbar]` whose program
+/// marks no data arc.
+pub fn instrument_notes(j: &JobToml, instruments: &InstrumentsToml, job: &Job) -> Vec<String> {
+    let (kind, reads) = match j {
+        JobToml::Ballbar(_) => ("ballbar", ["ballbar"].as_slice()),
+        JobToml::KwonSevenStep { .. } => ("kwon_seven_step", ["ballbar"].as_slice()),
+        JobToml::Program { .. } => ("program", ["ballbar"].as_slice()),
+        JobToml::Iso230_2(_) => ("iso230_2", ["laser"].as_slice()),
+        JobToml::Milling(_) => ("milling", ["accelerometer"].as_slice()),
+    };
+    let given = [
+        (
+            "ballbar",
+            instruments.ballbar.is_some(),
+            "ballbar, kwon_seven_step or program",
+        ),
+        ("laser", instruments.laser.is_some(), "iso230_2"),
+        (
+            "accelerometer",
+            instruments.accelerometer.is_some(),
+            "milling",
+        ),
+    ];
+    let mut notes: Vec<String> = given
+        .into_iter()
+        .filter(|(name, is, _)| *is && !reads.contains(name))
+        .map(|(name, _, by)| {
+            format!(
+                "[instruments.{name}] records nothing: a `{kind}` job does not use it (a job of kind {by} does)"
+            )
+        })
+        .collect();
+    if let JobToml::Program { program } = j
+        && instruments.ballbar.is_some()
+        && job.ballbar.is_empty()
+    {
+        notes.push(format!(
+            "[instruments.ballbar] records nothing: {program} marks no data arc with \
+             (DATA CW START) ... (DATA CW END) lines (or CCW), as `vmt program ballbar` \
+             writes them"
+        ));
     }
+    notes
 }
 
 /// Most circles of one ball-bar job.

@@ -1410,3 +1410,34 @@ fn a_positioning_test_beyond_a_stroke_is_refused_at_the_key_at_fault() {
     let e = parse(&text, "s.toml", Some(&scenarios())).expect_err("targets off the stroke");
     assert_eq!(e.key.as_deref(), Some("job.targets_mm"), "{e}");
 }
+
+/// An instrument table the job does not read is noted, naming the job kinds that do: a ball
+/// bar beside an ISO 230-2 laser run records nothing. The shipped scenarios give none.
+#[test]
+fn an_instrument_the_job_does_not_use_is_noted() {
+    let laser = "[instruments.laser]";
+    let text = shipped_with(
+        "iso230_2_x.toml",
+        laser,
+        "[instruments.ballbar]\n\n[instruments.laser]",
+    );
+    let s = parse(&text, "s.toml", Some(&scenarios())).expect("loads");
+    let notes = s.execution.expect("a job").notes;
+    assert_eq!(
+        notes,
+        [
+            "[instruments.ballbar] records nothing: a `iso230_2` job does not use it (a job of kind ballbar, kwon_seven_step or program does)"
+        ]
+    );
+    for name in [
+        "vmc500.toml",
+        "kwon_seven_step.toml",
+        "iso230_2_x.toml",
+        "milling_slot.toml",
+        "dataset_xy.toml",
+    ] {
+        let text = std::fs::read_to_string(scenarios().join(name)).unwrap();
+        let s = parse(&text, name, Some(&scenarios())).expect("loads");
+        assert!(s.execution.expect("a job").notes.is_empty(), "{name}");
+    }
+}
