@@ -152,8 +152,11 @@ pub struct Directional {
     pub label: String,
     /// `cw` or `ccw`.
     pub sense: String,
-    /// Angle swept, deg.
+    /// Angle swept by the samples the figures take, deg.
     pub sweep_deg: f64,
+    /// The trace's whole sweep when it ran on past one revolution, deg: the figures take its
+    /// first 360° (see [`one_revolution`]).
+    pub recorded_sweep_deg: Option<f64>,
     /// Least-squares circle.
     pub circle: Circle,
     /// Circular deviation G, µm.
@@ -179,8 +182,15 @@ pub struct Figures {
 
 /// The figures of the traces of one test (one or two directions).
 pub fn figures(traces: &[&Trace], minimum_zone: bool) -> Figures {
-    let arcs: Vec<Arc> = traces.iter().map(|t| Arc::new(t)).collect();
-    figures_of(&arcs, minimum_zone)
+    let trig: Vec<(Vec<f64>, Vec<f64>)> = traces
+        .iter()
+        .map(|t| crate::samples::trig(&t.angle_deg))
+        .collect();
+    let refs: Vec<(&[f64], &[f64])> = trig
+        .iter()
+        .map(|(c, s)| (c.as_slice(), s.as_slice()))
+        .collect();
+    figures_with_trig(traces, &refs, minimum_zone)
 }
 
 /// [`figures`] with cos θ and sin θ of every sample of each trace already computed.
@@ -189,16 +199,46 @@ pub fn figures_with_trig(
     trig: &[(&[f64], &[f64])],
     minimum_zone: bool,
 ) -> Figures {
+    let trimmed: Vec<Option<Trace>> = traces.iter().copied().map(one_revolution).collect();
     let arcs: Vec<Arc> = traces
         .iter()
+        .zip(&trimmed)
         .zip(trig)
-        .map(|(t, (c, s))| Arc {
-            t,
-            cos: (*c).into(),
-            sin: (*s).into(),
+        .map(|((t, cut), (c, s))| {
+            let t = cut.as_ref().unwrap_or(t);
+            let n = t.angle_deg.len();
+            Arc {
+                t,
+                cos: c[..n].into(),
+                sin: s[..n].into(),
+            }
         })
         .collect();
-    figures_of(&arcs, minimum_zone)
+    let mut figures = figures_of(&arcs, minimum_zone);
+    for ((d, t), cut) in figures.directions.iter_mut().zip(traces).zip(&trimmed) {
+        d.recorded_sweep_deg = cut.as_ref().map(|_| t.sweep_deg());
+    }
+    figures
+}
+
+/// The first revolution of a trace that runs on past 360° (a CSV with its overshoot kept, or a
+/// second lap), or `None` for one within a revolution: ISO 230-4 evaluates the circle once,
+/// and the overlap would count twice in the least-squares centre and in G. The angles are
+/// unwrapped and monotonic (checked); the revolution holds the samples within 360° of the
+/// first.
+pub fn one_revolution(t: &Trace) -> Option<Trace> {
+    let a0 = *t.angle_deg.first()?;
+    let n = t
+        .angle_deg
+        .iter()
+        .position(|a| (a - a0).abs() > 360.0 + 1e-9)?;
+    let mut one = t.clone();
+    one.angle_deg.truncate(n);
+    one.deviation_um.truncate(n);
+    if let Some(time) = one.time_s.as_mut() {
+        time.truncate(n);
+    }
+    Some(one)
 }
 
 fn figures_of(arcs: &[Arc], minimum_zone: bool) -> Figures {
@@ -233,6 +273,7 @@ fn directional(a: &Arc, circle: Circle, (lo, hi): (f64, f64), minimum_zone: bool
         label: t.label.clone(),
         sense: t.sense.name().into(),
         sweep_deg: t.sweep_deg(),
+        recorded_sweep_deg: None,
         circle,
         circular_deviation_um: hi - lo,
         radial_deviation_max_um: hi,
@@ -673,6 +714,39 @@ mod tests {
         t.angle_deg = t.angle_deg.iter().map(|x| x + start_deg).collect();
         t.deviation_um = t.angle_deg.iter().map(|x| f(x.to_radians())).collect();
         t
+    }
+
+    /// A run that goes on for 40° past its revolution (a CSV with its overshoot kept) is
+    /// evaluated on its first 360°: the same figures, bit for bit, as the revolution alone,
+    /// with the whole sweep recorded. Over all 400° the overlap had counted twice: a 3 µm
+    /// cos 3θ lobe with a 1 µm offset in X made G differ.
+    #[test]
+    fn a_run_past_one_revolution_is_evaluated_on_its_first() {
+        let shape = |th: f64| 3.0 * (3.0 * th).cos() + th.cos();
+        let mut long = trace_from(Sense::Ccw, -20.0, shape);
+        let extra: Vec<f64> = (1..=400).map(|i| 339.9 + 0.1 * i as f64).collect();
+        long.deviation_um
+            .extend(extra.iter().map(|a| shape(a.to_radians()) + 0.5));
+        long.angle_deg.extend(extra);
+        let mut one = long.clone();
+        let n = 3601;
+        one.angle_deg.truncate(n);
+        one.deviation_um.truncate(n);
+        let (a, b) = (figures(&[&long], false), figures(&[&one], false));
+        assert_eq!(a.directions[0].recorded_sweep_deg, Some(long.sweep_deg()));
+        assert_eq!(b.directions[0].recorded_sweep_deg, None);
+        assert_eq!(
+            a.directions[0].circular_deviation_um,
+            b.directions[0].circular_deviation_um
+        );
+        assert_eq!(a.directions[0].circle, b.directions[0].circle);
+        let arcs: Vec<Arc> = [&long].iter().map(|t| Arc::new(t)).collect();
+        let whole = figures_of(&arcs, false);
+        assert!(
+            (whole.directions[0].circular_deviation_um - b.directions[0].circular_deviation_um)
+                .abs()
+                > 0.1
+        );
     }
 
     /// The hysteresis found block by block is the largest difference over all samples: noisy

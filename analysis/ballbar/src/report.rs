@@ -14,8 +14,12 @@ fn figures_rows(d: &Diagnosis) -> Vec<(String, String)> {
     let mut rows = Vec::new();
     for dir in &d.iso.directions {
         let s = dir.sense.to_uppercase();
+        let sweep = match dir.recorded_sweep_deg {
+            Some(all) => format!("{:.0} of {all:.0} deg", dir.sweep_deg),
+            None => format!("{:.0} deg", dir.sweep_deg),
+        };
         rows.push((
-            format!("Circular deviation G {s} ({:.0} deg)", dir.sweep_deg),
+            format!("Circular deviation G {s} ({sweep})"),
             format!("{:.2} µm", dir.circular_deviation_um),
         ));
         rows.push((
