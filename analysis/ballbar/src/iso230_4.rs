@@ -227,11 +227,12 @@ pub fn figures_with_trig(
 /// unwrapped and monotonic (checked); the revolution holds the samples within 360° of the
 /// first.
 pub fn one_revolution(t: &Trace) -> Option<Trace> {
-    let a0 = *t.angle_deg.first()?;
-    let n = t
-        .angle_deg
-        .iter()
-        .position(|a| (a - a0).abs() > 360.0 + 1e-9)?;
+    let (a0, last) = (*t.angle_deg.first()?, *t.angle_deg.last()?);
+    let past = |a: &f64| (a - a0).abs() > 360.0 + 1e-9;
+    if !past(&last) {
+        return None;
+    }
+    let n = t.angle_deg.iter().position(past)?;
     let mut one = t.clone();
     one.angle_deg.truncate(n);
     one.deviation_um.truncate(n);
