@@ -284,11 +284,12 @@ fn recording_id(run: &Run) -> String {
     )
 }
 
-/// Ball-bar traces of one plane and radius: drawn in one polar plot with one magnification.
+/// The ball-bar traces of one circular test (its CW and CCW runs): drawn in one polar plot
+/// with one magnification.
 struct PolarGroup {
-    /// Entity name, e.g. `xy_150_mm`.
+    /// Entity name, e.g. `xy_150_mm`, or `3_xy_100_mm` for the third of several tests.
     name: String,
-    /// Title, e.g. `Ball bar XY 150 mm`.
+    /// Title, e.g. `Ball bar XY 150 mm`, or `Ball bar 3: XY 100 mm`.
     title: String,
     /// Nominal radius, mm.
     radius_mm: f64,
@@ -296,19 +297,32 @@ struct PolarGroup {
     traces: Vec<usize>,
 }
 
+/// One group per circular test, the tests numbered as `vmt diagnose` and the polar PNGs
+/// number them ([`crate::traces::run_tests`]); a single test keeps the plain name.
 fn polar_groups(traces: &[BallbarTrace]) -> Vec<PolarGroup> {
-    let mut groups: Vec<PolarGroup> = Vec::new();
-    for (i, t) in traces.iter().enumerate() {
-        let title = format!("Ball bar {} {} mm", t.plane.to_uppercase(), t.radius_mm);
-        match groups.iter_mut().find(|g| g.title == title) {
-            Some(g) => g.traces.push(i),
-            None => groups.push(PolarGroup {
-                name: slug(&format!("{} {} mm", t.plane, t.radius_mm)),
-                title,
-                radius_mm: t.radius_mm,
-                traces: vec![i],
-            }),
-        }
+    let tests = crate::traces::run_tests(traces);
+    let several = tests.len() > 1;
+    let mut first = 0;
+    let mut groups = Vec::with_capacity(tests.len());
+    for (k, test) in tests.iter().enumerate() {
+        let t = &test[0];
+        let what = format!("{} {} mm", t.plane.to_uppercase(), t.radius_mm);
+        let (name, title) = if several {
+            let n = k + 1;
+            (
+                slug(&format!("{n} {what}")),
+                format!("Ball bar {n}: {what}"),
+            )
+        } else {
+            (slug(&what), format!("Ball bar {what}"))
+        };
+        groups.push(PolarGroup {
+            name,
+            title,
+            radius_mm: t.radius_mm,
+            traces: (first..first + test.len()).collect(),
+        });
+        first += test.len();
     }
     groups
 }
