@@ -53,8 +53,9 @@
 //! | `/info/run`, `/info/ground_truth`, `/info/scenario` | static `TextDocument` (Markdown): seed, fidelity, machine; the ground truth JSON; the scenario TOML |
 //!
 //! `<trace>` is the trace label as a lower-case name (`XY 150 mm 1000 mm/min CCW` ->
-//! `xy_150_mm_1000_mm_min_ccw`). The polar plots share one magnification k (mm per µm) per
-//! plane and radius, so that CW and CCW overlay; it is a round number chosen so that the largest
+//! `xy_150_mm_1000_mm_min_ccw`); with several circular tests each has its own view,
+//! `<n>_<plane>_<radius>_mm`. The polar plots share one magnification k (mm per µm) per
+//! circular test, so that CW and CCW overlay; it is a round number chosen so that the largest
 //! deviation spans about a quarter of the radius. The plot's y is negated because Rerun's 2D
 //! views draw +y downwards (image convention): on screen the plane's second axis points up, as on
 //! a ball-bar report.
