@@ -16,8 +16,14 @@ fn axes() -> [AxisDynamics; 3] {
     ]
 }
 
-/// Runs `program` from (100, 100, 100) mm; the error and whether the run had begun.
-fn refuse(axes: &[AxisDynamics; 3], program: &str, substeps: usize) -> (SimError, bool) {
+/// Runs `program` from (100, 100, 100) mm on the built-in machine with `axes`; `progress` is
+/// called as the run advances.
+fn run(
+    axes: &[AxisDynamics; 3],
+    program: &str,
+    substeps: usize,
+    progress: &mut dyn FnMut(f64),
+) -> Result<vmt_sim::run::Run, SimError> {
     let machine = vmt_scenario::builtin().unwrap().machine;
     let job = Job {
         program: parse(program, Vector3::new(0.1, 0.1, 0.1)).unwrap(),
@@ -31,11 +37,13 @@ fn refuse(axes: &[AxisDynamics; 3], program: &str, substeps: usize) -> (SimError
         seed: 1,
     };
     let ipo = InterpolatorConfig::new(Limits::default());
+    simulate(&machine, axes, &ipo, &job, &settings, "", progress)
+}
+
+/// [`run`], refused: the error and whether the run had begun.
+fn refuse(axes: &[AxisDynamics; 3], program: &str, substeps: usize) -> (SimError, bool) {
     let mut started = false;
-    let e = simulate(&machine, axes, &ipo, &job, &settings, "", &mut |_| {
-        started = true
-    })
-    .unwrap_err();
+    let e = run(axes, program, substeps, &mut |_| started = true).unwrap_err();
     (e, started)
 }
 
@@ -81,20 +89,7 @@ fn a_step_too_coarse_for_the_stiffest_mode_is_refused_stating_the_largest_stable
     let (e, _) = refuse(&a, "G1 X101 F1000\n", 2);
     assert!(e.to_string().ends_with("to 3 or more"), "{e}");
     // Three substeps are within it: the check passes and the (short) job runs.
-    let machine = vmt_scenario::builtin().unwrap().machine;
-    let job = Job {
-        program: parse("G1 X100.1 F1000\n", Vector3::new(0.1, 0.1, 0.1)).unwrap(),
-        ballbar: vec![],
-        laser: None,
-    };
-    let settings = SimSettings {
-        fidelity: Fidelity::Reduced,
-        plant_substeps: 3,
-        log_rate_hz: 1000.0,
-        seed: 1,
-    };
-    let ipo = InterpolatorConfig::new(Limits::default());
-    assert!(simulate(&machine, &a, &ipo, &job, &settings, "", &mut |_| {}).is_ok());
+    assert!(run(&a, "G1 X100.1 F1000\n", 3, &mut |_| {}).is_ok());
 }
 
 /// A velocity loop too fast for the servo period (2 kHz at 125 µs behind a 0.5 ms current loop)
@@ -251,18 +246,5 @@ fn a_drive_that_cannot_follow_stops_the_run_at_its_excess_error_limit() {
         "{m}"
     );
     strict[0].servo.following_error_limit_m = Some(0.6e-3);
-    let machine = vmt_scenario::builtin().unwrap().machine;
-    let job = Job {
-        program: parse("G1 X105 F1000\n", Vector3::new(0.1, 0.1, 0.1)).unwrap(),
-        ballbar: vec![],
-        laser: None,
-    };
-    let settings = SimSettings {
-        fidelity: Fidelity::Reduced,
-        plant_substeps: 2,
-        log_rate_hz: 1000.0,
-        seed: 1,
-    };
-    let ipo = InterpolatorConfig::new(Limits::default());
-    simulate(&machine, &strict, &ipo, &job, &settings, "", &mut |_| {}).expect("0.505 mm of lag");
+    run(&strict, "G1 X105 F1000\n", 2, &mut |_| {}).expect("0.505 mm of lag");
 }
