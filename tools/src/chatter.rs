@@ -219,7 +219,7 @@ fn read_mcap(path: &Path, file: &str) -> Result<Log, CliError> {
     let mut times = Vec::new();
     let mut values: Vec<Vec<f64>> = vec![Vec::new(); AXES.len()];
     for message in input::messages(path, file)? {
-        let m = message.map_err(|e| bad(format!("a damaged MCAP record: {e}")))?;
+        let m = message?;
         match m.channel.topic.as_str() {
             "/ground_truth" => truth = serde_json::from_slice(&m.data).ok(),
             "/accelerometer" => {

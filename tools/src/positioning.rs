@@ -80,12 +80,7 @@ fn read_mcap(path: &Path, file: &str) -> Result<Option<(PositioningRun, Option<V
     let mut axis = None;
     let mut truth = None;
     for message in input::messages(path, file)? {
-        let m = message.map_err(|e| {
-            bad(format!(
-                "a damaged MCAP record: {}",
-                crate::error::with_causes(&e)
-            ))
-        })?;
+        let m = message?;
         match m.channel.topic.as_str() {
             "/ground_truth" => {
                 truth = serde_json::from_slice::<Value>(&m.data)

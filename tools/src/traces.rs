@@ -129,12 +129,7 @@ fn read_mcap(path: &Path, file: &str) -> Result<Recorded, CliError> {
     let mut channels: BTreeMap<u16, Channel> = BTreeMap::new();
     let mut truth = None;
     for message in input::messages(path, file)? {
-        let m = message.map_err(|e| {
-            bad(format!(
-                "a damaged MCAP record: {}",
-                crate::error::with_causes(&e)
-            ))
-        })?;
+        let m = message?;
         let topic = m.channel.topic.as_str();
         if topic == "/ground_truth" {
             truth = serde_json::from_slice(&m.data).ok();

@@ -16,9 +16,6 @@ pub(crate) enum Input {
     Other(Vec<u8>),
 }
 
-/// The MCAP messages of the file, in file order, linked to their channels.
-pub(crate) type Messages = mcap::io::MessageReader<BufReader<File>>;
-
 /// Whether `path` is an MCAP file, or its bytes if it is not; errors name `file`.
 pub(crate) fn open(path: &Path, file: &str) -> Result<Input, CliError> {
     let err = |e: std::io::Error| CliError::input(file, None, e.to_string());
@@ -35,10 +32,22 @@ pub(crate) fn open(path: &Path, file: &str) -> Result<Input, CliError> {
     Ok(Input::Other(head))
 }
 
-/// The messages of the MCAP file `path`, streamed.
-pub(crate) fn messages(path: &Path, file: &str) -> Result<Messages, CliError> {
+/// The messages of the MCAP file `path`, streamed in file order and linked to their channels;
+/// a damaged record is an error naming `file`, with its causes.
+pub(crate) fn messages(
+    path: &Path,
+    file: &str,
+) -> Result<impl Iterator<Item = Result<mcap::Message<'static>, CliError>>, CliError> {
     let f = File::open(path).map_err(|e| CliError::input(file, None, e.to_string()))?;
-    Ok(mcap::io::MessageReader::new(BufReader::new(f)))
+    let file = file.to_string();
+    Ok(
+        mcap::io::MessageReader::new(BufReader::new(f)).map(move |m| {
+            m.map_err(|e| {
+                let why = crate::error::with_causes(&e);
+                CliError::input(&file, None, format!("a damaged MCAP record: {why}"))
+            })
+        }),
+    )
 }
 
 /// The summary section of the MCAP file `path`, if it has one (read with a few seeks, not
