@@ -197,7 +197,9 @@ struct DiagnoseArgs {
     /// Axis name of a laser positioning CSV (for the report; an MCAP run names its axis).
     #[arg(long)]
     axis: Option<String>,
-    /// Also write report.txt, report.md, report.json and the polar plots into this folder.
+    /// Also write report.txt, report.md, report.json and the plots into this folder. Report
+    /// files of vmt's own that an earlier diagnosis left there and this one does not write
+    /// (diagnosis_<n>.png, positioning.png, chatter.csv) are removed and listed.
     #[arg(long)]
     out: Option<PathBuf>,
     /// Print JSON instead of text.
@@ -253,10 +255,21 @@ fn diagnose_cmd(args: DiagnoseArgs) -> Result<(), CliError> {
         vmt_tools::out!("{}", vmt_tools::diagnose::text(&d))?;
     }
     if let Some(dir) = &args.out {
-        for f in vmt_tools::diagnose::write(&d, dir)? {
-            vmt_tools::errln!("wrote {}", f.display());
-        }
+        wrote_report(dir, vmt_tools::diagnose::write(&d, dir)?)?;
     }
+    Ok(())
+}
+
+/// Lists the report files `vmt diagnose --out DIR` wrote, and removes what an earlier diagnosis
+/// left in DIR that this one did not write (a ball-bar test of seven traces after one of two
+/// kept `diagnosis_3.png` to `diagnosis_7.png`; a laser report after a ball-bar one kept its
+/// plots).
+fn wrote_report(dir: &Path, files: Vec<PathBuf>) -> Result<(), CliError> {
+    for f in &files {
+        vmt_tools::errln!("wrote {}", f.display());
+    }
+    let removed = outputs::remove_stale(dir, &files, outputs::is_diagnosis_file)?;
+    note_removed(dir, &removed);
     Ok(())
 }
 
@@ -272,9 +285,7 @@ fn positioning_report(
         vmt_tools::out!("{}", vmt_tools::positioning::text(p))?;
     }
     if let Some(dir) = out {
-        for f in vmt_tools::positioning::write(p, dir)? {
-            vmt_tools::errln!("wrote {}", f.display());
-        }
+        wrote_report(dir, vmt_tools::positioning::write(p, dir)?)?;
     }
     Ok(())
 }

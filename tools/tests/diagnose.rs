@@ -68,8 +68,13 @@ fn a_csv_trace_from_a_formula_is_diagnosed_with_its_injected_errors() {
     let s = finding(&r, "squareness_xy");
     assert!((s["value"].as_f64().unwrap() - 12.0).abs() < 1.0, "{s}");
     assert!(r["tests"][0]["iso"]["hysteresis_um"].as_f64().unwrap() > 2.0);
-    // The files of --out: text, Markdown, JSON and the polar plot.
+    // The files of --out: text, Markdown, JSON and the polar plot. A plot an earlier
+    // diagnosis of two tests left there goes, with a note; the user's own file stays.
     let out = dir.path().join("report");
+    std::fs::create_dir(&out).unwrap();
+    for f in ["diagnosis_2.png", "notes.txt"] {
+        std::fs::write(out.join(f), "earlier").unwrap();
+    }
     let mut args = vec![
         "diagnose",
         csv.to_str().unwrap(),
@@ -82,6 +87,13 @@ fn a_csv_trace_from_a_formula_is_diagnosed_with_its_injected_errors() {
     for f in ["report.txt", "report.md", "report.json", "diagnosis_1.png"] {
         assert!(out.join(f).metadata().unwrap().len() > 100, "{f}");
     }
+    assert!(!out.join("diagnosis_2.png").exists());
+    assert!(out.join("notes.txt").exists());
+    assert!(
+        stderr(&o).contains("does not write: diagnosis_2.png"),
+        "{}",
+        stderr(&o)
+    );
 }
 
 /// Runs `vmt diagnose` on a CSV of `text`; returns (success, stderr).
