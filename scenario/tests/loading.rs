@@ -1142,7 +1142,7 @@ fn a_laser_window_of_whole_servo_ticks_is_accepted_exactly() {
 fn the_default_log_rate_follows_a_slow_servo() {
     let text = with("servo_period_us = 125.0", "servo_period_us = 1250.0")
         .replacen("ipo_period_ms = 1.0", "ipo_period_ms = 2.5", 1)
-        .replacen("plant_substeps = 2 ", "plant_substeps = 20 ", 1)
+        .replacen("plant_substeps = 1 ", "plant_substeps = 10 ", 1)
         .replacen("sample_rate_hz = 1000.0", "sample_rate_hz = 800.0", 1)
         .replacen("log_rate_hz = 1000.0", "", 1);
     let s = parse(&text, "s.toml", None).expect("a slow servo without a log rate");

@@ -113,7 +113,6 @@ fn a_step_too_coarse_for_the_stiffest_mode_is_refused_with_the_largest_stable_st
     let edits = [
         ("servo_period_us = 125.0", "servo_period_us = 2500.0"),
         ("ipo_period_ms = 1.0", "ipo_period_ms = 2.5"),
-        ("plant_substeps = 2", "plant_substeps = 1"),
     ];
     let (_, e, written) = run_program(&format!("{MOVE}G1 X110 F500\n"), &edits);
     assert!(!written);
