@@ -868,11 +868,14 @@ impl Layout {
         // Workpiece side from the ground outwards, tool side from the ground outwards.
         let w_axes: Vec<Axis> = chain[1..g].iter().rev().filter_map(axis_of).collect();
         let t_axes: Vec<Axis> = chain[g + 1..5].iter().filter_map(axis_of).collect();
-        // The tool point with every axis at mid-stroke (scene coordinates).
+        // The tool point with every axis at mid-stroke (scene coordinates): the axis
+        // coordinates are the spindle's gauge line, the tool point one tool length below it
+        // (`tool_a` = `position_a` − tool length along Z), where the tool path is drawn.
         let mut c = [0.0; 3];
         for a in &t_axes {
             c[a.index()] = st.mid[a.index()];
         }
+        c[2] -= tool_len;
         let wp_top = c[2] - st.mid[2] + st.min[2];
         let mut layout = Layout {
             parts: Vec::new(),
@@ -1115,6 +1118,54 @@ mod tests {
             ]
         );
         assert!(l.parts.iter().any(|p| p.entity == "/machine/z_axis/tool"));
+    }
+
+    /// The scene position of the point `local` of `entity` with the axes at `q`: every
+    /// carriage on the entity's path translates it by its sign times its axis coordinate.
+    fn scene(l: &Layout, entity: &str, local: [f64; 3], q: [f64; 3]) -> [f64; 3] {
+        let mut p = local;
+        for (e, a, sign) in &l.carriages {
+            if entity == e || entity.starts_with(&format!("{e}/")) {
+                p[a.index()] += sign * q[a.index()];
+            }
+        }
+        p
+    }
+
+    /// The tool's tip is drawn on the tool path (which is logged in workpiece coordinates,
+    /// the tool point `q − (0, 0, L)`), wherever the axes stand: the tool hung from the
+    /// gauge line had been drawn a tool length above its own path.
+    #[test]
+    fn the_tool_tip_is_drawn_on_the_tool_path() {
+        for topology in ["WXYGZT", "WGXYZT", "WZGXYT"] {
+            let m = MachineSummary {
+                name: "m".into(),
+                topology: topology.into(),
+                strokes_m: [[0.0, 0.5], [0.0, 0.4], [0.0, 0.4]],
+                tool_length_m: 0.1,
+            };
+            let l = Layout::new(&m, topology.parse().expect("topology"));
+            let tool = l
+                .parts
+                .iter()
+                .find(|p| p.entity.ends_with("/tool"))
+                .unwrap();
+            let tip_local = [
+                f64::from(tool.centre[0]),
+                f64::from(tool.centre[1]),
+                f64::from(tool.centre[2]) - 0.5 * f64::from(tool.size[2]),
+            ];
+            for q in [[0.25, 0.2, 0.2], [0.1, 0.35, 0.05], [0.5, 0.0, 0.4]] {
+                let tip = scene(&l, &tool.entity, tip_local, q);
+                let path = scene(&l, &l.workpiece, [q[0], q[1], q[2] - 0.1], q);
+                for k in 0..3 {
+                    assert!(
+                        (tip[k] - path[k]).abs() < 1e-6,
+                        "{topology} at {q:?}: tip {tip:?}, path {path:?}"
+                    );
+                }
+            }
+        }
     }
 
     #[test]
