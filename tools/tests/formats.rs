@@ -164,6 +164,10 @@ fn test_run() -> Run {
             "backlash_um": {"x": 1.0, "y": 0.0},
             "servo_mismatch_ms": 0.54,
             "eccentricity_um": [2.0, -1.0],
+            // An interval open at the end (a milling run's chatter) and a list of an integer
+            // and a fraction: their schemas must hold them.
+            "chatter_intervals_s": [[0.012, null]],
+            "counts": [1, 1.5],
         }),
     }
 }
@@ -188,6 +192,11 @@ fn mcap_reads_back_with_python_mcap() {
     let mut names: Vec<&str> = topics.keys().map(String::as_str).collect();
     names.sort_unstable();
     assert_eq!(names, [ccw, cw, "/ground_truth", "/servo"]);
+    assert_eq!(
+        s["schema_errors"],
+        json!([]),
+        "messages against their schemas"
+    );
     assert_eq!(s["topics"]["/servo"]["count"], n);
     assert_eq!(s["topics"]["/servo"]["statistics_count"], n);
     assert_eq!(s["topics"][ccw]["count"], run.ballbar[0].times_s.len());
@@ -587,6 +596,11 @@ fn laser_readings_are_written_to_mcap_and_rrd() {
     let path = dir.path().join("laser.mcap");
     write_mcap(&run, &path).expect("write mcap");
     let s = python("read_mcap.py", &path);
+    assert_eq!(
+        s["schema_errors"],
+        json!([]),
+        "messages against their schemas"
+    );
     let topic = &s["topics"]["/laser"];
     assert_eq!(topic["schema_name"], "vmt.laser.Reading");
     assert_eq!(topic["count"], laser.readings.len());

@@ -5,7 +5,8 @@ counts), metadata names and values, first/last log time (ns), chunk compressions
 streams' and traces' messages are in log-time order and which topics follow them, the decoded
 ground truth, and per topic its first and last message and the sum of each numeric field over
 its messages (added one by one in file order, so that a reader summing the same values in the
-same order gets the same double exactly).
+same order gets the same double exactly), and the first ten messages that fail their channel's
+JSON Schema (`schema_errors`, checked with the `jsonschema` package).
 
 Usage: python3 read_mcap.py FILE.mcap
 Exit status 3 with a message on stderr when the `mcap` package is missing.
@@ -17,10 +18,11 @@ import sys
 try:
     import mcap
     from importlib.metadata import version
+    from jsonschema import Draft202012Validator
     from mcap.reader import make_reader
 except ImportError as e:  # pragma: no cover - the message is the point
     print(
-        f"the Python package `mcap` is missing ({e}); install the test requirements with "
+        f"the Python package `mcap` or `jsonschema` is missing ({e}); install the test requirements with "
         "`python3 -m pip install -r tools/tests/requirements.txt`",
         file=sys.stderr,
     )
@@ -47,6 +49,13 @@ def main(path):
                 "last": None,
                 "sums": {},
             }
+        # Every message against its channel's JSON Schema, as Foxglove reads the fields from it.
+        validators = {
+            ch.topic: Draft202012Validator(json.loads(summary.schemas[ch.schema_id].data))
+            for ch in summary.channels.values()
+            if ch.schema_id in summary.schemas
+        }
+        schema_errors = []
         first_time, last_time, previous, ordered, tail = None, None, -1, True, []
         ground_truth = None
         for schema, channel, message in reader.iter_messages(log_time_order=False):
@@ -63,6 +72,10 @@ def main(path):
                 ordered = ordered and message.log_time >= previous
                 previous = message.log_time
             decoded = json.loads(message.data)
+            validator = validators.get(channel.topic)
+            if validator is not None and len(schema_errors) < 10:
+                for e in validator.iter_errors(decoded):
+                    schema_errors.append(f"{channel.topic} at {message.log_time} ns: {e.message}")
             if t["first"] is None:
                 t["first"] = decoded
             t["last"] = decoded
@@ -96,6 +109,7 @@ def main(path):
         },
         "chunk_compressions": compressions,
         "ground_truth": ground_truth,
+        "schema_errors": schema_errors,
     }
     json.dump(out, sys.stdout)
 

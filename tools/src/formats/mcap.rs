@@ -407,10 +407,18 @@ fn infer_schema(v: &Value) -> Value {
                 .collect();
             json!({ "type": "object", "properties": props })
         }
-        Value::Array(a) => match a.iter().find(|x| !x.is_null()) {
-            Some(first) => json!({ "type": "array", "items": infer_schema(first) }),
-            None => json!({ "type": "array" }),
-        },
+        Value::Array(a) => {
+            // Items are typed only when every item has the same schema: an open interval
+            // `[0.012, null]` or a list of mixed values stays an untyped array, which its
+            // messages then satisfy.
+            let first = a.first().map(infer_schema);
+            match first {
+                Some(f) if !a[0].is_null() && a[1..].iter().all(|x| infer_schema(x) == f) => {
+                    json!({ "type": "array", "items": f })
+                }
+                _ => json!({ "type": "array" }),
+            }
+        }
         Value::Number(n) if n.is_i64() || n.is_u64() => json!({ "type": "integer" }),
         Value::Number(_) => json!({ "type": "number" }),
         Value::String(_) => json!({ "type": "string" }),
@@ -558,6 +566,14 @@ mod tests {
         assert_eq!(s["properties"]["seed"]["type"], "integer");
         assert!(s["properties"].get("note").is_none());
         assert_eq!(s["properties"]["list"]["items"]["type"], "number");
+        // A milling run's chatter interval still open at the end: `[[0.012, null]]` had been
+        // declared an array of arrays of numbers, which its own message failed.
+        let open = infer_schema(&json!({"intervals": [[0.012, null]], "mixed": [1.5, "a"]}));
+        assert_eq!(
+            open["properties"]["intervals"]["items"],
+            json!({ "type": "array" })
+        );
+        assert_eq!(open["properties"]["mixed"], json!({ "type": "array" }));
     }
 
     /// A row is what serde_json writes for the same map, for numbers of every kind, and a
