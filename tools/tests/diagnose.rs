@@ -288,6 +288,64 @@ fn a_simulated_run_is_read_back_from_its_mcap_and_compared_with_its_truth() {
     assert!((v[0] - v[1]).abs() < 0.3, "truth against diagnosis: {line}");
 }
 
+/// The offset of the length field of the first record with `opcode` from `start` on in the
+/// MCAP bytes `b` (records: opcode u8, length u64 little-endian, content).
+fn length_field(b: &[u8], start: usize, opcode: u8) -> usize {
+    let mut at = start;
+    loop {
+        let len = u64::from_le_bytes(b[at + 1..at + 9].try_into().unwrap()) as usize;
+        if b[at] == opcode {
+            return at + 1;
+        }
+        at += 9 + len;
+    }
+}
+
+/// A record whose length field is damaged to terabytes (as two writers racing on one file
+/// left it) is a clear error naming the file, in the data section and in the summary: the
+/// readers had allocated the stated length and aborted the process (exit 134).
+#[test]
+fn a_damaged_record_length_is_an_error_not_an_abort() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = vmt_scenario::BUILTIN_DEFAULT;
+    let cut = text.find("[job]").unwrap();
+    let job = "[job]\nkind = \"ballbar\"\nplane = \"XY\"\ncenter_mm = [250.0, 200.0, 200.0]\n\
+               radius_mm = 50.0\nfeed_mm_min = 3000.0\narc_deg = 360.0\ndirections = [\"cw\", \"ccw\"]\n";
+    let s = dir.path().join("s.toml");
+    std::fs::write(&s, format!("{}{job}", &text[..cut])).unwrap();
+    let out = dir.path().join("run");
+    let o = vmt(&[
+        "run",
+        s.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--quiet",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let good = std::fs::read(out.join("run.mcap")).unwrap();
+    // Footer: opcode, length, summary start (u64), ...; it ends 8 + 29 bytes before the end.
+    let footer = good.len() - 8 - 29;
+    assert_eq!(good[footer], 0x02, "footer opcode");
+    let summary_start = u64::from_le_bytes(good[footer + 9..footer + 17].try_into().unwrap());
+    let damaged = [
+        ("chunk", length_field(&good, 8, 0x06)),
+        ("summary", summary_start as usize + 1),
+    ];
+    for (what, at) in damaged {
+        let mut bad = good.clone();
+        bad[at..at + 8].copy_from_slice(&4_456_884_604_702u64.to_le_bytes());
+        let p = dir.path().join(format!("{what}.mcap"));
+        std::fs::write(&p, bad).unwrap();
+        let o = vmt(&["diagnose", p.to_str().unwrap()]);
+        let e = stderr(&o);
+        assert_eq!(o.status.code(), Some(2), "{what}: {e}");
+        assert!(
+            e.contains(&format!("{what}.mcap")) && e.contains("damaged MCAP"),
+            "{what}: {e}"
+        );
+    }
+}
+
 #[test]
 fn the_file_kind_decides_which_flags_apply_and_names_a_missing_column() {
     let dir = tempfile::tempdir().unwrap();

@@ -3,7 +3,8 @@
 //! 277 MB Kwon run had been read whole into memory), any other file (a CSV) is read whole.
 
 use crate::error::CliError;
-use mcap::sans_io::summary_reader::{SummaryReadEvent, SummaryReader};
+use mcap::sans_io::LinearReaderOptions;
+use mcap::sans_io::summary_reader::{SummaryReadEvent, SummaryReader, SummaryReaderOptions};
 use std::fs::File;
 use std::io::{BufReader, Read, Seek};
 use std::path::Path;
@@ -32,6 +33,11 @@ pub(crate) fn open(path: &Path, file: &str) -> Result<Input, CliError> {
     Ok(Input::Other(head))
 }
 
+/// The longest record read, bytes (a chunk compressed or not; ours are about 1 MB): a longer
+/// one is damage. The readers allocate a record's stated length before reading it, and a
+/// corrupt length field (4.4 TB in a review) aborted the process instead of giving an error.
+const RECORD_LENGTH_LIMIT: usize = 1 << 30;
+
 /// The messages of the MCAP file `path`, streamed in file order and linked to their channels;
 /// a damaged record is an error naming `file`, with its causes.
 pub(crate) fn messages(
@@ -40,21 +46,28 @@ pub(crate) fn messages(
 ) -> Result<impl Iterator<Item = Result<mcap::Message<'static>, CliError>>, CliError> {
     let f = File::open(path).map_err(|e| CliError::input(file, None, e.to_string()))?;
     let file = file.to_string();
-    Ok(
-        mcap::io::MessageReader::new(BufReader::new(f)).map(move |m| {
-            m.map_err(|e| {
-                let why = crate::error::with_causes(&e);
-                CliError::input(&file, None, format!("a damaged MCAP record: {why}"))
-            })
-        }),
+    Ok(mcap::io::MessageReader::new_with_options(
+        BufReader::new(f),
+        LinearReaderOptions::default().with_record_length_limit(RECORD_LENGTH_LIMIT),
     )
+    .map(move |m| {
+        m.map_err(|e| {
+            let why = crate::error::with_causes(&e);
+            CliError::input(&file, None, format!("a damaged MCAP record: {why}"))
+        })
+    }))
 }
 
 /// The summary section of the MCAP file `path`, if it has one (read with a few seeks, not
 /// through the file); `None` also when it cannot be read.
 pub(crate) fn summary(path: &Path) -> Option<mcap::Summary> {
     let mut f = File::open(path).ok()?;
-    let mut reader = SummaryReader::new();
+    let size = f.metadata().ok()?.len();
+    let mut reader = SummaryReader::new_with_options(
+        SummaryReaderOptions::default()
+            .with_file_size(size)
+            .with_record_length_limit(RECORD_LENGTH_LIMIT),
+    );
     while let Some(event) = reader.next_event() {
         match event.ok()? {
             SummaryReadEvent::ReadRequest(need) => {
