@@ -440,8 +440,14 @@ fn run_job(args: RunArgs) -> Result<(), CliError> {
     match diagnosed {
         Ok(stale) => removed.extend(stale),
         Err(e) => {
-            // A failed diagnosis leaves no earlier one beside this run either.
-            removed.extend(outputs::clear_diagnosis(&args.out)?);
+            // A failed diagnosis leaves no earlier one beside this run either (where it can be
+            // removed: the diagnosis' own error is the one to report); the note says why before
+            // the error that follows it.
+            removed.extend(outputs::clear_diagnosis(&args.out).unwrap_or_default());
+            vmt_tools::errln!(
+                "note: the run's files are complete in {}; its diagnosis failed (below)",
+                args.out.display()
+            );
             note_removed(&args.out, &removed);
             return Err(e);
         }

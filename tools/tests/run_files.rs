@@ -370,6 +370,32 @@ fn a_job_of_several_tests_gets_one_polar_plot_per_test() {
     assert!(one.join("ballbar_polar.png").is_file());
 }
 
+/// A diagnosis that cannot be written fails the command after the run's files are complete,
+/// and says so before its error (the note of what it removed had read as a contradiction).
+#[test]
+fn a_diagnosis_that_cannot_be_written_says_the_run_is_complete() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = scenario(dir.path(), "s.toml", QUARTER_JOB, &[]);
+    let out = dir.path().join("out");
+    std::fs::create_dir(&out).unwrap();
+    // A file where the diagnosis folder goes.
+    std::fs::write(out.join("diagnosis"), "in the way").unwrap();
+    let o = vmt(&[
+        "run",
+        &s,
+        "--out",
+        out.to_str().unwrap(),
+        "--quiet",
+        "--diagnose",
+    ]);
+    let e = stderr(&o);
+    assert_eq!(o.status.code(), Some(2), "{e}");
+    let note = e.find("its diagnosis failed (below)").expect(&e);
+    let error = e.find("error: ").expect(&e);
+    assert!(note < error && e[error..].contains("diagnosis"), "{e}");
+    assert!(out.join("run.mcap").is_file() && out.join("run.rrd").is_file());
+}
+
 /// `vmt run ARGS --out DIR --quiet`, which must succeed; its standard error.
 fn run_into(dir: &Path, args: &[&str]) -> String {
     let mut all = args.to_vec();
