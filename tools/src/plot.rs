@@ -422,8 +422,11 @@ fn transient_deg(t: &BallbarTrace) -> f64 {
 }
 
 /// The largest |deviation| of the finite samples of `traces` (µm), and of those more than
-/// [`transient_deg`] from either end of their trace; `None` without a finite sample.
-fn largest_deviations(traces: &[BallbarTrace]) -> Option<(f64, Option<f64>)> {
+/// [`transient_deg`] from either end of their trace; `None` without a finite sample. The
+/// polar plots of the PNGs and of the Rerun recording take their scales from it.
+pub(crate) fn largest_deviations<'a>(
+    traces: impl IntoIterator<Item = &'a BallbarTrace>,
+) -> Option<(f64, Option<f64>)> {
     let mut all: Option<f64> = None;
     let mut inner: Option<f64> = None;
     for t in traces {

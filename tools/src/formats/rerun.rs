@@ -56,7 +56,8 @@
 //! `xy_150_mm_1000_mm_min_ccw`); with several circular tests each has its own view,
 //! `<n>_<plane>_<radius>_mm`. The polar plots share one magnification k (mm per µm) per
 //! circular test, so that CW and CCW overlay; it is a round number chosen so that the largest
-//! deviation spans about a quarter of the radius. The plot's y is negated because Rerun's 2D
+//! deviation spans about a quarter of the radius, leaving out the transients at the ends of
+//! each trace as the PNG plots do (a start transient still shows, beyond the rings). The plot's y is negated because Rerun's 2D
 //! views draw +y downwards (image convention): on screen the plane's second axis points up, as on
 //! a ball-bar report.
 //!
@@ -661,13 +662,7 @@ impl Logger<'_> {
         traces: &[BallbarTrace],
         slugs: &[String],
     ) -> Result<(), CliError> {
-        let members: Vec<&BallbarTrace> = g.traces.iter().map(|&i| &traces[i]).collect();
-        let max_dev = members
-            .iter()
-            .flat_map(|t| t.deviation_um.iter())
-            .filter(|d| d.is_finite())
-            .fold(0.0_f64, |m, d| m.max(d.abs()));
-        let scale = PolarScale::new(g.radius_mm, max_dev);
+        let scale = PolarScale::new(g.radius_mm, group_deviation_um(g, traces));
         let base = format!("/ballbar/{}", g.name);
         let nominal = circle(g.radius_mm);
         let label = format!(
@@ -705,6 +700,14 @@ impl Logger<'_> {
         }
         Ok(())
     }
+}
+
+/// The deviation (µm) a test's polar view is scaled for: its traces' largest, without the
+/// transients at their ends, as the PNG plots are scaled (a run without overshoot, as in
+/// Kwon's steps, starts with 150 µm of lag that had set a scale hiding errors of a few µm).
+fn group_deviation_um(g: &PolarGroup, traces: &[BallbarTrace]) -> f64 {
+    crate::plot::largest_deviations(g.traces.iter().map(|&i| &traces[i]))
+        .map_or(0.0, |(all, inner)| inner.unwrap_or(all))
 }
 
 /// The magnification of a polar plot.
@@ -1166,6 +1169,45 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// Kwon's steps have no overshoot: 150 µm of lag at the start of a trace whose errors are a
+    /// few µm. The view is scaled for the few µm, as the PNG is.
+    #[test]
+    fn a_polar_view_is_scaled_without_the_start_transient() {
+        let n = 3600;
+        let angle_deg: Vec<f64> = (0..n).map(|i| i as f64 * 0.1).collect();
+        let deviation_um: Vec<f64> = angle_deg
+            .iter()
+            .map(|a| {
+                if *a < 1.0 {
+                    150.0
+                } else {
+                    3.0 * (2.0 * a.to_radians()).sin()
+                }
+            })
+            .collect();
+        let trace = BallbarTrace {
+            label: "XY 150 mm CCW".into(),
+            plane: "XY".into(),
+            direction: "ccw".into(),
+            radius_mm: 150.0,
+            feed_mm_min: 1000.0,
+            times_s: (0..n).map(|i| i as f64 * 0.01).collect(),
+            angle_deg,
+            deviation_um,
+        };
+        let g = PolarGroup {
+            name: "xy_150_mm".into(),
+            title: "Ball bar XY 150 mm".into(),
+            radius_mm: 150.0,
+            traces: vec![0],
+        };
+        let dev = group_deviation_um(&g, std::slice::from_ref(&trace));
+        assert!((dev - 3.0).abs() < 1e-3, "{dev}");
+        let scale = PolarScale::new(150.0, dev);
+        assert_eq!(scale.div_um, 2.0);
+        assert_eq!(scale.k_mm_per_um * 1e3, 10_000.0);
     }
 
     #[test]
