@@ -348,6 +348,13 @@ fn figures_text(d: &Diagnosis) -> String {
     if let Some(g) = d.iso.bidirectional_deviation_um {
         let _ = writeln!(s, "G(b) {g:.2} µm");
     }
+    if let Some(settled) = &d.settled_iso {
+        let _ = writeln!(s, "without the end transients:");
+        for dir in &settled.directions {
+            let sense = dir.sense.to_uppercase();
+            let _ = writeln!(s, "G {sense} {:.2} µm", dir.circular_deviation_um);
+        }
+    }
     let _ = writeln!(s, "\nLargest errors");
     for f in d.findings.iter().filter(|f| f.present).take(8) {
         let digits = if f.unit == "ms" { 4 } else { 2 };

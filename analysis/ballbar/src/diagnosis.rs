@@ -11,7 +11,7 @@
 use crate::features::{self, Residual};
 use crate::iso230_4::{self, Figures};
 use crate::model::{Fit, FitError, Term, Terms, reversal_angles};
-use crate::samples::{Placement, Samples};
+use crate::samples::{Placement, Samples, TRANSIENT_MIN_DEG, TRANSIENT_S};
 use crate::signatures::{self, Point};
 use crate::trace::{Plane, Trace, TraceError};
 use serde::Serialize;
@@ -118,6 +118,10 @@ pub struct Diagnosis {
     pub traces: Vec<String>,
     /// ISO 230-4 figures.
     pub iso: Figures,
+    /// The ISO 230-4 figures without the transients at the ends of every trace (the fit's
+    /// window, [`settled`]), given when a start transient is present: a test without overshoot
+    /// (Kwon's steps) carries the feed-in's lag into G and H, 160 µm where the errors are a few.
+    pub settled_iso: Option<Figures>,
     /// Diagnosed errors, ranked by contribution to the circular deviation.
     pub findings: Vec<Finding>,
     /// Errors this test cannot determine.
@@ -213,17 +217,52 @@ fn diagnose_test(
         .iter()
         .map(|p| (p.cos.as_slice(), p.sin.as_slice()))
         .collect();
+    let transient = findings
+        .iter()
+        .any(|f| f.present && f.key.starts_with("start_transient_"));
+    let settled_iso = transient.then(|| {
+        let settled: Vec<Trace> = traces.iter().map(settled).collect();
+        iso230_4::figures(&settled.iter().collect::<Vec<_>>(), options.minimum_zone)
+    });
     Ok(Diagnosis {
         plane: first.plane,
         radius_mm: first.radius_mm,
         feed_mm_min: first.feed_mm_min,
         traces: traces.iter().map(|t| t.label.clone()).collect(),
         iso: iso230_4::figures_with_trig(&refs, &trig, options.minimum_zone),
+        settled_iso,
         findings,
         not_computed: not_computed(&Terms::for_test(&refs), first),
         residual_rms_um: rms,
         noise_um: noise,
     })
+}
+
+/// `t` without its samples within the transient window of either end ([`TRANSIENT_S`] of
+/// travel at its feed, at least [`TRANSIENT_MIN_DEG`]: the samples the fit leaves out); all of
+/// it when that would leave nothing.
+pub fn settled(t: &Trace) -> Trace {
+    let travel_mm = t.feed_mm_min / 60.0 * TRANSIENT_S;
+    let window = (travel_mm / t.radius_mm)
+        .to_degrees()
+        .max(TRANSIENT_MIN_DEG);
+    let (Some(&a0), Some(&a1)) = (t.angle_deg.first(), t.angle_deg.last()) else {
+        return t.clone();
+    };
+    let keep = |a: f64| (a - a0).abs() >= window && (a1 - a).abs() >= window;
+    let Some(from) = t.angle_deg.iter().position(|&a| keep(a)) else {
+        return t.clone();
+    };
+    let to = t
+        .angle_deg
+        .iter()
+        .rposition(|&a| keep(a))
+        .map_or(from, |i| i + 1);
+    let mut s = t.clone();
+    s.angle_deg = t.angle_deg[from..to].to_vec();
+    s.deviation_um = t.deviation_um[from..to].to_vec();
+    s.time_s = t.time_s.as_ref().map(|time| time[from..to].to_vec());
+    s
 }
 
 /// The findings of one pass (ranked), the residual's RMS and the noise (µm).

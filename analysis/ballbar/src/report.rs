@@ -45,6 +45,22 @@ fn figures_rows(d: &Diagnosis) -> Vec<(String, String)> {
     if let Some(h) = d.iso.hysteresis_um {
         rows.push(("Circular hysteresis H".into(), format!("{h:.2} µm")));
     }
+    if let Some(settled) = &d.settled_iso {
+        // A start transient is present: the figures as they would read after an overshoot.
+        for dir in &settled.directions {
+            rows.push((
+                format!(
+                    "G {} without the end transients ({:.0} deg)",
+                    dir.sense.to_uppercase(),
+                    dir.sweep_deg
+                ),
+                format!("{:.2} µm", dir.circular_deviation_um),
+            ));
+        }
+        if let Some(h) = settled.hysteresis_um {
+            rows.push(("H without the end transients".into(), format!("{h:.2} µm")));
+        }
+    }
     rows
 }
 
