@@ -176,6 +176,52 @@ fn ns(t_s: f64) -> u64 {
     (t_s * 1e9).round() as u64
 }
 
+/// The records of the MCAP file `b` in file order up to the data end: (opcode, and for a
+/// metadata record its name).
+fn records(b: &[u8]) -> Vec<(u8, String)> {
+    let mut out = Vec::new();
+    let mut at = 8;
+    while at + 9 <= b.len() {
+        let op = b[at];
+        let len = u64::from_le_bytes(b[at + 1..at + 9].try_into().unwrap()) as usize;
+        let name = if op == 0x0C {
+            let n = u32::from_le_bytes(b[at + 9..at + 13].try_into().unwrap()) as usize;
+            String::from_utf8_lossy(&b[at + 13..at + 13 + n]).into_owned()
+        } else {
+            String::new()
+        };
+        out.push((op, name));
+        if op == 0x0F {
+            break; // data end
+        }
+        at += 9 + len;
+    }
+    out
+}
+
+/// The metadata that identify a run come before its first chunk of messages, so that a file cut short by
+/// a killed job still names its scenario, seed and machine; the ground truth comes last.
+#[test]
+fn an_mcap_names_its_run_before_its_first_chunk() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let path = dir.path().join("run.mcap");
+    write_mcap(&test_run(), &path).expect("write mcap");
+    let r = records(&std::fs::read(&path).unwrap());
+    // A chunk of messages is followed by its message indexes (the first chunk holds only the
+    // schemas and channels).
+    let index = |op: &u8| *op == 0x07;
+    let first_messages = r.iter().position(|(op, _)| index(op)).expect("messages");
+    let last_messages = r.iter().rposition(|(op, _)| index(op)).unwrap();
+    let at = |name: &str| r.iter().position(|(op, n)| *op == 0x0C && n == name);
+    for name in ["run", "machine", "scenario"] {
+        assert!(at(name).expect(name) < first_messages, "{name}: {r:?}");
+    }
+    assert!(
+        at("ground_truth").expect("ground_truth") > last_messages,
+        "{r:?}"
+    );
+}
+
 #[test]
 fn mcap_reads_back_with_python_mcap() {
     let run = test_run();

@@ -97,9 +97,10 @@ pub fn write_mcap(run: &Run, path: &Path) -> Result<(), CliError> {
     write_whole::<McapFile>(run, path)
 }
 
-/// An MCAP file of a run written while its job runs: the streams' and traces' channels when
-/// it is created, their messages block by block, the laser readings, the ground truth and the
-/// metadata at the end. Written as `<path>.partial` and renamed when finished; removed if
+/// An MCAP file of a run written while its job runs: the streams' and traces' channels and
+/// the metadata that identify the run (`run`, `machine`, `scenario`) when it is created, their
+/// messages block by block, the laser readings and the ground truth (message and metadata) at
+/// the end. Written as `<path>.partial` and renamed when finished; removed if
 /// dropped unfinished (an error), left as it is if the process is killed, when the chunks
 /// written so far are readable (`mcap recover`).
 pub struct McapFile {
@@ -130,6 +131,9 @@ impl RunFile for McapFile {
             .create(BufWriter::new(file))
             .map_err(err)?;
         let (streams, ballbar) = add_channels(&mut writer, opening).map_err(err)?;
+        // What identifies the run goes first, so that a file cut short by a killed job still
+        // names its scenario, seed and machine.
+        write_identity(&mut writer, opening).map_err(err)?;
         Ok(Self {
             writer,
             partial,
@@ -214,7 +218,8 @@ impl RunFile for McapFile {
         serde_json::to_writer(&mut self.data, &run.ground_truth)
             .map_err(|e| CliError::output(&path, e))?;
         self.message(channel, 0)?;
-        write_metadata(&mut self.writer, run).map_err(err)?;
+        let truth = metadata("ground_truth", vec![("json", run.ground_truth.to_string())]);
+        self.writer.write_metadata(&truth).map_err(err)?;
         self.writer.finish().map_err(err)?;
         let Self {
             writer, partial, ..
@@ -513,7 +518,8 @@ fn metadata(name: &str, pairs: Vec<(&str, String)>) -> Metadata {
     }
 }
 
-fn write_metadata(w: &mut McapWriter, run: &Run) -> Result<(), ::mcap::McapError> {
+/// The metadata records `run`, `machine` and `scenario`, known when the job starts.
+fn write_identity(w: &mut McapWriter, run: &Run) -> Result<(), ::mcap::McapError> {
     let m = &run.machine;
     let records = [
         metadata(
@@ -546,7 +552,6 @@ fn write_metadata(w: &mut McapWriter, run: &Run) -> Result<(), ::mcap::McapError
                 ("toml", run.scenario_toml.clone()),
             ],
         ),
-        metadata("ground_truth", vec![("json", run.ground_truth.to_string())]),
     ];
     records.iter().try_for_each(|r| w.write_metadata(r))
 }
