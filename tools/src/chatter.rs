@@ -86,6 +86,9 @@ impl DetectArgs {
 /// An accelerometer log.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Log {
+    /// Time of the first sample on the log's own clock (a run's: from the start of its job), s.
+    /// The detectors count from it; their times are reported on the log's clock.
+    pub start_s: f64,
     /// Sample rate, Hz (from the mean sample interval).
     pub sample_rate_hz: f64,
     /// Channel names and samples, m/s².
@@ -299,6 +302,7 @@ fn finish(
         }
     });
     Ok(Log {
+        start_s: times[0],
         sample_rate_hz: 1.0 / dt,
         channels,
         spindle_rpm: milling.and_then(|m| m["spindle_rpm"].as_f64()),
@@ -312,6 +316,8 @@ fn finish(
 /// What the detectors found.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Report {
+    /// The log's [`Log::start_s`], s: the detectors' times are from it.
+    pub start_s: f64,
     /// Kim's detector, with the limit used.
     pub kim: Option<(KimResult, f64)>,
     /// The spectral detector, and where its tooth-passing frequency came from.
@@ -404,6 +410,7 @@ pub fn detect(log: &Log, file: &str, args: &DetectArgs) -> Result<Report, CliErr
             _ if args.detector == Which::Both => {
                 // Kim's verdict stands on its own; say why the other is missing.
                 return Ok(Report {
+                    start_s: log.start_s,
                     kim,
                     spectral: None,
                     spectral_skipped: Some(NO_TOOTH_PASSING),
@@ -426,6 +433,7 @@ pub fn detect(log: &Log, file: &str, args: &DetectArgs) -> Result<Report, CliErr
         None
     };
     Ok(Report {
+        start_s: log.start_s,
         kim,
         spectral,
         spectral_skipped: None,
@@ -460,13 +468,18 @@ pub fn text(log: &Log, r: &Report) -> String {
     let n = log.channels.first().map_or(0, |c| c.1.len());
     let names: Vec<&str> = log.channels.iter().map(|c| c.0.as_str()).collect();
     let mut out = format!(
-        "{n} samples at {:.1} Hz ({:.3} s), channels {}\n",
+        "{n} samples at {:.1} Hz ({:.3} s from {:.3} s), channels {}\n",
         log.sample_rate_hz,
         n as f64 / log.sample_rate_hz,
+        log.start_s,
         names.join(", ")
     );
-    let when =
-        |t: Option<f64>| t.map_or("no chatter".to_string(), |t| format!("CHATTER at {t:.3} s"));
+    // On the log's clock, where a viewer of the same file finds the cut.
+    let when = |t: Option<f64>| {
+        t.map_or("no chatter".to_string(), |t| {
+            format!("CHATTER at {:.3} s", log.start_s + t)
+        })
+    };
     if let Some((k, limit)) = &r.kim {
         let peak = k.windows.iter().map(|w| w.rms).fold(0.0, f64::max);
         let feed = k
@@ -510,7 +523,10 @@ pub fn write_csv(r: &Report, w: &mut impl Write) -> std::io::Result<()> {
             writeln!(
                 w,
                 "kim,{},{},{},,,,{}",
-                b.end_s, b.rms, b.feed_override, b.chatter
+                r.start_s + b.end_s,
+                b.rms,
+                b.feed_override,
+                b.chatter
             )?;
         }
     }
@@ -519,7 +535,11 @@ pub fn write_csv(r: &Report, w: &mut impl Write) -> std::io::Result<()> {
             writeln!(
                 w,
                 "better,{},,,{},{},{},{}",
-                f.end_s, f.share, f.non_harmonic_ratio, f.peak_hz, f.chatter
+                r.start_s + f.end_s,
+                f.share,
+                f.non_harmonic_ratio,
+                f.peak_hz,
+                f.chatter
             )?;
         }
     }

@@ -327,10 +327,14 @@ pub fn truth_summary(truth: &serde_json::Value) -> Vec<String> {
             }
             _ => String::new(),
         };
+        // The cut's truth counts from the cut's start; the log's clock from the job's.
+        let cut_start = truth["cut_start_s"].as_f64().unwrap_or(0.0);
         let chatter = match (m["chatter"].as_bool(), num("chatter_onset_s")) {
             (Some(true), onset) => format!(
                 "chatter{}{}",
-                onset.map(|t| format!(" from {t:.3} s")).unwrap_or_default(),
+                onset
+                    .map(|t| format!(" from {:.3} s ({t:.3} s into the cut)", cut_start + t))
+                    .unwrap_or_default(),
                 num("chatter_frequency_hz")
                     .map(|f| format!(" at {f:.1} Hz"))
                     .unwrap_or_default()

@@ -66,9 +66,16 @@ fn a_slot_beyond_the_limit_chatters_near_the_mode_and_is_detected() {
     let (truth, summary, detect) = run(dir.path(), 0.5);
     let m = &truth["milling"];
     // The summary prints the milling truth: chatter onset and frequency, the surface.
+    // On the job's clock, as the log's times (and the cut's own).
+    let onset = m["chatter_onset_s"].as_f64().unwrap();
+    let cut_start = truth["cut_start_s"].as_f64().unwrap();
+    assert!(
+        cut_start > 0.5,
+        "the cut starts after the approach: {cut_start} s"
+    );
     let said = format!(
-        "truth: chatter from {:.3} s at {:.1} Hz (15000 rpm, 2 teeth: tooth passing 500.0 Hz)",
-        m["chatter_onset_s"].as_f64().unwrap(),
+        "truth: chatter from {:.3} s ({onset:.3} s into the cut) at {:.1} Hz (15000 rpm, 2 teeth: tooth passing 500.0 Hz)",
+        cut_start + onset,
         m["chatter_frequency_hz"].as_f64().unwrap()
     );
     assert!(summary.contains(&said), "`{said}` not in {summary}");
@@ -89,7 +96,19 @@ fn a_slot_beyond_the_limit_chatters_near_the_mode_and_is_detected() {
         (m["feed_per_tooth_mm"].as_f64().unwrap() - 0.1).abs() < 1e-9,
         "F3000 S15000 on two teeth"
     );
-    assert!(detect.contains("CHATTER"), "{detect}");
+    // The detectors report on the log's clock too: soon after the onset, not 1 s before
+    // the cut as when they counted from the first accelerometer sample.
+    let at = detect
+        .lines()
+        .find_map(|l| l.split("better:   CHATTER at ").nth(1))
+        .and_then(|r| r.split(' ').next())
+        .and_then(|t| t.parse::<f64>().ok())
+        .unwrap_or_else(|| panic!("{detect}"));
+    assert!(
+        at > cut_start + onset && at < cut_start + onset + 0.1,
+        "detected at {at} s, onset {} s: {detect}",
+        cut_start + onset
+    );
 }
 
 #[test]
