@@ -18,8 +18,9 @@
 //!   planned servo ticks), as a CNC's feed override scales the path speed.
 //! - **Spindle speed.** The S word of the block being executed, or the supervisor's speed once
 //!   it has set one.
-//! - **Streams.** `servo` at the log rate (command_a, position_a in m for a = x, y, z;
-//!   feed_override; spindle_rpm), and the cut's `accelerometer` and `cutting` streams with
+//! - **Streams.** `servo` at the log rate (the other jobs' channels but the tool point:
+//!   command_a, position_a, encoder_a, following_error_a, motor_force_a, motor_current_a,
+//!   guide_friction_a, screw_friction_a for a = x, y, z; feed_override; spindle_rpm), and the cut's `accelerometer` and `cutting` streams with
 //!   their times on the job's clock; the ground truth's `milling` holds the cut's truth (its
 //!   times from the start of the cut) and `cut_start_s`.
 
@@ -28,10 +29,12 @@ use crate::milling::{
     AccelWindow, CuttingProcess, MillingError, MillingSetup, Supervisor, SupervisorCommand,
 };
 use crate::nc::{Motion, Spindle};
+use crate::plant::Plant;
 use crate::run::{Channel, Run, Stream};
 use crate::simulate::{
-    AxisDynamics, Job, SimError, SimSettings, build_plant, check_following_error, check_servo,
-    check_step, check_strokes, following_error_limits, servo_tick, summary,
+    AxisDynamics, Job, SERVO_CHANNELS, SimError, SimSettings, build_plant, check_following_error,
+    check_servo, check_step, check_strokes, following_error_limits, servo_tick, servo_values,
+    summary,
 };
 use nalgebra::Vector3;
 use serde_json::json;
@@ -107,22 +110,28 @@ fn setpoint_at(ipo: &Interpolator, tau: f64, o: f64, cursor: &mut Cursor) -> Opt
     })
 }
 
-/// Servo-rate log of the job.
+/// Servo-rate log of the job: the channels of the other jobs' `servo` stream but the tool
+/// point (a milling run does not evaluate the error chain; the cut's own tool motion is in its
+/// `cutting` stream), with the feed override and the spindle speed.
 #[derive(Default)]
 struct ServoLog {
     times: Vec<f64>,
-    command: [Vec<f64>; 3],
-    position: [Vec<f64>; 3],
+    /// For each of [`SERVO_CHANNELS`], each axis' values.
+    axes: [[Vec<f64>; 3]; SERVO_CHANNELS.len()],
     feed_override: Vec<f64>,
     spindle_rpm: Vec<f64>,
 }
 
 impl ServoLog {
-    fn push(&mut self, t: f64, command: &[AxisCommand; 3], position: &[f64; 3], o: f64, rpm: f64) {
+    /// A row at `t` (s): the plant after the servo tick commanded by `command`.
+    fn push(&mut self, t: f64, plant: &dyn Plant, command: &[AxisCommand; 3], o: f64, rpm: f64) {
         self.times.push(t);
-        for i in 0..3 {
-            self.command[i].push(command[i].position);
-            self.position[i].push(position[i]);
+        let carriages = plant.carriages();
+        for (i, c) in command.iter().enumerate() {
+            let values = servo_values(plant, &carriages, i, c.position);
+            for (channel, v) in self.axes.iter_mut().zip(values) {
+                channel[i].push(v);
+            }
         }
         self.feed_override.push(o);
         self.spindle_rpm.push(rpm);
@@ -134,18 +143,17 @@ impl ServoLog {
             unit: unit.into(),
             values,
         };
-        let [cx, cy, cz] = self.command;
-        let [px, py, pz] = self.position;
         let mut channels = Vec::new();
-        for (a, c, p) in [("x", cx, px), ("y", cy, py), ("z", cz, pz)] {
-            channels.push(ch(format!("command_{a}"), "m", c));
-            channels.push(ch(format!("position_{a}"), "m", p));
+        for ((name, unit), per_axis) in SERVO_CHANNELS.iter().zip(self.axes) {
+            for (a, values) in ["x", "y", "z"].into_iter().zip(per_axis) {
+                channels.push(ch(format!("{name}_{a}"), unit, values));
+            }
         }
         channels.push(ch("feed_override".into(), "1", self.feed_override));
         channels.push(ch("spindle_rpm".into(), "rpm", self.spindle_rpm));
         Stream {
             name: "servo".into(),
-            description: "commanded and carriage positions of the axes, the feed override and the spindle speed".into(),
+            description: "axis commands, carriage positions, encoders, following errors, motor forces and currents, friction forces, the feed override and the spindle speed".into(),
             times_s: self.times,
             channels,
         }
@@ -281,6 +289,11 @@ pub fn simulate_machining(
         };
         let commands = servo_tick(plant.as_mut(), &sp, &tcp, period, substeps);
         check_following_error(plant.as_ref(), &limits, &sp, &job.program)?;
+        // Logged at the tick's own time, as the other jobs' servo rows (from 0).
+        if k.is_multiple_of(log_every) {
+            let time = k as f64 * period;
+            log.push(time, plant.as_ref(), &commands, o, command.spindle_rpm);
+        }
         k += 1;
         let t = k as f64 * period;
         let now = tool_xy(plant.as_ref());
@@ -304,10 +317,6 @@ pub fn simulate_machining(
             c.advance(t, period, before, now, &mut command)
                 .map_err(|e| SimError::Settings(format!("milling: {e}")))?;
             speed_taken_over |= command.spindle_rpm != programmed;
-        }
-        if k.is_multiple_of(log_every) {
-            let q = plant.carriages().map(|c| c.position_m);
-            log.push(t, &commands, &q, o, command.spindle_rpm);
         }
         before = now;
         tau += o * period;

@@ -29,7 +29,7 @@ use nalgebra::Vector3;
 use std::ops::Range;
 use thiserror::Error;
 use vmt_model::drive::servo::{loops_are_stable, sampled_loop_radius};
-use vmt_model::drive::{AxisCommand, Drive, DriveParams, Feedback, ServoParams};
+use vmt_model::drive::{AxisCommand, CarriageState, Drive, DriveParams, Feedback, ServoParams};
 use vmt_model::kinematics::{AxisState, VolumetricEvaluator};
 use vmt_model::machine::Machine;
 use vmt_model::thermal::{Operating, ThermalStepper};
@@ -851,7 +851,7 @@ impl HeatTracker {
     }
 }
 
-const SERVO_CHANNELS: [(&str, &str); 8] = [
+pub(crate) const SERVO_CHANNELS: [(&str, &str); 8] = [
     ("command", "m"),
     ("position", "m"),
     ("encoder", "m"),
@@ -861,6 +861,28 @@ const SERVO_CHANNELS: [(&str, &str); 8] = [
     ("guide_friction", "N"),
     ("screw_friction", "N"),
 ];
+
+/// The values of [`SERVO_CHANNELS`] of axis `i` of `plant`, whose carriages are `carriages`,
+/// commanded to `command_m` (the axis coordinate, m).
+pub(crate) fn servo_values(
+    plant: &dyn Plant,
+    carriages: &[CarriageState; 3],
+    i: usize,
+    command_m: f64,
+) -> [f64; 8] {
+    let d = plant.drive(i);
+    let (_, encoder) = d.feedback(carriages[i].position_m);
+    [
+        command_m,
+        carriages[i].position_m,
+        encoder,
+        d.following_error_m(),
+        d.motor_force_n,
+        d.params().current_a(d.motor_force_n),
+        carriages[i].friction_force_n,
+        d.screw_friction_force_n,
+    ]
+}
 
 /// Servo rows a run with a [`LogSink`] holds before it hands them on: small enough that a
 /// long job's log is never in memory whole, large enough to cost nothing per row.
@@ -1018,18 +1040,8 @@ impl Recorder {
             self.servo.times_s.push(sp.time_s);
             let carriages = plant.carriages();
             for i in 0..3 {
-                let d = plant.drive(i);
-                let (_, encoder) = d.feedback(carriages[i].position_m);
-                let values = [
-                    sp.position[i] - machine.volumetric.kinematics.tool_offset[i],
-                    carriages[i].position_m,
-                    encoder,
-                    d.following_error_m(),
-                    d.motor_force_n,
-                    d.params().current_a(d.motor_force_n),
-                    carriages[i].friction_force_n,
-                    d.screw_friction_force_n,
-                ];
+                let command = sp.position[i] - machine.volumetric.kinematics.tool_offset[i];
+                let values = servo_values(plant, &carriages, i, command);
                 for (c, v) in values.into_iter().enumerate() {
                     self.servo.channels[c * 3 + i].values.push(v);
                 }

@@ -268,6 +268,10 @@ fn add_channels(w: &mut McapWriter, run: &Run) -> Result<(Vec<u16>, Vec<u16>), :
         let id = w.add_schema(&name, "jsonschema", &pretty(&stream_schema(stream)))?;
         streams.push(w.add_channel(id, topic, "json", &stream_metadata(stream))?);
     }
+    if run.ballbar.is_empty() {
+        // No schema without a channel of it (a milling or laser run had listed one).
+        return Ok((streams, Vec::new()));
+    }
     let id = w.add_schema(
         "vmt.ballbar.Sample",
         "jsonschema",
