@@ -3,6 +3,8 @@
 //! detect` on the run's MCAP, for a depth above the stability limit and one below it.
 
 mod common;
+#[path = "common/python.rs"]
+mod python;
 
 use common::{stderr, vmt};
 use std::path::{Path, PathBuf};
@@ -96,6 +98,22 @@ fn a_slot_beyond_the_limit_chatters_near_the_mode_and_is_detected() {
         (m["feed_per_tooth_mm"].as_f64().unwrap() - 0.1).abs() < 1e-9,
         "F3000 S15000 on two teeth"
     );
+    // The recording shows the cut: accelerometers, forces, deflection, spindle and feed
+    // override over time, beside the drives' following errors (it had held only the boxes).
+    let rrd = python::python("read_rrd.py", &dir.path().join("out/run.rrd"));
+    let e = &rrd["entities"];
+    for entity in [
+        "/series/accelerometer_m_s_2/ax",
+        "/series/accelerometer_m_s_2/ay",
+        "/series/cutting_N/fx",
+        "/series/cutting_m/uy",
+        "/series/cutting_rpm/spindle_rpm",
+        "/series/servo_1/feed_override",
+        "/series/following_error_um/x",
+    ] {
+        let rows = e[entity]["rows"].as_u64().unwrap_or(0);
+        assert!(rows > 1000, "{entity}: {rows} rows in {}", e);
+    }
     // The detectors report on the log's clock too: soon after the onset, not 1 s before
     // the cut as when they counted from the first accelerometer sample.
     let at = detect

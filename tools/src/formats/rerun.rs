@@ -50,6 +50,7 @@
 //! | `/series/friction_n/{guide,screw}_{x,y,z}` | `Scalars` over `sim_time`: guideway and screw friction force, N |
 //! | `/series/ballbar_deviation_um/<trace>` | `Scalars` over `sim_time`: measured − nominal bar length, µm |
 //! | `/series/laser_deviation_um/{forward,backward}` | `Scalars` over `sim_time`: laser deviations x_ij of an ISO 230-2 test, µm, one row per reading (at the end of its averaging window) |
+//! | `/series/<stream>_<unit>/<channel>` | `Scalars` over `sim_time`: every channel of a stream other than `servo`, and the servo's `feed_override` and `spindle_rpm`, as they are: a milling run's `/series/accelerometer_m_s_2/{ax,ay,az}`, `/series/cutting_N/{fx,fy,fz}`, `/series/cutting_m/{ux,uy}`, `/series/cutting_rpm/spindle_rpm`, `/series/servo_1/feed_override`, `/series/servo_rpm/spindle_rpm`; one time-series view per stream and unit |
 //! | `/info/run`, `/info/ground_truth`, `/info/scenario` | static `TextDocument` (Markdown): seed, fidelity, machine; the ground truth JSON; the scenario TOML |
 //!
 //! `<trace>` is the trace label as a lower-case name (`XY 150 mm 1000 mm/min CCW` ->
@@ -130,6 +131,61 @@ pub struct RrdFile {
     /// Rows of the `servo` stream and samples of each trace sent so far (errors give a row's
     /// index in the whole run).
     sent: (usize, Vec<usize>),
+    /// The series of the streams' other channels ([`other_series`]) and the rows of each
+    /// stream sent so far, by stream name.
+    others: Vec<OtherSeries>,
+    other_sent: std::collections::BTreeMap<String, usize>,
+}
+
+/// A channel plotted as it is, outside the servo series of following errors and friction (a
+/// milling run's accelerometers, cutting forces, tool deflection, spindle speed and feed
+/// override): its stream, channel, entity, and the view that groups it with the stream's
+/// channels of the same unit.
+struct OtherSeries {
+    stream: String,
+    channel: String,
+    entity: String,
+    view: (String, String),
+}
+
+/// The channels of `streams` that [`OtherSeries`] plots: every channel of a stream other than
+/// `servo`, and the servo's feed override and spindle speed. Grouped by stream and unit:
+/// `/series/<stream>_<unit>/<channel>`, one view each titled `<stream> (<unit>)`.
+fn other_series(streams: &[Stream]) -> Vec<OtherSeries> {
+    let mut out = Vec::new();
+    for s in streams {
+        let plotted = |c: &Channel| {
+            s.name != "servo" || matches!(c.name.as_str(), "feed_override" | "spindle_rpm")
+        };
+        for c in s.channels.iter().filter(|c| plotted(c)) {
+            let unit: String = c
+                .unit
+                .chars()
+                .map(|ch| if ch.is_ascii_alphanumeric() { ch } else { '_' })
+                .collect();
+            let origin = format!("/series/{}_{unit}", slug_of(&s.name));
+            out.push(OtherSeries {
+                stream: s.name.clone(),
+                channel: c.name.clone(),
+                entity: format!("{origin}/{}", slug_of(&c.name)),
+                view: (format!("{} ({})", s.name, c.unit), origin),
+            });
+        }
+    }
+    out
+}
+
+/// `name` as an entity path part: ASCII letters, digits and `_`.
+fn slug_of(name: &str) -> String {
+    name.chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() {
+                c.to_ascii_lowercase()
+            } else {
+                '_'
+            }
+        })
+        .collect()
 }
 
 impl RunFile for RrdFile {
@@ -142,11 +198,19 @@ impl RunFile for RrdFile {
             .map_err(|e| CliError::output(path, e))?;
         let partial = Partial::new(path);
         let groups = polar_groups(&opening.ballbar);
+        let others = other_series(&opening.streams);
+        let mut views: Vec<(String, String)> = Vec::new();
+        for o in &others {
+            if !views.contains(&o.view) {
+                views.push(o.view.clone());
+            }
+        }
         let rec = rerun::RecordingStreamBuilder::new(APPLICATION_ID)
             .recording_id(recording_id(opening))
             .enabled(true)
             .with_blueprint(blueprint(
                 &groups,
+                &views,
                 !opening.ballbar.is_empty(),
                 opening.laser.is_some(),
             ))
@@ -162,12 +226,23 @@ impl RunFile for RrdFile {
             layout: Layout::new(&opening.machine, topology),
             tool_path: Vec::new(),
             sent: (0, vec![0; opening.ballbar.len()]),
+            others,
+            other_sent: std::collections::BTreeMap::new(),
         };
         let log = file.logger();
         log.info(opening)?;
         log.machine(&file.layout)?;
         if let Some(servo) = servo(&opening.streams) {
             log.servo_styles(servo)?;
+        }
+        for (k, o) in file.others.iter().enumerate() {
+            let name = format!("{} ({})", o.channel, o.view.0);
+            // An axis' channel (ax, fy, ux...) in the axis' colour, as the servo series.
+            let colour = match o.channel.chars().last() {
+                Some(a @ ('x' | 'y' | 'z')) if o.channel.len() == 2 => axis_colour(&a.to_string()),
+                _ => palette(k),
+            };
+            log.style(&o.entity, &name, colour)?;
         }
         for (t, slug) in opening.ballbar.iter().zip(&file.slugs) {
             log.style(
@@ -194,6 +269,17 @@ impl RunFile for RrdFile {
             }
             log.servo_series(servo, first)?;
         }
+        for s in streams {
+            let first = self.other_sent.get(&s.name).copied().unwrap_or(0);
+            for o in self.others.iter().filter(|o| o.stream == s.name) {
+                let Some(c) = s.channel(&o.channel) else {
+                    continue;
+                };
+                log.send_blocks(&o.entity, (&s.times_s, first), &o.entity, |rows| {
+                    Scalars::new(rows.map(|i| c.values[i])).columns_of_unit_batches()
+                })?;
+            }
+        }
         for ((t, slug), &first) in traces.iter().zip(&self.slugs).zip(&self.sent.1) {
             let value = |i: usize| t.deviation_um[i];
             let series = (&t.times_s[..], first);
@@ -206,6 +292,9 @@ impl RunFile for RrdFile {
         // to the log, not to us).
         flush(&self.rec).map_err(|e| log.err(e))?;
         self.sent.0 += servo(streams).map_or(0, |s| s.times_s.len());
+        for s in streams {
+            *self.other_sent.entry(s.name.clone()).or_insert(0) += s.times_s.len();
+        }
         for (sent, t) in self.sent.1.iter_mut().zip(traces) {
             *sent += t.times_s.len();
         }
@@ -329,7 +418,12 @@ fn polar_groups(traces: &[BallbarTrace]) -> Vec<PolarGroup> {
     groups
 }
 
-fn blueprint(groups: &[PolarGroup], has_ballbar: bool, has_laser: bool) -> Blueprint {
+fn blueprint(
+    groups: &[PolarGroup],
+    others: &[(String, String)],
+    has_ballbar: bool,
+    has_laser: bool,
+) -> Blueprint {
     let info = Tabs::new([
         TextDocumentView::new("Run").with_origin("/info/run").into(),
         TextDocumentView::new("Ground truth")
@@ -374,6 +468,13 @@ fn blueprint(groups: &[PolarGroup], has_ballbar: bool, has_laser: bool) -> Bluep
         right.push(
             TimeSeriesView::new("Laser deviation (µm)")
                 .with_origin("/series/laser_deviation_um")
+                .into(),
+        );
+    }
+    for (title, origin) in others {
+        right.push(
+            TimeSeriesView::new(title.clone())
+                .with_origin(origin.clone())
                 .into(),
         );
     }
@@ -796,6 +897,20 @@ fn axis_colour(axis: &str) -> Color {
         "y" => Color::from_rgb(44, 160, 44),
         _ => Color::from_rgb(31, 119, 180),
     }
+}
+
+/// The `k`-th colour of a small qualitative palette (Tableau 10).
+fn palette(k: usize) -> Color {
+    const P: [[u8; 3]; 6] = [
+        [214, 39, 40],
+        [44, 160, 44],
+        [31, 119, 180],
+        [255, 127, 14],
+        [148, 103, 189],
+        [140, 86, 75],
+    ];
+    let [r, g, b] = P[k % P.len()];
+    Color::from_rgb(r, g, b)
 }
 
 fn scale(c: Color, s: f64) -> Color {
