@@ -16,6 +16,12 @@
 //! give the tool point relative to the workpiece; the thermal network is advanced every second
 //! with the heat of the spindle and of the axes' motion. Instruments sample the tool point on the
 //! run's clock.
+//!
+//! At the program's end the controller holds the last setpoint until every axis is in position
+//! (|following error| ≤ [`IN_POSITION_M`]), as a CNC completes M30 after its in-position check,
+//! for at most [`SETTLE_LIMIT_S`]; the log runs on until then, so that it ends with the machine
+//! at rest rather than in the middle of its last approach (a laser test's carriage had still
+//! been 254 µm short of the end point).
 
 use crate::ballbar::{Ballbar, BallbarSpec};
 use crate::interpolator::{Cursor, Interpolator, InterpolatorConfig, InterpolatorError, Setpoint};
@@ -377,8 +383,11 @@ impl JobRun<'_> {
             Axis::ALL.map(|a| DirectionTracker::new(start[a.index()], Direction::Forward, 0.05e-6));
         let mut cursor = Cursor::default();
         let limits = following_error_limits(axes, ipo);
-        for k in 0..ticks {
-            let Some(sp) = interpolator.setpoint_from(k, &mut cursor) else {
+        let mut last = None;
+        for k in 0.. {
+            let Some(sp) =
+                setpoint_or_settle(&interpolator, k, &mut cursor, &mut last, plant.as_ref())
+            else {
                 break;
             };
             servo_tick(plant.as_mut(), &sp, &tcp, period, substeps);
@@ -409,7 +418,7 @@ impl JobRun<'_> {
                 recorder.send(sink, LOG_BLOCK_ROWS)?;
             }
             if k.is_multiple_of((ticks / 100).max(1)) {
-                progress(k as f64 / ticks as f64);
+                progress((k as f64 / ticks as f64).min(1.0));
             }
         }
         progress(1.0);
@@ -849,6 +858,43 @@ impl HeatTracker {
             .map_err(|e| SimError::Thermal(e.to_string()))?;
         Ok(true)
     }
+}
+
+/// In-position width at the end of a program, m: every axis' following error within it.
+pub const IN_POSITION_M: f64 = 1e-6;
+
+/// The longest the controller waits for the axes to be in position after the program's last
+/// setpoint, s (an axis held off by friction, or hunting about its encoder count, ends there).
+pub const SETTLE_LIMIT_S: f64 = 1.0;
+
+/// The setpoint of servo tick `k` of a program of `ticks` ticks: the interpolator's, and after
+/// its end the last one held at rest (no block: no instrument records) until the axes are in
+/// position or [`SETTLE_LIMIT_S`] has passed; `None` then.
+fn setpoint_or_settle(
+    ipo: &Interpolator,
+    k: usize,
+    cursor: &mut Cursor,
+    last: &mut Option<Setpoint>,
+    plant: &dyn Plant,
+) -> Option<Setpoint> {
+    if let Some(sp) = ipo.setpoint_from(k, cursor) {
+        *last = Some(sp);
+        return Some(sp);
+    }
+    let held = (*last)?;
+    let period = ipo.servo_period_s();
+    let waited = (k + 1 - ipo.servo_ticks()) as f64 * period;
+    let in_position = plant
+        .following_errors()
+        .iter()
+        .all(|e| e.abs() <= IN_POSITION_M);
+    (!in_position && waited <= SETTLE_LIMIT_S + 0.5 * period).then(|| Setpoint {
+        time_s: k as f64 * period,
+        velocity: Vector3::zeros(),
+        acceleration: Vector3::zeros(),
+        block: None,
+        ..held
+    })
 }
 
 pub(crate) const SERVO_CHANNELS: [(&str, &str); 8] = [

@@ -78,12 +78,15 @@ fn carriage_speed(feed_mm_min: f64, seconds: f64) -> Vec<f64> {
     let program = format!("G1 X{to_mm:.4} F{feed_mm_min}");
     let r = run(&axes, &program, Vector3::new(0.1, 0.2, 0.2), vec![]);
     let x = &r.streams[0].channel("position_x").unwrap().values;
+    let command = &r.streams[0].channel("command_x").unwrap().values;
     let v_cmd = feed_mm_min / 60_000.0;
-    // Skip 0.5 s of start (acceleration, integrator wind-up) and the last 0.2 s (braking).
-    let (a, b) = (
-        (0.5 * SERVO_HZ) as usize,
-        x.len() - (0.2 * SERVO_HZ) as usize,
-    );
+    // Skip 0.5 s of start (acceleration, integrator wind-up) and the last 0.2 s of the
+    // program (braking), and the wait for the axes to be in position after it.
+    let end = command
+        .windows(2)
+        .rposition(|w| w[1] != w[0])
+        .map_or(command.len(), |i| i + 1);
+    let (a, b) = ((0.5 * SERVO_HZ) as usize, end - (0.2 * SERVO_HZ) as usize);
     x[a..b]
         .windows(2)
         .map(|w| (w[1] - w[0]) * SERVO_HZ / v_cmd)
@@ -235,4 +238,47 @@ fn reversal_spike_widens_with_feed() {
     }
     let (h, _) = spike(&reversal_arc(&frictionless, 2000.0));
     assert!(h < 0.1 * spikes[1].0, "without friction: {h} µm");
+}
+
+/// A program ends with its axes in position: the controller holds the last setpoint until every
+/// following error is within 1 µm (as a CNC completes M30 after its in-position check), and the
+/// log runs on until then. The carriage is still tens of µm behind when the setpoints end.
+#[test]
+fn a_program_ends_with_the_axes_in_position() {
+    let r = run(
+        &matched_axes(),
+        "G1 X120 F3000",
+        Vector3::new(0.1, 0.2, 0.2),
+        vec![],
+    );
+    let servo = &r.streams[0];
+    let command = &servo.channel("command_x").unwrap().values;
+    let end = command
+        .windows(2)
+        .rposition(|w| w[1] != w[0])
+        .map_or(0, |i| i + 1);
+    let error = |a: &str, i: usize| {
+        servo
+            .channel(&format!("following_error_{a}"))
+            .unwrap()
+            .values[i]
+    };
+    assert!(
+        error("x", end).abs() > 5e-6,
+        "{} m at the last setpoint",
+        error("x", end)
+    );
+    let last = servo.times_s.len() - 1;
+    for a in ["x", "y", "z"] {
+        assert!(
+            error(a, last).abs() <= vmt_sim::simulate::IN_POSITION_M,
+            "{a}: {}",
+            error(a, last)
+        );
+    }
+    let waited = servo.times_s[last] - servo.times_s[end];
+    assert!(
+        waited > 0.01 && waited < vmt_sim::simulate::SETTLE_LIMIT_S,
+        "{waited} s"
+    );
 }
