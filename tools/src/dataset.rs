@@ -702,15 +702,29 @@ fn manifest(dir: &Path) -> Result<Manifest, CliError> {
         );
         truths.extend(figures(l).keys().cloned());
     }
+    // Every run of a dataset draws the same parameters and has the same truth figures (a
+    // trace's closing error is missing only from a trace with no reading, which no run
+    // completes), so one that lacks one the others have was edited.
     for (run, l) in runs.iter().zip(&labels) {
-        if let Some(name) = names.iter().find(|n| !l["parameters"][n].is_number()) {
+        let lacks = names
+            .iter()
+            .find(|n| !l["parameters"][n].is_number())
+            .map(|n| format!("parameters.{n}"))
+            .or_else(|| {
+                let f = figures(l);
+                truths
+                    .iter()
+                    .find(|k| !f.contains_key(*k))
+                    .map(|k| format!("ground_truth.ballbar.tests[0].figures.{k}"))
+            });
+        if let Some(key) = lacks {
             return Err(CliError::input(
                 &run.join("labels.json").display().to_string(),
                 None,
                 format!(
-                    "`parameters.{name}` is missing (other runs have it); the run is damaged: \
-                     remove its folder and run `vmt dataset` again with the same arguments to \
-                     simulate it anew"
+                    "`{key}` is missing (other runs have it); the run is damaged: remove its \
+                     folder and run `vmt dataset` again with the same arguments to simulate it \
+                     anew"
                 ),
             ));
         }

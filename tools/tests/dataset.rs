@@ -325,6 +325,21 @@ fn a_corrupt_label_is_an_error_naming_its_file() {
             "{e}"
         );
     }
+    // One truth figure deleted: the manifest would have an empty cell where the others have
+    // a number.
+    let mut v: Value = serde_json::from_str(&good).unwrap();
+    v["ground_truth"]["ballbar"]["tests"][0]["figures"]
+        .as_object_mut()
+        .unwrap()
+        .remove("backlash_x");
+    std::fs::write(&labels, v.to_string()).unwrap();
+    let o = dataset_run(&s, &out, 2, 7, 1);
+    let e = stderr(&o);
+    let said = "`ground_truth.ballbar.tests[0].figures.backlash_x` is missing (other runs have it)";
+    assert!(
+        !o.status.success() && e.contains(&file) && e.contains(said),
+        "{e}"
+    );
     // Another run's label.
     let other = good.replacen("\"000001\"", "\"000000\"", 1);
     std::fs::write(&labels, other).unwrap();
