@@ -45,10 +45,8 @@ struct ParameterToml {
     median: Option<f64>,
     sigma: Option<f64>,
     value: Option<f64>,
-    #[serde(default)]
-    p_absent: f64,
-    #[serde(default)]
-    absent: f64,
+    p_absent: Option<f64>,
+    absent: Option<f64>,
 }
 
 const ACCEPTED: &str = "accepted: uniform (min, max), normal (mean, sd), \
@@ -81,6 +79,8 @@ pub struct Parameter {
     pub name: String,
     /// The key paths that take the drawn value.
     pub keys: Vec<String>,
+    /// Line and column of the entry in the scenario file.
+    pub position: Option<(usize, usize)>,
     paths: Vec<KeyPath>,
     dist: Dist,
     p_absent: f64,
@@ -124,11 +124,74 @@ pub fn from_text(text: &str, file: &str) -> Result<Option<Dataset>, ScenarioErro
     let mut parameters = Vec::new();
     for (name, p) in section.parameters {
         let at = KeyPath::of(&["dataset", "parameters", &name]);
-        let param =
+        let mut param =
             parameter(&doc, &name, p, &mut seen).map_err(|(field, m)| located(at.key(field), m))?;
+        param.position = error::locate(text, &at).map(|s| error::line_col(text, s.start));
         parameters.push(param);
     }
     Ok(Some(Dataset { doc, parameters }))
+}
+
+/// Refuses `[dataset.parameters]` entries that are no inline table of a distribution, before
+/// serde reads them (its words, `unknown field axes` or `expected struct ParameterToml`, do not
+/// say what is accepted): a plain number, or an unquoted dotted key path, which TOML reads as
+/// nested tables.
+pub(crate) fn check_entries(text: &str, file: &str) -> Result<(), ScenarioError> {
+    let Ok(doc) = toml_edit::Document::parse(text) else {
+        return Ok(());
+    };
+    let Some(entries) = doc
+        .get("dataset")
+        .and_then(|d| d.get("parameters"))
+        .and_then(Item::as_table_like)
+    else {
+        return Ok(());
+    };
+    for (name, item) in entries.iter() {
+        let Some(message) = entry_shape(name, item) else {
+            continue;
+        };
+        let span = entries.get_key_value(name).and_then(|(k, _)| k.span());
+        return Err(ScenarioError {
+            file: file.to_string(),
+            position: span.map(|s| error::line_col(text, s.start)),
+            key: Some(KeyPath::of(&["dataset", "parameters", name]).to_string()),
+            message,
+        });
+    }
+    Ok(())
+}
+
+/// What is wrong with the shape of entry `name`, if anything.
+fn entry_shape(name: &str, item: &Item) -> Option<String> {
+    let example = "\"machine.axes.x.drive.backlash_um\" = { distribution = \"uniform\", min = 0.0, \
+                   max = 6.0 }";
+    let Some(table) = item.as_table_like() else {
+        return Some(format!(
+            "{}: an entry is an inline table giving its distribution, e.g. {example}; {ACCEPTED}",
+            item.as_value()
+                .map_or("a table".into(), |v| v.to_string().trim().to_string())
+        ));
+    };
+    if table.contains_key("distribution") || table.contains_key("keys") {
+        return None;
+    }
+    let path = dotted(name, item)?;
+    Some(format!(
+        "`{path}` is unquoted, so TOML reads it as nested tables: quote the key path, \
+         \"{path}\" = {{ distribution = ... }}"
+    ))
+}
+
+/// The dotted path from `name` down to the first table giving a distribution, if any.
+fn dotted(name: &str, item: &Item) -> Option<String> {
+    let table = item.as_table_like()?;
+    if table.contains_key("distribution") {
+        return Some(name.to_string());
+    }
+    table
+        .iter()
+        .find_map(|(k, v)| dotted(&format!("{name}.{k}"), v))
 }
 
 type Refusal = (&'static str, String);
@@ -140,15 +203,7 @@ fn parameter(
     seen: &mut BTreeSet<String>,
 ) -> Result<Parameter, Refusal> {
     let dist = distribution(&p)?;
-    if !(0.0..=1.0).contains(&p.p_absent) {
-        return Err((
-            "p_absent",
-            format!("{}: a probability from 0 to 1 is accepted", p.p_absent),
-        ));
-    }
-    if !p.absent.is_finite() {
-        return Err(("absent", "a finite number is accepted".into()));
-    }
+    let (p_absent, absent) = absence(&p)?;
     let (keys, field) = match p.keys {
         Some(keys) if keys.is_empty() => {
             return Err((
@@ -156,7 +211,10 @@ fn parameter(
                 "an empty list: one key path or more is accepted".into(),
             ));
         }
-        Some(keys) => (keys, "keys"),
+        Some(keys) => {
+            mislabelled(doc, name, &keys)?;
+            (keys, "keys")
+        }
         None => (vec![name.to_string()], "distribution"),
     };
     let mut paths = Vec::new();
@@ -183,13 +241,57 @@ fn parameter(
     Ok(Parameter {
         name: name.to_string(),
         keys,
+        position: None,
         paths,
         dist,
-        p_absent: p.p_absent,
-        absent: p.absent,
+        p_absent,
+        absent,
     })
 }
 
+/// `p_absent` (default 0) and `absent` (default 0) of an entry. An `absent` value with no
+/// chance of being taken is refused: it would look like it has an effect.
+fn absence(p: &ParameterToml) -> Result<(f64, f64), Refusal> {
+    let p_absent = p.p_absent.unwrap_or(0.0);
+    if !(0.0..=1.0).contains(&p_absent) {
+        return Err((
+            "p_absent",
+            format!("{p_absent}: a probability from 0 to 1 is accepted"),
+        ));
+    }
+    match p.absent {
+        Some(a) if !a.is_finite() => Err(("absent", "a finite number is accepted".into())),
+        Some(a) if p_absent == 0.0 => Err((
+            "absent",
+            format!(
+                "{a} is never taken without a `p_absent` above 0: give p_absent (the chance of \
+                 the absent value), or leave `absent` out"
+            ),
+        )),
+        a => Ok((p_absent, a.unwrap_or(0.0))),
+    }
+}
+
+/// Refuses an entry with `keys` that is named by another number's key path: the manifest's
+/// column of that name would hold the draw of other keys.
+fn mislabelled(doc: &DocumentMut, name: &str, keys: &[String]) -> Result<(), Refusal> {
+    let Ok(path) = key_path(name) else {
+        return Ok(());
+    };
+    let among = keys.iter().any(|k| key_path(k).is_ok_and(|p| p == path));
+    if number(doc, &path).is_none() || among {
+        return Ok(());
+    }
+    Err((
+        "keys",
+        format!(
+            "the entry is named by the key path of `{name}`, a number the scenario sets, but \
+             does not draw it: the manifest column `{name}` would hold the draw of {}; name \
+             the entry by a label that is no key path (e.g. scale_x), or add `{name}` to keys",
+            keys.join(", ")
+        ),
+    ))
+}
 /// The distribution of an entry, refusing fields that belong to another one.
 fn distribution(p: &ParameterToml) -> Result<Dist, Refusal> {
     let given = [
@@ -323,6 +425,12 @@ pub(crate) fn number_mut<'a>(doc: &'a mut DocumentMut, path: &KeyPath) -> Option
 }
 
 impl Dataset {
+    /// The entry that draws the number at key path `key` (as a [`KeyPath`] displays it).
+    pub fn entry_of(&self, key: &str) -> Option<&Parameter> {
+        let path = key_path(key).ok()?;
+        self.parameters.iter().find(|p| p.paths.contains(&path))
+    }
+
     /// Draws machine `seed`: every parameter from its distribution (a generator seeded with
     /// `seed`, parameters in name order), written into the scenario with `simulation.seed = seed`.
     /// `seed` must fit a TOML integer (below 2^63).

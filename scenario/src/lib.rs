@@ -68,6 +68,7 @@ pub(crate) fn read_toml(text: &str, file: &str) -> Result<schema::ScenarioFile, 
         message: e.message().trim().to_string(),
     };
     let de = toml::Deserializer::parse(text).map_err(|e| toml_error(e, None))?;
+    dataset::check_entries(text, file)?;
     serde_path_to_error::deserialize(de).map_err(|e| {
         if let Some(field) = field_at_fault(text, e.path()) {
             let message = e.inner().message().trim().to_string();

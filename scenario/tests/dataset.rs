@@ -222,3 +222,43 @@ fn bad_entries_are_refused_naming_the_key_and_what_is_accepted() {
     let e = parse(&text, "ds.toml", None).expect_err("refused");
     assert!(e.to_string().contains("maxi"), "{e}");
 }
+
+#[test]
+fn entries_that_would_mislead_are_refused_naming_the_key() {
+    let cases = [
+        // The column `machine.axes.x.drive.backlash_um` would hold the Y backlash.
+        (
+            r#""machine.axes.x.drive.backlash_um" = { keys = ["machine.axes.y.drive.backlash_um"], distribution = "uniform", min = 1.0, max = 6.0 }"#,
+            "dataset.parameters.\"machine.axes.x.drive.backlash_um\".keys",
+            "does not draw it",
+        ),
+        // An absent value that is never taken.
+        (
+            r#""machine.axes.x.drive.backlash_um" = { distribution = "uniform", min = 1.0, max = 6.0, absent = 2.0 }"#,
+            "dataset.parameters.\"machine.axes.x.drive.backlash_um\".absent",
+            "never taken without a `p_absent` above 0",
+        ),
+        // A plain number is no distribution.
+        (
+            r#""machine.axes.x.drive.backlash_um" = 3.0"#,
+            "dataset.parameters.\"machine.axes.x.drive.backlash_um\"",
+            "3.0: an entry is an inline table giving its distribution",
+        ),
+        // Unquoted, the key path is nested tables.
+        (
+            r#"machine.axes.x.drive.backlash_um = { distribution = "uniform", min = 0.0, max = 6.0 }"#,
+            "dataset.parameters.machine",
+            "`machine.axes.x.drive.backlash_um` is unquoted, so TOML reads it as nested tables: quote the key path",
+        ),
+    ];
+    for (entry, key, message) in cases {
+        let e = refusal(entry);
+        assert_eq!(e.key.as_deref(), Some(key), "{entry}: {e}");
+        assert!(e.message.contains(message), "{entry}: {e}");
+        assert!(e.position.is_some(), "{entry}: no line in {e}");
+    }
+    // Named by one of its keys, or by a label, an entry with keys is accepted.
+    dataset(
+        r#""machine.axes.x.drive.backlash_um" = { keys = ["machine.axes.x.drive.backlash_um", "machine.axes.y.drive.backlash_um"], distribution = "uniform", min = 1.0, max = 6.0, p_absent = 0.5, absent = 0.5 }"#,
+    );
+}

@@ -39,8 +39,40 @@ pub const GOAL_MIN_RUNS: usize = 500;
 /// Worst runs listed per figure.
 const WORST_LISTED: usize = 5;
 
-/// A run's comparisons: (figure key, unit, the comparison or None when not diagnosed).
-type RunComparisons = Vec<(String, String, Option<Comparison>)>;
+/// A run's comparison for one figure, or the run's id and why it has no such finding.
+type Compared = Result<Comparison, NotDiagnosed>;
+/// A run's comparisons: (figure key, unit, the comparison).
+type RunComparisons = Vec<(String, String, Compared)>;
+
+/// A run diagnosed without a figure's finding.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct NotDiagnosed {
+    /// Run id.
+    pub id: String,
+    /// Why the diagnosis has no such finding (its own words when it says).
+    pub reason: String,
+}
+
+/// One of the worst runs of a figure.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct WorstRun {
+    /// Run id.
+    pub id: String,
+    /// The diagnosed value.
+    pub diagnosed: f64,
+    /// The ground truth.
+    pub truth: f64,
+}
+
+/// The range of "quiet" truths: |truth| below half the finding's threshold, which may differ
+/// between runs (a scale threshold depends on the radius).
+#[derive(Clone, Copy, Debug, Serialize, PartialEq)]
+pub struct QuietBelow {
+    /// The smallest bound over the runs diagnosed.
+    pub min: f64,
+    /// The largest.
+    pub max: f64,
+}
 
 /// One run's comparison for one figure.
 #[derive(Clone, Debug)]
@@ -64,6 +96,8 @@ pub struct FigureStats {
     pub n: usize,
     /// Runs whose diagnosis has no such finding.
     pub not_diagnosed: usize,
+    /// Those runs, with the reason.
+    pub not_diagnosed_runs: Vec<NotDiagnosed>,
     /// Mean error (diagnosed − truth); NaN (JSON null) when n = 0.
     pub bias: f64,
     /// Root mean square error; NaN (JSON null) when n = 0.
@@ -74,8 +108,8 @@ pub struct FigureStats {
     pub worst: f64,
     /// Id of the worst run.
     pub worst_id: String,
-    /// The worst runs: (id, truth, diagnosed).
-    pub worst_runs: Vec<(String, f64, f64)>,
+    /// The worst runs.
+    pub worst_runs: Vec<WorstRun>,
     /// Share of runs within tolerance; NaN (JSON null) when n = 0.
     pub within: f64,
     /// The tolerance, in words.
@@ -84,6 +118,9 @@ pub struct FigureStats {
     /// reported present is a false positive (the runs the false-positive rate is taken over,
     /// not the false positives).
     pub quiet_runs: usize,
+    /// The bound of |truth| below which a run is quiet, in the figure's unit (None when no run
+    /// was diagnosed).
+    pub quiet_below: Option<QuietBelow>,
     /// False-positive rate: the share of the quiet runs reported present (None without quiet
     /// runs).
     pub fp_rate: Option<f64>,
@@ -128,6 +165,7 @@ pub fn tolerance(key: &str, truth: f64, radius_mm: f64) -> (f64, &'static str) {
 
 /// Diagnoses every complete run of dataset `dir` and computes the statistics.
 pub fn study(dir: &Path) -> Result<Study, CliError> {
+    check_dataset_folder(dir)?;
     let runs = complete_runs(dir)?;
     // A corrupt label is a damaged dataset, an error naming the file, not a run that failed
     // its diagnosis (the truth scored against is the one in run.mcap).
@@ -136,7 +174,7 @@ pub fn study(dir: &Path) -> Result<Study, CliError> {
     }
     let per_run: Vec<Result<RunComparisons, (String, String)>> =
         runs.par_iter().map(|p| compare_run(p)).collect();
-    let mut by_key: BTreeMap<String, (String, Vec<Option<Comparison>>)> = BTreeMap::new();
+    let mut by_key: BTreeMap<String, (String, Vec<Compared>)> = BTreeMap::new();
     let mut failed = Vec::new();
     for r in per_run {
         match r {
@@ -166,11 +204,40 @@ pub fn study(dir: &Path) -> Result<Study, CliError> {
     })
 }
 
+/// Refuses a folder that is not a dataset: `runs/` missing (an empty folder, a `vmt run`
+/// output folder, a file).
+fn check_dataset_folder(dir: &Path) -> Result<(), CliError> {
+    if dir.join("runs").is_dir() {
+        return Ok(());
+    }
+    let what = if !dir.exists() {
+        "it does not exist"
+    } else if !dir.is_dir() {
+        "it is a file"
+    } else if dir.join("run.mcap").is_file() {
+        "it holds one run (`vmt diagnose` diagnoses its run.mcap)"
+    } else {
+        "it has no runs/ folder"
+    };
+    Err(CliError::Argument(format!(
+        "{} is not a dataset folder: {what}; `vmt accuracy` reads a folder written by \
+         `vmt dataset` (dataset.json, runs/<id>/ with run.mcap and labels.json)",
+        dir.display()
+    )))
+}
+
 /// What makes dataset `dir` with `found` complete runs look unfinished.
 fn completeness(dir: &Path, found: usize) -> Result<Vec<String>, CliError> {
     let mut warnings = Vec::new();
     let d = dir.display();
+    let failed = dir.join(crate::dataset::FAILED_DIR);
     match read_identity(dir)? {
+        Some(id) if (found as u64) < id.count && failed.is_dir() => warnings.push(format!(
+            "{d} is incomplete: {found} of the {} runs asked for are found, and runs failed in \
+             simulation (their scenarios are in {}): `vmt dataset` again would fail the same way",
+            id.count,
+            failed.display()
+        )),
         Some(id) if (found as u64) < id.count => warnings.push(format!(
             "{d} is incomplete: {found} of the {} runs asked for are found (an interrupted \
              `vmt dataset`? run it again with the same arguments to finish it)",
@@ -225,21 +292,47 @@ fn compare_run(path: &Path) -> Result<RunComparisons, (String, String)> {
         .map(|(key, truth)| {
             let f = diag.finding(key);
             let unit = f.map(|f| f.unit.to_string()).unwrap_or_default();
-            let c = f.map(|f| Comparison {
-                id: id.clone(),
-                truth,
-                value: f.value,
-                present: f.present,
-                threshold: f.threshold,
-                radius_mm: diag.radius_mm,
-            });
+            let c = f
+                .map(|f| Comparison {
+                    id: id.clone(),
+                    truth,
+                    value: f.value,
+                    present: f.present,
+                    threshold: f.threshold,
+                    radius_mm: diag.radius_mm,
+                })
+                .ok_or_else(|| NotDiagnosed {
+                    id: id.clone(),
+                    reason: why_not(diag, key),
+                });
             (key.clone(), unit, c)
         })
         .collect())
 }
 
-fn stats(key: &str, unit: &str, cs: &[Option<Comparison>]) -> FigureStats {
+/// Why diagnosis `diag` has no finding `key`: what it says of the key (or of the key's kind,
+/// `closing_error` for `closing_error_cw`), if anything.
+fn why_not(diag: &vmt_ballbar::Diagnosis, key: &str) -> String {
+    diag.not_computed
+        .iter()
+        .find(|n| n.key == key)
+        .or_else(|| {
+            diag.not_computed
+                .iter()
+                .find(|n| key.starts_with(&format!("{}_", n.key)))
+        })
+        .map_or_else(
+            || "the diagnosis has no such finding and does not say why".to_string(),
+            |n| n.reason.clone(),
+        )
+}
+
+fn stats(key: &str, unit: &str, cs: &[Compared]) -> FigureStats {
     let done: Vec<&Comparison> = cs.iter().flatten().collect();
+    let not_diagnosed_runs: Vec<NotDiagnosed> = cs
+        .iter()
+        .filter_map(|c| c.as_ref().err().cloned())
+        .collect();
     let n = done.len();
     let errors: Vec<f64> = done.iter().map(|c| c.value - c.truth).collect();
     let squares: Vec<f64> = errors.iter().map(|e| e * e).collect();
@@ -275,7 +368,12 @@ fn stats(key: &str, unit: &str, cs: &[Option<Comparison>]) -> FigureStats {
     let fp_rate = (!quiet.is_empty())
         .then(|| quiet.iter().filter(|c| c.present).count() as f64 / quiet.len() as f64);
     let goal = !key.starts_with("straightness");
-    let not_diagnosed = cs.len() - n;
+    let not_diagnosed = not_diagnosed_runs.len();
+    let halves = done.iter().map(|c| 0.5 * c.threshold);
+    let quiet_below = (n > 0).then(|| QuietBelow {
+        min: halves.clone().fold(f64::INFINITY, f64::min),
+        max: halves.fold(f64::NEG_INFINITY, f64::max),
+    });
     let met = within >= GOAL_WITHIN
         && fp_rate.is_none_or(|r| r < GOAL_FALSE_POSITIVES)
         && not_diagnosed == 0;
@@ -284,6 +382,7 @@ fn stats(key: &str, unit: &str, cs: &[Option<Comparison>]) -> FigureStats {
         unit: unit.to_string(),
         n,
         not_diagnosed,
+        not_diagnosed_runs,
         bias: mean(&errors),
         rms: mean(&squares).sqrt(),
         p95_abs: p95,
@@ -292,11 +391,16 @@ fn stats(key: &str, unit: &str, cs: &[Option<Comparison>]) -> FigureStats {
         worst_runs: ranked
             .iter()
             .take(WORST_LISTED)
-            .map(|(_, c)| (c.id.clone(), c.truth, c.value))
+            .map(|(_, c)| WorstRun {
+                id: c.id.clone(),
+                diagnosed: c.value,
+                truth: c.truth,
+            })
             .collect(),
         within,
         tolerance: tolerance(key, 0.0, 100.0).1.to_string(),
         quiet_runs: quiet.len(),
+        quiet_below,
         fp_rate,
         goal,
         met,
@@ -309,7 +413,8 @@ pub fn markdown(s: &Study) -> String {
     let mut out = String::new();
     let _ = writeln!(
         out,
-        "Runs: {} ({} could not be diagnosed)\n",
+        "Runs: {} ({} could not be diagnosed at all; a run diagnosed without a figure's finding \
+         is counted in that figure's \"not diagnosed\")\n",
         s.runs,
         s.failed.len()
     );
@@ -318,11 +423,11 @@ pub fn markdown(s: &Study) -> String {
     }
     let _ = writeln!(
         out,
-        "| figure | unit | n | bias | RMS | p95 \\|err\\| | worst (run) | tolerance | within | quiet runs | FP rate | goals |"
+        "| figure | unit | n | not diagnosed | bias | RMS | p95 \\|err\\| | worst (run) | tolerance | within | quiet runs (\\|truth\\| below) | FP rate | goals |"
     );
     let _ = writeln!(
         out,
-        "|---|---|---:|---:|---:|---:|---:|---|---:|---:|---:|---|"
+        "|---|---|---:|---:|---:|---:|---:|---:|---|---:|---:|---:|---|"
     );
     for f in &s.figures {
         let fp = f
@@ -338,32 +443,28 @@ pub fn markdown(s: &Study) -> String {
         let num = |x: f64, text: String| if x.is_finite() { text } else { "–".into() };
         let _ = writeln!(
             out,
-            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
+            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
             f.key,
             f.unit,
             f.n,
+            f.not_diagnosed,
             num(f.bias, format!("{:+.3}", f.bias)),
             num(f.rms, format!("{:.3}", f.rms)),
             num(f.p95_abs, format!("{:.3}", f.p95_abs)),
             num(f.worst, format!("{:.3} ({})", f.worst, f.worst_id)),
             f.tolerance,
             num(f.within, format!("{:.1} %", 100.0 * f.within)),
-            f.quiet_runs,
+            quiet(f),
             fp,
             verdict
         );
     }
     for f in s.figures.iter().filter(|f| f.goal && !f.met) {
-        let runs: Vec<String> = f
-            .worst_runs
-            .iter()
-            .map(|(id, t, v)| format!("{id} (truth {t:+.3}, diagnosed {v:+.3})"))
-            .collect();
         let _ = writeln!(
             out,
-            "\n{} misses its goals; worst runs: {}",
+            "\n{} misses its goals: {}",
             f.key,
-            runs.join(", ")
+            misses(f).join("; ")
         );
     }
     for (id, why) in &s.failed {
@@ -372,12 +473,70 @@ pub fn markdown(s: &Study) -> String {
     out
 }
 
+/// The quiet runs' cell: their number and the bound of |truth| they are below.
+fn quiet(f: &FigureStats) -> String {
+    match f.quiet_below {
+        None => f.quiet_runs.to_string(),
+        Some(q) => {
+            let (min, max) = (format!("{:.3}", q.min), format!("{:.3}", q.max));
+            match min == max {
+                true => format!("{} (< {max})", f.quiet_runs),
+                false => format!("{} (< {min} to {max})", f.quiet_runs),
+            }
+        }
+    }
+}
+
+/// Why figure `f` misses its goals, one reason per goal missed.
+fn misses(f: &FigureStats) -> Vec<String> {
+    let mut why = Vec::new();
+    let mut reasons: BTreeMap<&str, Vec<&str>> = BTreeMap::new();
+    for r in &f.not_diagnosed_runs {
+        reasons.entry(&r.reason).or_default().push(&r.id);
+    }
+    for (reason, ids) in reasons {
+        why.push(format!(
+            "{} runs not diagnosed ({}): {reason}",
+            ids.len(),
+            ids.join(", ")
+        ));
+    }
+    // Without a run diagnosed (n = 0) the runs not diagnosed are the whole reason.
+    if f.n > 0 && f.within < GOAL_WITHIN {
+        let runs: Vec<String> = f
+            .worst_runs
+            .iter()
+            .map(|w| {
+                format!(
+                    "{} (truth {:+.3}, diagnosed {:+.3})",
+                    w.id, w.truth, w.diagnosed
+                )
+            })
+            .collect();
+        why.push(format!(
+            "{:.1} % within tolerance (goal {:.0} %); worst runs: {}",
+            100.0 * f.within,
+            100.0 * GOAL_WITHIN,
+            runs.join(", ")
+        ));
+    }
+    if let Some(r) = f.fp_rate.filter(|r| *r >= GOAL_FALSE_POSITIVES) {
+        why.push(format!(
+            "false positives in {:.1} % of the quiet runs (goal under {:.0} %)",
+            100.0 * r,
+            100.0 * GOAL_FALSE_POSITIVES
+        ));
+    }
+    why
+}
+
 /// What the columns of `accuracy.md` mean.
 const HEADER: &str = "Every run's first circular test is diagnosed and each finding compared \
-with the run's ground truth. Per figure: n (runs diagnosed with it), bias (mean of diagnosed − \
+with the run's ground truth. Per figure: n (runs diagnosed with it), not diagnosed (runs diagnosed without the \
+figure's finding; why is said below the table when the figure misses its goals), bias (mean of diagnosed − \
 truth), RMS, the 95th percentile of |error| (nearest rank), the worst |error| and its run, the \
 tolerance and the share of runs within it, quiet runs (runs whose |truth| is below half the \
-finding's threshold, where a finding reported present is a false positive: the runs the \
+finding's threshold, the bound given in brackets in the figure's unit, where a finding reported present is a false positive: the runs the \
 false-positive rate is taken over, not false positives), the false-positive rate (the share of \
 the quiet runs reported present; – without quiet runs) and whether the goals (95 % within \
 tolerance, false positives under 2 %) are met: they are stated for 500 runs or more, and on \
@@ -431,8 +590,8 @@ pub fn command(dir: &Path) -> Result<(), CliError> {
 mod tests {
     use super::*;
 
-    fn c(i: usize, truth: f64, value: f64, present: bool) -> Option<Comparison> {
-        Some(Comparison {
+    fn c(i: usize, truth: f64, value: f64, present: bool) -> Compared {
+        Ok(Comparison {
             id: format!("{i:06}"),
             truth,
             value,
@@ -445,15 +604,22 @@ mod tests {
     /// 17 runs with 2 µm of truth and errors 0.01 to 0.17 µm, three quiet runs (0.1 µm of
     /// truth, threshold 1 µm) with errors +0.5 (reported present), -0.2 and +0.05, and one run
     /// not diagnosed.
-    fn comparisons() -> Vec<Option<Comparison>> {
-        let mut cs: Vec<Option<Comparison>> = (0..17)
+    fn comparisons() -> Vec<Compared> {
+        let mut cs: Vec<Compared> = (0..17)
             .map(|i| c(i, 2.0, 2.0 + 0.01 * (i + 1) as f64, true))
             .collect();
         cs.push(c(17, 0.1, 0.6, true));
         cs.push(c(18, 0.1, -0.1, false));
         cs.push(c(19, 0.1, 0.15, false));
-        cs.push(None);
+        cs.push(Err(not_diagnosed(20)));
         cs
+    }
+
+    fn not_diagnosed(i: usize) -> NotDiagnosed {
+        NotDiagnosed {
+            id: format!("{i:06}"),
+            reason: "a partial arc has no closing error".into(),
+        }
     }
 
     #[test]
@@ -468,17 +634,37 @@ mod tests {
         assert!((f.p95_abs - 0.2).abs() < 1e-12, "p95 {}", f.p95_abs);
         assert!((f.worst - 0.5).abs() < 1e-12, "worst {}", f.worst);
         assert_eq!(f.worst_id, "000017");
-        let worst: Vec<&str> = f.worst_runs.iter().map(|r| r.0.as_str()).collect();
+        let worst: Vec<&str> = f.worst_runs.iter().map(|r| r.id.as_str()).collect();
         assert_eq!(worst, ["000017", "000018", "000016", "000015", "000014"]);
         // Tolerance 0.3 µm: only the quiet run with +0.5 is outside.
         assert!((f.within - 0.95).abs() < 1e-12, "within {}", f.within);
         assert_eq!(f.quiet_runs, 3);
+        // Quiet: |truth| below half the 1 µm threshold, stated with the figure.
+        assert_eq!(f.quiet_below, Some(QuietBelow { min: 0.5, max: 0.5 }));
+        assert_eq!(f.not_diagnosed_runs, [not_diagnosed(20)]);
+        let js = serde_json::to_value(&f).unwrap();
+        assert_eq!(js["worst_runs"][0]["id"], "000017");
+        assert!((js["worst_runs"][0]["diagnosed"].as_f64().unwrap() - 0.6).abs() < 1e-12);
+        assert!((js["worst_runs"][0]["truth"].as_f64().unwrap() - 0.1).abs() < 1e-12);
+        let md = markdown(&Study {
+            runs: 21,
+            figures: vec![f.clone()],
+            failed: Vec::new(),
+            warnings: Vec::new(),
+        });
+        assert!(md.contains("| backlash_x | µm | 20 | 1 |"), "{md}");
+        assert!(md.contains("| 3 (< 0.500) | 33.3 % | MISSED |"), "{md}");
+        assert!(
+            md.contains("1 runs not diagnosed (000020): a partial arc has no closing error")
+                && md.contains("false positives in 33.3 % of the quiet runs (goal under 2 %)")
+                && !md.contains("worst runs"),
+            "{md}"
+        );
         assert_eq!(f.fp_rate, Some(1.0 / 3.0));
         // A run not diagnosed misses the goals even with 95 % within and ...
         assert!(f.goal && !f.met);
         // ... and so does one false positive in three quiet runs.
-        let diagnosed: Vec<Option<Comparison>> =
-            comparisons().into_iter().flatten().map(Some).collect();
+        let diagnosed: Vec<Compared> = comparisons().into_iter().flatten().map(Ok).collect();
         assert!(!stats("backlash_x", "µm", &diagnosed).met);
         let mut clean = diagnosed.clone();
         clean[17] = c(17, 0.1, 0.2, false);
@@ -496,7 +682,11 @@ mod tests {
 
     #[test]
     fn a_figure_never_diagnosed_prints_dashes() {
-        let f = stats("backlash_y", "", &[None, None]);
+        let f = stats(
+            "backlash_y",
+            "",
+            &[Err(not_diagnosed(0)), Err(not_diagnosed(1))],
+        );
         assert_eq!((f.n, f.not_diagnosed, f.quiet_runs), (0, 2, 0));
         assert!(f.bias.is_nan() && f.rms.is_nan() && f.p95_abs.is_nan() && f.within.is_nan());
         let s = Study {
@@ -508,11 +698,22 @@ mod tests {
         let md = markdown(&s);
         assert!(
             md.contains(
-                "| backlash_y |  | 0 | – | – | – | – | max(0.3 µm, 5 %) | – | 0 | – | MISSED |"
+                "| backlash_y |  | 0 | 2 | – | – | – | – | max(0.3 µm, 5 %) | – | 0 | – | MISSED |"
             ),
             "{md}"
         );
-        assert!(md.contains("| quiet runs | FP rate |"), "{md}");
+        assert!(
+            md.contains("| quiet runs (\\|truth\\| below) | FP rate |"),
+            "{md}"
+        );
+        // The miss says why: the runs not diagnosed, and the reason.
+        assert!(
+            md.contains(
+                "backlash_y misses its goals: 2 runs not diagnosed (000000, 000001): a partial \
+                 arc has no closing error"
+            ),
+            "{md}"
+        );
         let js = serde_json::to_value(&s).unwrap();
         assert!(js["figures"][0]["bias"].is_null(), "{js}");
     }

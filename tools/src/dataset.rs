@@ -25,6 +25,7 @@ use crate::formats::write_mcap;
 use indicatif::{ProgressBar, ProgressStyle};
 use parquet::basic::{LogicalType, Repetition, Type as Physical};
 use parquet::data_type::{ByteArray, ByteArrayType, DoubleType, Int64Type};
+use parquet::file::metadata::KeyValue;
 use parquet::file::properties::WriterProperties;
 use parquet::file::writer::SerializedFileWriter;
 use parquet::schema::types::Type;
@@ -37,6 +38,15 @@ use vmt_scenario::dataset::{self, Dataset};
 
 /// Prefix of a run folder being written.
 const TMP_PREFIX: &str = ".tmp-";
+/// The file an invocation holds an exclusive lock on while it writes the folder. The
+/// operating system releases the lock when the process ends, killed or not, so the file left
+/// behind does not keep the next invocation out.
+const LOCK_FILE: &str = ".lock";
+/// The folder of the scenarios of runs that failed in simulation, kept to reproduce them with
+/// `vmt run`; the next invocation removes it.
+pub const FAILED_DIR: &str = "failed-runs";
+/// Runs named in an error about many.
+const IDS_LISTED: usize = 5;
 /// The identity file of a dataset folder.
 pub const IDENTITY_FILE: &str = "dataset.json";
 /// The version of what `labels.json` holds: 2 since the truth's injected squareness is in µrad
@@ -69,6 +79,8 @@ pub struct Outcome {
     pub skipped: usize,
     /// Rows of the manifest.
     pub rows: usize,
+    /// Accuracy reports removed because the dataset got more runs.
+    pub removed: Vec<PathBuf>,
 }
 
 /// The seed of run `i` of a dataset with seed `k`: splitmix64 (Steele et al. 2014) of the
@@ -273,6 +285,8 @@ pub fn build(req: &Request) -> Result<Outcome, CliError> {
     })?;
     // The template itself must load, so a scenario error is reported once, not per run.
     vmt_scenario::parse(&text, &file, Some(base))?;
+    check_draws(&ds, &file, base, req)?;
+    let _lock = lock(req.out)?;
     claim(
         req.out,
         &Identity {
@@ -293,23 +307,188 @@ pub fn build(req: &Request) -> Result<Outcome, CliError> {
     let todo: Vec<u64> = (0..req.count)
         .filter(|i| !done.contains(&run_id(*i)))
         .collect();
+    let removed = if todo.is_empty() {
+        Vec::new()
+    } else {
+        remove_stale_reports(req.out)?
+    };
     let bar = progress(todo.len() as u64, req.quiet);
-    let results: Vec<Result<(), CliError>> = todo
+    let results: Vec<(u64, Result<(), CliError>)> = todo
         .par_iter()
         .map(|&i| {
             let r = simulate_one(&ds, &file, base, &runs, i, run_seed(req.seed, i));
             bar.inc(1);
-            r
+            (i, r)
         })
         .collect();
     bar.finish_and_clear();
     let rows = write_manifest(req.out)?;
-    results.into_iter().collect::<Result<Vec<()>, _>>()?;
+    let failed: Vec<(u64, CliError)> = results
+        .into_iter()
+        .filter_map(|(i, r)| r.err().map(|e| (i, e)))
+        .collect();
+    if !failed.is_empty() {
+        return Err(failed_runs(req, &ds, &file, todo.len(), failed));
+    }
     Ok(Outcome {
         simulated: todo.len(),
         skipped: req.count as usize - todo.len(),
         rows,
+        removed,
     })
+}
+
+/// Takes the exclusive lock of dataset folder `out` (creating it), so that a second
+/// `vmt dataset` on the same folder is refused rather than writing the same runs.
+fn lock(out: &Path) -> Result<std::fs::File, CliError> {
+    std::fs::create_dir_all(out).map_err(|e| CliError::output(out, e))?;
+    let path = out.join(LOCK_FILE);
+    let file = std::fs::OpenOptions::new()
+        .create(true)
+        .truncate(false)
+        .write(true)
+        .open(&path)
+        .map_err(|e| CliError::output(&path, e))?;
+    match file.try_lock() {
+        Ok(()) => Ok(file),
+        Err(std::fs::TryLockError::WouldBlock) => Err(CliError::Argument(format!(
+            "{}: another `vmt dataset` is writing this dataset folder (it holds the lock {}); \
+             wait for it to finish, or give another --out folder",
+            out.display(),
+            path.display()
+        ))),
+        Err(std::fs::TryLockError::Error(e)) => Err(CliError::output(&path, e)),
+    }
+}
+
+/// Draws and builds every run's scenario, as each run does before it simulates, so that a
+/// distribution drawing a value the scenario does not accept is refused before anything is
+/// simulated or written (a draw is cheap; a run is not). The refusal names, per entry, its
+/// line in the scenario, the share of the runs that draw an unacceptable value and the first
+/// run's value and what is accepted.
+fn check_draws(ds: &Dataset, file: &str, base: &Path, req: &Request) -> Result<(), CliError> {
+    let refused: Vec<(u64, vmt_scenario::ScenarioError)> = (0..req.count)
+        .into_par_iter()
+        .filter_map(|i| {
+            let sample = ds.sample(run_seed(req.seed, i));
+            let name = format!("{file} (run {})", run_id(i));
+            vmt_scenario::parse(&sample.text, &name, Some(base))
+                .err()
+                .map(|e| (i, e))
+        })
+        .collect();
+    if refused.is_empty() {
+        return Ok(());
+    }
+    // Grouped by the entry that drew the refused key (or the key, when no entry draws it).
+    let mut groups: Vec<(String, Vec<(u64, vmt_scenario::ScenarioError)>)> = Vec::new();
+    for (i, e) in refused {
+        let key = e.key.clone().unwrap_or_default();
+        let group = ds.entry_of(&key).map_or(key, |p| p.name.clone());
+        match groups.iter_mut().find(|g| g.0 == group) {
+            Some(g) => g.1.push((i, e)),
+            None => groups.push((group, vec![(i, e)])),
+        }
+    }
+    let lines: Vec<String> = groups
+        .iter()
+        .map(|(_, runs)| refused_draws(ds, file, req.count, runs))
+        .collect();
+    Err(CliError::Argument(format!(
+        "{}\nnothing was simulated: change the distributions so that every draw is accepted",
+        lines.join("\n")
+    )))
+}
+
+/// One line of [`check_draws`]' refusal: the runs whose draws of one entry are refused.
+fn refused_draws(
+    ds: &Dataset,
+    file: &str,
+    count: u64,
+    runs: &[(u64, vmt_scenario::ScenarioError)],
+) -> String {
+    let (first, e) = &runs[0];
+    let key = e.key.as_deref().unwrap_or_default();
+    let share = format!(
+        "{} of the {count} runs ({}) draw a value the scenario does not accept",
+        runs.len(),
+        listed(runs.iter().map(|r| r.0))
+    );
+    match ds.entry_of(key) {
+        Some(p) => {
+            let at = p
+                .position
+                .map(|(l, c)| format!(":{l}:{c}"))
+                .unwrap_or_default();
+            let entry = vmt_scenario::KeyPath::of(&["dataset", "parameters", &p.name]);
+            format!(
+                "{file}{at}: key `{entry}`: {share}; run {}: key `{key}`: {}",
+                run_id(*first),
+                e.message
+            )
+        }
+        None => format!("{e}: {share}"),
+    }
+}
+
+/// The first ids of `ids`, and how many more.
+fn listed(ids: impl ExactSizeIterator<Item = u64>) -> String {
+    let n = ids.len();
+    let mut text: Vec<String> = ids.take(IDS_LISTED).map(run_id).collect();
+    if n > IDS_LISTED {
+        text.push(format!("and {} more", n - IDS_LISTED));
+    }
+    text.join(", ")
+}
+
+/// The error of runs that failed in simulation: each keeps its scenario in `failed-runs/` to be
+/// reproduced with `vmt run`. The dataset stops incomplete: its draws come from --seed, so the
+/// same runs fail again; the machines drawn must change (the distributions, so a new folder).
+fn failed_runs(
+    req: &Request,
+    ds: &Dataset,
+    file: &str,
+    simulated: usize,
+    failed: Vec<(u64, CliError)>,
+) -> CliError {
+    let dir = req.out.join(FAILED_DIR);
+    let kept = std::fs::create_dir_all(&dir).is_ok()
+        && failed.iter().all(|(i, _)| {
+            let sample = ds.sample(run_seed(req.seed, *i));
+            std::fs::write(dir.join(format!("{}.toml", run_id(*i))), sample.text).is_ok()
+        });
+    let (first, e) = &failed[0];
+    let scenario = if kept {
+        format!(
+            "its scenario: {}",
+            dir.join(format!("{}.toml", run_id(*first))).display()
+        )
+    } else {
+        format!("its scenario could not be kept in {}", dir.display())
+    };
+    CliError::Model(format!(
+        "{} of the {simulated} runs simulated failed ({}); the others are written. Run {} \
+         ({scenario}): {e}. The runs are drawn from --seed, so running again fails the same \
+         way: change the distributions in [dataset.parameters] of {file} so that such machines \
+         are not drawn, and write the dataset into a new --out folder",
+        failed.len(),
+        listed(failed.iter().map(|f| f.0)),
+        run_id(*first)
+    ))
+}
+
+/// Removes the accuracy report of a dataset about to get more runs: it describes fewer runs
+/// than the folder will hold. Returns the files removed.
+fn remove_stale_reports(out: &Path) -> Result<Vec<PathBuf>, CliError> {
+    let mut removed = Vec::new();
+    for name in ["accuracy.md", "accuracy.json"] {
+        let path = out.join(name);
+        if path.is_file() {
+            std::fs::remove_file(&path).map_err(|e| CliError::output(&path, e))?;
+            removed.push(path);
+        }
+    }
+    Ok(removed)
 }
 
 fn progress(len: u64, quiet: bool) -> ProgressBar {
@@ -327,10 +506,15 @@ fn progress(len: u64, quiet: bool) -> ProgressBar {
     bar
 }
 
-/// Removes the temporary folders of runs an interrupted invocation did not finish.
+/// Removes the temporary folders of runs an interrupted invocation did not finish, and the
+/// scenarios of the runs that failed in the last one.
 fn remove_leftovers(runs: &Path) -> Result<(), CliError> {
     // A manifest half-written when the previous invocation was killed.
     if let Some(dir) = runs.parent() {
+        let failed = dir.join(FAILED_DIR);
+        if failed.is_dir() {
+            std::fs::remove_dir_all(&failed).map_err(|e| CliError::output(&failed, e))?;
+        }
         for name in ["manifest.csv", "manifest.parquet"] {
             let tmp = dir.join(format!("{TMP_PREFIX}{name}"));
             if tmp.exists() {
@@ -384,7 +568,7 @@ fn simulate_one(
     let sample = ds.sample(seed);
     let scenario = vmt_scenario::parse(&sample.text, &format!("{file} (run {id})"), Some(base))?;
     let run = crate::job::execute(&scenario, &sample.text, None, true)
-        .map_err(|e| CliError::Model(format!("run {id} (seed {seed}): {e}")))?;
+        .map_err(|e| CliError::Model(format!("seed {seed}: {e}")))?;
     let tmp = runs.join(format!("{TMP_PREFIX}{id}"));
     std::fs::create_dir_all(&tmp).map_err(|e| CliError::output(&tmp, e))?;
     write_mcap(&run, &tmp.join("run.mcap"))?;
@@ -420,15 +604,84 @@ fn write_file(path: &Path, text: &str) -> Result<(), CliError> {
     std::fs::write(path, text).map_err(|e| CliError::output(path, e))
 }
 
-/// The manifest: column names and one row per run (id, seed, then numbers or gaps).
+/// The manifest: column names and one row per run (id, seed, then numbers or gaps), and what
+/// the Parquet file's key-value metadata says of the columns.
 struct Manifest {
     numbers: Vec<String>,
     rows: Vec<(String, i64, Vec<Option<f64>>)>,
+    metadata: Vec<(String, String)>,
 }
 
-/// Reads every complete run's labels into the manifest's rows.
+/// The unit of the number at a scenario key path, from its name's suffix (the scenario's
+/// convention: `backlash_um`, `kv_per_s`, `coulomb_n`); None for a suffix not listed here.
+fn key_unit(key: &str) -> Option<&'static str> {
+    let name = key.split('[').next().unwrap_or(key).trim_end_matches('"');
+    [
+        ("_um_per_min", "µm/min"),
+        ("_um", "µm"),
+        ("_mm", "mm"),
+        ("_urad", "µrad"),
+        ("_per_s", "1/s"),
+        ("_per_k", "1/K"),
+        ("_n", "N"),
+        ("_hz", "Hz"),
+        ("_deg", "deg"),
+        ("_mm_min", "mm/min"),
+        ("_c", "°C"),
+        ("_kg", "kg"),
+        ("_us", "µs"),
+        ("_ms", "ms"),
+    ]
+    .into_iter()
+    .find(|(suffix, _)| name.ends_with(suffix))
+    .map(|(_, unit)| unit)
+}
+
+/// The unit of ground-truth figure `key` (as sim's `truth::test_figures` computes them).
+fn truth_unit(key: &str) -> &'static str {
+    if key.starts_with("scale_mismatch") {
+        "ppm"
+    } else if key.starts_with("squareness") {
+        "µm/m"
+    } else if key.starts_with("servo_mismatch") {
+        "ms"
+    } else {
+        "µm"
+    }
+}
+
+/// The Parquet key-value metadata: `unit.<column>` for every column of a known unit and
+/// `keys.<column>` (a JSON list) for a parameter of an entry with `keys`.
+fn column_metadata(names: &BTreeSet<String>, keys: &Map<String, Value>) -> Vec<(String, String)> {
+    let mut out = vec![(
+        "seed".to_string(),
+        "each run's seed (simulation.seed)".into(),
+    )];
+    for name in names {
+        let listed: Vec<&str> = keys[name.as_str()]
+            .as_array()
+            .into_iter()
+            .flatten()
+            .filter_map(Value::as_str)
+            .collect();
+        let units: BTreeSet<Option<&str>> = listed.iter().map(|k| key_unit(k)).collect();
+        match units.into_iter().collect::<Vec<_>>().as_slice() {
+            [Some(unit)] => out.push((format!("unit.{name}"), (*unit).to_string())),
+            [] => out.extend(key_unit(name).map(|u| (format!("unit.{name}"), u.to_string()))),
+            _ => {}
+        }
+        if listed.len() > 1 || listed.first().is_some_and(|k| k != name) {
+            out.push((format!("keys.{name}"), json!(listed).to_string()));
+        }
+    }
+    out
+}
+
+/// Reads every complete run's labels into the manifest's rows; a run without a parameter the
+/// others have is damaged.
 fn manifest(dir: &Path) -> Result<Manifest, CliError> {
-    let labels = complete_runs(dir)?
+    let runs = complete_runs(dir)?;
+    let labels = runs
         .iter()
         .map(|p| read_run_labels(p))
         .collect::<Result<Vec<_>, _>>()?;
@@ -449,6 +702,33 @@ fn manifest(dir: &Path) -> Result<Manifest, CliError> {
         );
         truths.extend(figures(l).keys().cloned());
     }
+    // Every run of a dataset draws the same parameters and has the same truth figures (a
+    // trace's closing error is missing only from a trace with no reading, which no run
+    // completes), so one that lacks one the others have was edited.
+    for (run, l) in runs.iter().zip(&labels) {
+        let lacks = names
+            .iter()
+            .find(|n| !l["parameters"][n].is_number())
+            .map(|n| format!("parameters.{n}"))
+            .or_else(|| {
+                let f = figures(l);
+                truths
+                    .iter()
+                    .find(|k| !f.contains_key(*k))
+                    .map(|k| format!("ground_truth.ballbar.tests[0].figures.{k}"))
+            });
+        if let Some(key) = lacks {
+            return Err(CliError::input(
+                &run.join("labels.json").display().to_string(),
+                None,
+                format!(
+                    "`{key}` is missing (other runs have it); the run is damaged: remove its \
+                     folder and run `vmt dataset` again with the same arguments to simulate it \
+                     anew"
+                ),
+            ));
+        }
+    }
     let rows = labels
         .iter()
         .map(|l| {
@@ -462,11 +742,25 @@ fn manifest(dir: &Path) -> Result<Manifest, CliError> {
             )
         })
         .collect();
+    let keys = labels
+        .first()
+        .and_then(|l| l["keys"].as_object().cloned())
+        .unwrap_or_default();
+    let mut metadata = column_metadata(&names, &keys);
+    metadata.extend(
+        truths
+            .iter()
+            .map(|k| (format!("unit.truth.{k}"), truth_unit(k).to_string())),
+    );
     let numbers = names
         .into_iter()
         .chain(truths.into_iter().map(|k| format!("truth.{k}")))
         .collect();
-    Ok(Manifest { numbers, rows })
+    Ok(Manifest {
+        numbers,
+        rows,
+        metadata,
+    })
 }
 
 fn read_json(path: &Path) -> Result<Value, CliError> {
@@ -520,10 +814,36 @@ fn label_problem(v: &Value, id: &str) -> Option<String> {
     if v["seed"].as_u64().is_none() {
         return Some(format!("`seed` is {}, not a whole number", v["seed"]));
     }
-    ["parameters", "keys", "ground_truth"]
+    if let Some(k) = ["parameters", "keys", "ground_truth"]
         .into_iter()
         .find(|k| !v[k].is_object())
-        .map(|k| format!("`{k}` is {}, not an object", v[k]))
+    {
+        return Some(format!("`{k}` is {}, not an object", v[k]));
+    }
+    missing_number(v)
+}
+
+/// The first parameter or truth figure run label `v` lacks: every entry `keys` lists has its
+/// number in `parameters`, and the truth has figures of its first circular test, each a number
+/// (the manifest would hold NaN or an empty cell instead).
+fn missing_number(v: &Value) -> Option<String> {
+    let names = v["keys"].as_object().into_iter().flatten().map(|(k, _)| k);
+    if let Some(name) = names.into_iter().find(|n| !v["parameters"][n].is_number()) {
+        return Some(format!(
+            "`parameters.{name}` is missing or not a number (`keys` lists the entry)"
+        ));
+    }
+    let Some(figures) = crate::diagnose::truth_figures(&v["ground_truth"], 0) else {
+        return Some(
+            "`ground_truth.ballbar.tests[0].figures` is missing (the truth of the run's \
+             circular test)"
+                .into(),
+        );
+    };
+    figures
+        .iter()
+        .find(|(_, f)| !f.is_number())
+        .map(|(k, f)| format!("`ground_truth.ballbar.tests[0].figures.{k}` is {f}, not a number"))
 }
 
 /// Rebuilds `manifest.csv` and `manifest.parquet` from the labels; returns the number of rows.
@@ -582,7 +902,16 @@ fn write_parquet(m: &Manifest, path: &Path) -> parquet::errors::Result<()> {
             .build()?,
     );
     let file = std::fs::File::create(path)?;
-    let props = Arc::new(WriterProperties::builder().build());
+    let metadata = m
+        .metadata
+        .iter()
+        .map(|(k, v)| KeyValue::new(k.clone(), v.clone()))
+        .collect();
+    let props = Arc::new(
+        WriterProperties::builder()
+            .set_key_value_metadata(Some(metadata))
+            .build(),
+    );
     let mut writer = SerializedFileWriter::new(file, schema, props)?;
     let mut group = writer.next_row_group()?;
     let mut index = 0;
@@ -628,6 +957,12 @@ pub fn command(
         out,
         quiet,
     })?;
+    for path in &o.removed {
+        crate::outln!(
+            "removed {}: it scored fewer runs than the dataset now holds (run `vmt accuracy` again)",
+            path.display()
+        )?;
+    }
     let minutes = start.elapsed().as_secs_f64() / 60.0;
     crate::outln!(
         "{} runs simulated in {:.1} min ({:.1} runs/min on {} threads), {} already complete; \

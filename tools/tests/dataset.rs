@@ -129,8 +129,9 @@ import csv, json, sys
 import pyarrow.parquet as pq
 t = pq.read_table(sys.argv[1] + "/manifest.parquet")
 rows = list(csv.reader(open(sys.argv[1] + "/manifest.csv")))
+meta = {k.decode(): v.decode() for k, v in (pq.read_metadata(sys.argv[1] + "/manifest.parquet").metadata or {}).items()}
 print(json.dumps({"columns": t.column_names, "types": [str(f.type) for f in t.schema],
-                  "parquet": t.to_pylist(), "csv": rows}))
+                  "parquet": t.to_pylist(), "csv": rows, "meta": meta}))
 "#;
     let o = Command::new("python3")
         .args(["-c", script])
@@ -162,6 +163,23 @@ print(json.dumps({"columns": t.column_names, "types": [str(f.type) for f in t.sc
     assert_eq!(v["types"][2], "double");
     let rows = v["parquet"].as_array().unwrap();
     assert_eq!(rows.len(), 2);
+    // The key-value metadata gives the units and the keys of an entry with `keys`.
+    let meta = &v["meta"];
+    for (key, value) in [
+        ("unit.machine.axes.x.drive.backlash_um", "µm"),
+        ("unit.machine.axes.x.servo.kv_per_s", "1/s"),
+        ("unit.scale_x", "µm"),
+        (
+            "keys.scale_x",
+            r#"["machine.errors.x.forward.EXX_um[1]","machine.errors.x.backward.EXX_um[1]"]"#,
+        ),
+        ("unit.truth.backlash_x", "µm"),
+        ("unit.truth.scale_mismatch_xy", "ppm"),
+        ("unit.truth.servo_mismatch_xy", "ms"),
+        ("unit.truth.squareness_xy", "µm/m"),
+    ] {
+        assert_eq!(meta[key], value, "{key} in {meta}");
+    }
     for (row, line) in rows.iter().zip(&csv[1..]) {
         for (name, cell) in header.iter().zip(line.as_array().unwrap()) {
             let cell = cell.as_str().unwrap();
@@ -284,6 +302,44 @@ fn a_corrupt_label_is_an_error_naming_its_file() {
     v.as_object_mut().unwrap().remove("ground_truth");
     std::fs::write(&labels, v.to_string()).unwrap();
     refused(&[&file, "the key `ground_truth` is missing"]);
+    // A parameter or the truth of the circular test deleted: the manifest would hold NaN or
+    // empty cells.
+    for (path, said) in [
+        (
+            &["parameters", "scale_x"][..],
+            "`parameters.scale_x` is missing",
+        ),
+        (
+            &["ground_truth", "ballbar"][..],
+            "`ground_truth.ballbar.tests[0].figures` is missing",
+        ),
+    ] {
+        let mut v: Value = serde_json::from_str(&good).unwrap();
+        v[path[0]].as_object_mut().unwrap().remove(path[1]);
+        std::fs::write(&labels, v.to_string()).unwrap();
+        refused(&[&file, said]);
+        let o = dataset_run(&s, &out, 2, 7, 1);
+        let e = stderr(&o);
+        assert!(
+            !o.status.success() && e.contains(&file) && e.contains(said),
+            "{e}"
+        );
+    }
+    // One truth figure deleted: the manifest would have an empty cell where the others have
+    // a number.
+    let mut v: Value = serde_json::from_str(&good).unwrap();
+    v["ground_truth"]["ballbar"]["tests"][0]["figures"]
+        .as_object_mut()
+        .unwrap()
+        .remove("backlash_x");
+    std::fs::write(&labels, v.to_string()).unwrap();
+    let o = dataset_run(&s, &out, 2, 7, 1);
+    let e = stderr(&o);
+    let said = "`ground_truth.ballbar.tests[0].figures.backlash_x` is missing (other runs have it)";
+    assert!(
+        !o.status.success() && e.contains(&file) && e.contains(said),
+        "{e}"
+    );
     // Another run's label.
     let other = good.replacen("\"000001\"", "\"000000\"", 1);
     std::fs::write(&labels, other).unwrap();
@@ -377,5 +433,137 @@ fn a_folder_of_another_seed_scenario_or_smaller_count_is_refused() {
             stderr(&o)
         );
         assert!(!fresh.exists(), "--count {count} wrote {}", fresh.display());
+    }
+}
+
+/// A second `vmt dataset` on a folder being written is refused (the first holds the folder's
+/// lock; the test holds it here), and writes nothing; the lock left behind by a process that
+/// ended does not keep the next one out. A dataset that gets runs loses its stale accuracy
+/// report.
+#[test]
+fn a_folder_being_written_is_refused_to_a_second_vmt_dataset() {
+    let tmp = tempfile::tempdir().unwrap();
+    let s = scenario(tmp.path(), None);
+    let out = tmp.path().join("ds");
+    std::fs::create_dir(&out).unwrap();
+    let lock = std::fs::File::create(out.join(".lock")).unwrap();
+    lock.try_lock().unwrap();
+    let o = dataset_run(&s, &out, 2, 7, 1);
+    let e = stderr(&o);
+    assert!(!o.status.success(), "{e}");
+    for w in [
+        &out.display().to_string(),
+        "another `vmt dataset` is writing this dataset folder",
+    ] {
+        assert!(e.contains(w), "`{w}` not in: {e}");
+    }
+    assert!(!out.join("runs").exists() && !out.join("dataset.json").exists());
+    drop(lock);
+    dataset(&s, &out, 2, 1);
+    // A report of the two runs is stale once a third is added: removed, and said so.
+    std::fs::write(out.join("accuracy.md"), "2 runs").unwrap();
+    std::fs::write(out.join("accuracy.json"), "{}").unwrap();
+    let said = dataset(&s, &out, 3, 1);
+    assert!(
+        said.contains(&format!("removed {}", out.join("accuracy.md").display())),
+        "{said}"
+    );
+    assert!(!out.join("accuracy.md").exists() && !out.join("accuracy.json").exists());
+}
+
+/// The line of `scenario` that starts with `entry`.
+fn line_of(scenario: &Path, entry: &str) -> usize {
+    let text = std::fs::read_to_string(scenario).unwrap();
+    1 + text.lines().position(|l| l.starts_with(entry)).unwrap()
+}
+
+/// A distribution drawing values the scenario refuses is refused before any run: the error
+/// names the entry's line, the key, the share of the runs and the first value.
+#[test]
+fn bad_draws_are_refused_before_anything_is_simulated() {
+    let tmp = tempfile::tempdir().unwrap();
+    let entry =
+        r#""machine.axes.x.drive.backlash_um" = { distribution = "normal", mean = 0.0, sd = 3.0 }"#;
+    let s = scenario(
+        tmp.path(),
+        Some((
+            r#""machine.axes.x.drive.backlash_um" = { distribution = "uniform", min = 0.0, max = 6.0, p_absent = 0.33 }"#,
+            entry,
+        )),
+    );
+    let out = tmp.path().join("ds");
+    let o = dataset_run(&s, &out, 20, 7, 2);
+    let e = stderr(&o);
+    assert!(!o.status.success(), "{e}");
+    let at = format!("{}:{}:", s.display(), line_of(&s, entry));
+    for w in [
+        at.as_str(),
+        "key `dataset.parameters.\"machine.axes.x.drive.backlash_um\"`",
+        "of the 20 runs (",
+        "is out of range; a backlash (µm) from 0 to 1000 is accepted",
+        "nothing was simulated",
+    ] {
+        assert!(e.contains(w), "`{w}` not in: {e}");
+    }
+    assert!(!out.exists(), "{e}");
+}
+
+/// A run that fails in simulation (a gain so low that the ball bar reads beyond its range)
+/// stops the dataset naming the run and the scenario kept to reproduce it; the other runs
+/// are written, and `vmt accuracy` does not advise running `vmt dataset` again.
+#[test]
+fn a_run_failing_in_simulation_is_named_with_its_scenario() {
+    let tmp = tempfile::tempdir().unwrap();
+    let s = scenario(
+        tmp.path(),
+        Some((
+            r#""machine.axes.x.servo.kv_per_s" = { distribution = "normal", mean = 33.0, sd = 1.5, p_absent = 0.58, absent = 33.0 }"#,
+            r#""machine.axes.x.servo.kv_per_s" = { distribution = "uniform", min = 1.0, max = 33.0 }"#,
+        )),
+    );
+    let out = tmp.path().join("ds");
+    let o = dataset_run(&s, &out, 4, 1, 2);
+    let e = stderr(&o);
+    assert!(!o.status.success(), "{e}");
+    let failed = out.join("failed-runs/000001.toml");
+    for w in [
+        "2 of the 4 runs simulated failed (000001, 000003)",
+        &format!("Run 000001 (its scenario: {})", failed.display()),
+        "beyond its measuring range",
+        "new --out folder",
+    ] {
+        assert!(e.contains(w), "`{w}` not in: {e}");
+    }
+    assert!(failed.is_file());
+    assert_eq!(run_names(&out), ["000000", "000002"]);
+    let o = vmt(&["accuracy", out.to_str().unwrap()]);
+    let e = stderr(&o);
+    assert!(
+        e.contains("runs failed in simulation") && !e.contains("run it again"),
+        "{e}"
+    );
+}
+
+#[test]
+fn accuracy_refuses_a_folder_that_is_no_dataset() {
+    let tmp = tempfile::tempdir().unwrap();
+    let file = tmp.path().join("a.toml");
+    std::fs::write(&file, "").unwrap();
+    let run = tmp.path().join("run");
+    std::fs::create_dir(&run).unwrap();
+    std::fs::write(run.join("run.mcap"), "").unwrap();
+    for (dir, why) in [
+        (tmp.path().to_path_buf(), "it has no runs/ folder"),
+        (file, "it is a file"),
+        (run, "it holds one run"),
+    ] {
+        let o = vmt(&["accuracy", dir.to_str().unwrap()]);
+        let e = stderr(&o);
+        assert!(!o.status.success(), "{e}");
+        let said = format!("{} is not a dataset folder: {why}", dir.display());
+        assert!(
+            e.contains(&said) && e.contains("written by `vmt dataset`"),
+            "{e}"
+        );
     }
 }
