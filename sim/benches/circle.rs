@@ -1,18 +1,19 @@
 //! One ISO 230-4 circular test on one core, at both plant fidelities.
 //!
 //! The job is the built-in scenario's (`scenarios/vmc500.toml`): a 150 mm circle in XY at
-//! 1000 mm/min, 360° CW and CCW with their feed-in and feed-out arcs, servo period 125 µs, two
-//! plant steps per period, servo log at 1 kHz and the ball bar at 1 kHz. The throughput is in
-//! simulated milliseconds, so criterion's `Kelem/s` is simulated seconds per wall second (the
-//! real-time factor). Goals (issue 3): multibody ≥ 50, reduced ≥ 2000.
+//! 1000 mm/min, 360° CW and CCW with their feed-in and feed-out arcs, servo period 125 µs, one
+//! plant step per period (converged: `sim/tests/plant_step.rs`), servo log at 1 kHz and the
+//! ball bar at 1 kHz. The throughput is in simulated milliseconds, so criterion's `Kelem/s` is
+//! simulated seconds per wall second (the real-time factor). Goals (issue 3): multibody ≥ 50,
+//! reduced ≥ 2000.
 //! Run: `cargo bench -p vmt-sim --bench circle`.
 //!
-//! Measured 24 November 2026 on the idle 2-core machine: reduced 437–453× real time (about
-//! 280 ns and 3,180 instructions per servo tick), multibody 117×; peak RSS 47 MB and 51 MB.
-//! Where a reduced tick goes (perf): the drive step 43 % (two LuGre contacts per axis and plant
-//! step, each one division and one or two inline `exp`; the three axes stage by stage, see
-//! `Drive::step_all`), the interpolator 20 % (libm's `sincos` of the arc 7 %), the per-tick
-//! bookkeeping of `simulate` 12 %, the controllers 7 %, the error chain at the sample rate 4 %.
+//! Measured 24 November 2026 on the idle 2-core machine: reduced 513–574× real time (about
+//! 235 ns per servo tick; 445× with two plant steps per period), multibody 119–125×; peak RSS
+//! 68 MB. Where a reduced tick goes (perf): the drive step 29 % (two LuGre contacts per axis,
+//! each one division and one or two inline `exp`; the three axes stage by stage, see
+//! `Drive::step_all`), the interpolator 27 % (libm's `sincos` of the arc 9 %), the per-tick
+//! bookkeeping of `simulate` 13 %, the controllers 10 %, the error chain at the sample rate 5 %.
 //! The reduced goal needs about 60 ns per servo tick for everything (README, "Benchmarks").
 
 use criterion::{Criterion, SamplingMode, Throughput, criterion_group, criterion_main};
