@@ -285,7 +285,13 @@ pub fn build(req: &Request) -> Result<Outcome, CliError> {
     })?;
     // The template itself must load, so a scenario error is reported once, not per run.
     vmt_scenario::parse(&text, &file, Some(base))?;
-    check_draws(&ds, &file, base, req)?;
+    // Only the runs still to do: a resumed dataset of many runs does not draw them all again.
+    let done_before: BTreeSet<String> = if req.out.join("runs").is_dir() {
+        complete_runs(req.out)?.iter().map(|p| name_of(p)).collect()
+    } else {
+        BTreeSet::new()
+    };
+    check_draws(&ds, &file, base, req, &done_before)?;
     let _lock = lock(req.out)?;
     claim(
         req.out,
@@ -366,9 +372,16 @@ fn lock(out: &Path) -> Result<std::fs::File, CliError> {
 /// simulated or written (a draw is cheap; a run is not). The refusal names, per entry, its
 /// line in the scenario, the share of the runs that draw an unacceptable value and the first
 /// run's value and what is accepted.
-fn check_draws(ds: &Dataset, file: &str, base: &Path, req: &Request) -> Result<(), CliError> {
+fn check_draws(
+    ds: &Dataset,
+    file: &str,
+    base: &Path,
+    req: &Request,
+    done: &BTreeSet<String>,
+) -> Result<(), CliError> {
     let refused: Vec<(u64, vmt_scenario::ScenarioError)> = (0..req.count)
         .into_par_iter()
+        .filter(|i| !done.contains(&run_id(*i)))
         .filter_map(|i| {
             let sample = ds.sample(run_seed(req.seed, i));
             let name = format!("{file} (run {})", run_id(i));
@@ -612,29 +625,56 @@ struct Manifest {
     metadata: Vec<(String, String)>,
 }
 
-/// The unit of the number at a scenario key path, from its name's suffix (the scenario's
-/// convention: `backlash_um`, `kv_per_s`, `coulomb_n`); None for a suffix not listed here.
-fn key_unit(key: &str) -> Option<&'static str> {
-    let name = key.split('[').next().unwrap_or(key).trim_end_matches('"');
-    [
-        ("_um_per_min", "µm/min"),
-        ("_um", "µm"),
-        ("_mm", "mm"),
-        ("_urad", "µrad"),
-        ("_per_s", "1/s"),
-        ("_per_k", "1/K"),
-        ("_n", "N"),
-        ("_hz", "Hz"),
-        ("_deg", "deg"),
-        ("_mm_min", "mm/min"),
-        ("_c", "°C"),
-        ("_kg", "kg"),
-        ("_us", "µs"),
-        ("_ms", "ms"),
-    ]
-    .into_iter()
-    .find(|(suffix, _)| name.ends_with(suffix))
-    .map(|(_, unit)| unit)
+/// The unit of the number at a scenario key path, from its name's unit tokens (the scenario's
+/// convention: `backlash_um`, `kv_per_s`, `coulomb_n`, `feed_mm_min`, `stiffness_n_per_um`,
+/// `capacity_j_per_k`, `alpha_per_k`); None when a token is not one listed here.
+fn key_unit(key: &str) -> Option<String> {
+    // The last name of the path, without an index (`center_mm[0]`) or quotes.
+    let last = key.rsplit('.').next().unwrap_or(key);
+    let name = last.split('[').next().unwrap_or(last).trim_matches('"');
+    let unit = |t: &str| -> Option<&'static str> {
+        Some(match t {
+            "um" => "µm",
+            "mm" => "mm",
+            "m" => "m",
+            "urad" => "µrad",
+            "deg" => "deg",
+            "n" => "N",
+            "j" => "J",
+            "w" => "W",
+            "kg" => "kg",
+            "hz" => "Hz",
+            "c" => "°C",
+            "k" => "K",
+            "s" => "s",
+            "ms" => "ms",
+            "us" => "µs",
+            "min" => "min",
+            _ => return None,
+        })
+    };
+    let tokens: Vec<&str> = name.split('_').collect();
+    if let Some(p) = tokens.iter().position(|t| *t == "per") {
+        // `<quantity>_per_<unit>` is 1/unit; `<unit>_per_<unit>` a ratio of the two.
+        let below = unit(tokens.get(p + 1)?)?;
+        if p + 2 != tokens.len() {
+            return None;
+        }
+        let above = |q: usize| p.checked_sub(q).and_then(|i| unit(tokens[i]));
+        return Some(match (above(2), above(1)) {
+            (Some(a), Some(b)) => format!("{a}·{b}/{below}"),
+            (None, Some(b)) => format!("{b}/{below}"),
+            _ => format!("1/{below}"),
+        });
+    }
+    match tokens.as_slice() {
+        // `feed_mm_min`, `stribeck_m_s`: a speed.
+        [.., a, t @ ("min" | "s")] if unit(a).is_some_and(|u| u.ends_with('m')) => {
+            Some(format!("{}/{}", unit(a)?, unit(t)?))
+        }
+        [_, .., last] => unit(last).map(str::to_string),
+        _ => None,
+    }
 }
 
 /// The unit of ground-truth figure `key` (as sim's `truth::test_figures` computes them).
@@ -658,16 +698,17 @@ fn column_metadata(names: &BTreeSet<String>, keys: &Map<String, Value>) -> Vec<(
         "each run's seed (simulation.seed)".into(),
     )];
     for name in names {
-        let listed: Vec<&str> = keys[name.as_str()]
-            .as_array()
+        let listed: Vec<&str> = keys
+            .get(name.as_str())
+            .and_then(Value::as_array)
             .into_iter()
             .flatten()
             .filter_map(Value::as_str)
             .collect();
-        let units: BTreeSet<Option<&str>> = listed.iter().map(|k| key_unit(k)).collect();
+        let units: BTreeSet<Option<String>> = listed.iter().map(|k| key_unit(k)).collect();
         match units.into_iter().collect::<Vec<_>>().as_slice() {
-            [Some(unit)] => out.push((format!("unit.{name}"), (*unit).to_string())),
-            [] => out.extend(key_unit(name).map(|u| (format!("unit.{name}"), u.to_string()))),
+            [Some(unit)] => out.push((format!("unit.{name}"), unit.clone())),
+            [] => out.extend(key_unit(name).map(|u| (format!("unit.{name}"), u))),
             _ => {}
         }
         if listed.len() > 1 || listed.first().is_some_and(|k| k != name) {
@@ -833,6 +874,10 @@ fn missing_number(v: &Value) -> Option<String> {
             "`parameters.{name}` is missing or not a number (`keys` lists the entry)"
         ));
     }
+    if v["ground_truth"]["ballbar"].is_null() {
+        // A job without a circular test (a laser or milling run): no figures to list.
+        return None;
+    }
     let Some(figures) = crate::diagnose::truth_figures(&v["ground_truth"], 0) else {
         return Some(
             "`ground_truth.ballbar.tests[0].figures` is missing (the truth of the run's \
@@ -976,4 +1021,44 @@ pub fn command(
         out.join("manifest.{csv,parquet}").display()
     )?;
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::key_unit;
+
+    /// Units read from the scenario's key names, compound ones included (a suffix match had
+    /// given `µm` for N/µm and `1/K` for J/K).
+    #[test]
+    fn units_follow_the_key_names() {
+        for (key, unit) in [
+            ("machine.axes.x.drive.backlash_um", Some("µm")),
+            ("machine.axes.x.servo.kv_per_s", Some("1/s")),
+            ("machine.axes.x.drive.guide_friction.coulomb_n", Some("N")),
+            ("job.feed_mm_min", Some("mm/min")),
+            (
+                "machine.axes.x.drive.guide_friction.stribeck_m_s",
+                Some("m/s"),
+            ),
+            ("instruments.ballbar.setup_drift_um_per_min", Some("µm/min")),
+            (
+                "machine.axes.x.drive.screw_stiffness_n_per_um",
+                Some("N/µm"),
+            ),
+            (
+                "machine.axes.x.drive.guide_friction.sigma1_n_s_per_m",
+                Some("N·s/m"),
+            ),
+            ("machine.thermal.nodes[0].capacity_j_per_k", Some("J/K")),
+            (
+                "machine.thermal.links.\"G-Z\".translation_um_per_k",
+                Some("µm/K"),
+            ),
+            ("instruments.ballbar.bar_alpha_per_k", Some("1/K")),
+            ("machine.axes.x.drive.encoder_counts_per_rev", None),
+            ("machine.errors.squareness.ec0y_urad", Some("µrad")),
+        ] {
+            assert_eq!(key_unit(key).as_deref(), unit, "{key}");
+        }
+    }
 }

@@ -567,3 +567,47 @@ fn accuracy_refuses_a_folder_that_is_no_dataset() {
         );
     }
 }
+
+/// A label holding a parameter the first run's `keys` does not list (edited by hand) is a
+/// column of its own in the manifest: rebuilding it had panicked on the missing key.
+#[test]
+fn a_label_with_an_extra_parameter_does_not_panic_the_manifest() {
+    let tmp = tempfile::tempdir().unwrap();
+    let s = scenario(tmp.path(), None);
+    let out = tmp.path().join("ds");
+    dataset(&s, &out, 1, 1);
+    let labels = out.join("runs/000000/labels.json");
+    let mut v: Value = serde_json::from_str(&std::fs::read_to_string(&labels).unwrap()).unwrap();
+    v["parameters"]["extra_um"] = 1.0.into();
+    std::fs::write(&labels, serde_json::to_string_pretty(&v).unwrap()).unwrap();
+    let o = dataset_run(&s, &out, 1, 7, 1);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let csv = std::fs::read_to_string(out.join("manifest.csv")).unwrap();
+    assert!(csv.lines().next().unwrap().contains("extra_um"), "{csv}");
+}
+
+/// A dataset of positioning tests has no circular test to take truth figures from: its runs are
+/// complete without them (they had been reported damaged, for ever).
+#[test]
+fn a_dataset_without_a_circular_test_completes() {
+    let tmp = tempfile::tempdir().unwrap();
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+    let text = std::fs::read_to_string(root.join("scenarios/iso230_2_x.toml")).unwrap();
+    let short = text
+        .replacen("count = 11", "count = 2", 1)
+        .replacen("runs = 5", "runs = 2", 1)
+        .replacen("dwell_s = 2.0", "dwell_s = 1.5", 1)
+        .replacen("range_mm = [25.0, 475.0]", "range_mm = [25.0, 75.0]", 1);
+    let s = tmp.path().join("laser.toml");
+    std::fs::write(
+        &s,
+        format!(
+            "{short}\n[dataset.parameters]\n\"machine.axes.x.drive.backlash_um\" = {{ distribution = \"uniform\", min = 0.0, max = 6.0 }}\n"
+        ),
+    )
+    .unwrap();
+    let out = tmp.path().join("ds");
+    let o = dataset_run(&s, &out, 1, 3, 1);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(out.join("runs/000000/labels.json").is_file());
+}
