@@ -289,11 +289,9 @@ pub fn simulate_machining(
         };
         let commands = servo_tick(plant.as_mut(), &sp, &tcp, period, substeps);
         check_following_error(plant.as_ref(), &limits, &sp, &job.program)?;
-        // Logged at the tick's own time, as the other jobs' servo rows (from 0).
-        if k.is_multiple_of(log_every) {
-            let time = k as f64 * period;
-            log.push(time, plant.as_ref(), &commands, o, command.spindle_rpm);
-        }
+        // Logged at the tick's own time, as the other jobs' servo rows (from 0), with the
+        // spindle speed of this tick (set below, from its block or the supervisor).
+        let logged = k.is_multiple_of(log_every).then_some(k as f64 * period);
         k += 1;
         let t = k as f64 * period;
         let now = tool_xy(plant.as_ref());
@@ -317,6 +315,9 @@ pub fn simulate_machining(
             c.advance(t, period, before, now, &mut command)
                 .map_err(|e| SimError::Settings(format!("milling: {e}")))?;
             speed_taken_over |= command.spindle_rpm != programmed;
+        }
+        if let Some(time) = logged {
+            log.push(time, plant.as_ref(), &commands, o, command.spindle_rpm);
         }
         before = now;
         tau += o * period;

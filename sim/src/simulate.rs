@@ -385,13 +385,23 @@ impl JobRun<'_> {
         let limits = following_error_limits(axes, ipo);
         let mut last = None;
         for k in 0.. {
-            let Some(sp) =
-                setpoint_or_settle(&interpolator, k, &mut cursor, &mut last, plant.as_ref())
-            else {
+            let Some(sp) = setpoint_or_settle(
+                &interpolator,
+                k,
+                &mut cursor,
+                &mut last,
+                plant.as_ref(),
+                recorder.log_every,
+            ) else {
                 break;
             };
             servo_tick(plant.as_mut(), &sp, &tcp, period, substeps);
-            check_following_error(plant.as_ref(), &limits, &sp, &job.program)?;
+            // While the axes settle, an alarm names the program's last block.
+            let at = Setpoint {
+                block: sp.block.or(last.and_then(|l| l.block)),
+                ..sp
+            };
+            check_following_error(plant.as_ref(), &limits, &at, &job.program)?;
             let carriages = plant.carriages();
             let q = Vector3::from_fn(|i, _| carriages[i].position_m);
             let direction = directions(&mut trackers, &q);
@@ -867,15 +877,17 @@ pub const IN_POSITION_M: f64 = 1e-6;
 /// setpoint, s (an axis held off by friction, or hunting about its encoder count, ends there).
 pub const SETTLE_LIMIT_S: f64 = 1.0;
 
-/// The setpoint of servo tick `k` of a program of `ticks` ticks: the interpolator's, and after
-/// its end the last one held at rest (no block: no instrument records) until the axes are in
-/// position or [`SETTLE_LIMIT_S`] has passed; `None` then.
+/// The setpoint of servo tick `k`: the interpolator's, and after its end the last one held at
+/// rest (no block: no instrument records) until the axes are in position after a logged tick
+/// (every `log_every`-th, so that the log's last row is in position) or [`SETTLE_LIMIT_S`] has
+/// passed; `None` then.
 fn setpoint_or_settle(
     ipo: &Interpolator,
     k: usize,
     cursor: &mut Cursor,
     last: &mut Option<Setpoint>,
     plant: &dyn Plant,
+    log_every: usize,
 ) -> Option<Setpoint> {
     if let Some(sp) = ipo.setpoint_from(k, cursor) {
         *last = Some(sp);
@@ -884,10 +896,11 @@ fn setpoint_or_settle(
     let held = (*last)?;
     let period = ipo.servo_period_s();
     let waited = (k + 1 - ipo.servo_ticks()) as f64 * period;
-    let in_position = plant
-        .following_errors()
-        .iter()
-        .all(|e| e.abs() <= IN_POSITION_M);
+    let in_position = (k - 1).is_multiple_of(log_every)
+        && plant
+            .following_errors()
+            .iter()
+            .all(|e| e.abs() <= IN_POSITION_M);
     (!in_position && waited <= SETTLE_LIMIT_S + 0.5 * period).then(|| Setpoint {
         time_s: k as f64 * period,
         velocity: Vector3::zeros(),

@@ -874,8 +874,12 @@ fn missing_number(v: &Value) -> Option<String> {
             "`parameters.{name}` is missing or not a number (`keys` lists the entry)"
         ));
     }
-    if v["ground_truth"]["ballbar"].is_null() {
-        // A job without a circular test (a laser or milling run): no figures to list.
+    let truth = &v["ground_truth"];
+    let ballbar = truth.get("ballbar");
+    if ballbar.is_some_and(Value::is_null) || (ballbar.is_none() && truth.get("milling").is_some())
+    {
+        // A job without a circular test (a positioning test's truth has a null `ballbar`, a
+        // milling run's none but its `milling`; a damaged label lacks the key): no figures.
         return None;
     }
     let Some(figures) = crate::diagnose::truth_figures(&v["ground_truth"], 0) else {
