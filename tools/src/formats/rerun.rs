@@ -128,13 +128,11 @@ pub struct RrdFile {
     layout: Layout,
     /// The tool path so far (it is drawn whole, as one static strip, at the end).
     tool_path: Vec<[f32; 3]>,
-    /// Rows of the `servo` stream and samples of each trace sent so far (errors give a row's
-    /// index in the whole run).
-    sent: (usize, Vec<usize>),
-    /// The series of the streams' other channels ([`other_series`]) and the rows of each
-    /// stream sent so far, by stream name.
+    /// Rows of each stream (by name) and samples of each trace sent so far (errors give a
+    /// row's index in the whole run).
+    sent: (std::collections::BTreeMap<String, usize>, Vec<usize>),
+    /// The series of the streams' other channels ([`other_series`]).
     others: Vec<OtherSeries>,
-    other_sent: std::collections::BTreeMap<String, usize>,
 }
 
 /// A channel plotted as it is, outside the servo series of following errors and friction (a
@@ -158,34 +156,22 @@ fn other_series(streams: &[Stream]) -> Vec<OtherSeries> {
             s.name != "servo" || matches!(c.name.as_str(), "feed_override" | "spindle_rpm")
         };
         for c in s.channels.iter().filter(|c| plotted(c)) {
+            // The unit as written (N and n differ), made a path part.
             let unit: String = c
                 .unit
                 .chars()
                 .map(|ch| if ch.is_ascii_alphanumeric() { ch } else { '_' })
                 .collect();
-            let origin = format!("/series/{}_{unit}", slug_of(&s.name));
+            let origin = format!("/series/{}_{unit}", slug(&s.name));
             out.push(OtherSeries {
                 stream: s.name.clone(),
                 channel: c.name.clone(),
-                entity: format!("{origin}/{}", slug_of(&c.name)),
+                entity: format!("{origin}/{}", slug(&c.name)),
                 view: (format!("{} ({})", s.name, c.unit), origin),
             });
         }
     }
     out
-}
-
-/// `name` as an entity path part: ASCII letters, digits and `_`.
-fn slug_of(name: &str) -> String {
-    name.chars()
-        .map(|c| {
-            if c.is_ascii_alphanumeric() {
-                c.to_ascii_lowercase()
-            } else {
-                '_'
-            }
-        })
-        .collect()
 }
 
 impl RunFile for RrdFile {
@@ -225,9 +211,11 @@ impl RunFile for RrdFile {
             slugs: unique_slugs(opening.ballbar.iter().map(|t| t.label.as_str())),
             layout: Layout::new(&opening.machine, topology),
             tool_path: Vec::new(),
-            sent: (0, vec![0; opening.ballbar.len()]),
+            sent: (
+                std::collections::BTreeMap::new(),
+                vec![0; opening.ballbar.len()],
+            ),
             others,
-            other_sent: std::collections::BTreeMap::new(),
         };
         let log = file.logger();
         log.info(opening)?;
@@ -263,14 +251,14 @@ impl RunFile for RrdFile {
         streams.iter().try_for_each(|s| check_stream(s, log.path))?;
         traces.iter().try_for_each(|t| check_trace(t, log.path))?;
         if let Some(servo) = servo(streams) {
-            let first = self.sent.0;
+            let first = self.rows_sent(servo);
             for (entity, axis, sign) in &self.layout.carriages {
                 log.carriage_motion(entity, servo, first, *axis, *sign)?;
             }
             log.servo_series(servo, first)?;
         }
         for s in streams {
-            let first = self.other_sent.get(&s.name).copied().unwrap_or(0);
+            let first = self.rows_sent(s);
             for o in self.others.iter().filter(|o| o.stream == s.name) {
                 let Some(c) = s.channel(&o.channel) else {
                     continue;
@@ -291,9 +279,8 @@ impl RunFile for RrdFile {
         // of a slow disk, and a file sink that has failed shows only here (its own error goes
         // to the log, not to us).
         flush(&self.rec).map_err(|e| log.err(e))?;
-        self.sent.0 += servo(streams).map_or(0, |s| s.times_s.len());
         for s in streams {
-            *self.other_sent.entry(s.name.clone()).or_insert(0) += s.times_s.len();
+            *self.sent.0.entry(s.name.clone()).or_insert(0) += s.times_s.len();
         }
         for (sent, t) in self.sent.1.iter_mut().zip(traces) {
             *sent += t.times_s.len();
@@ -329,6 +316,11 @@ impl RunFile for RrdFile {
 }
 
 impl RrdFile {
+    /// Rows of `stream` sent before this block.
+    fn rows_sent(&self, stream: &Stream) -> usize {
+        self.sent.0.get(&stream.name).copied().unwrap_or(0)
+    }
+
     fn logger(&self) -> Logger<'_> {
         Logger {
             rec: &self.rec,
