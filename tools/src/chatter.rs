@@ -316,8 +316,6 @@ fn finish(
 /// What the detectors found.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Report {
-    /// The log's [`Log::start_s`], s: the detectors' times are from it.
-    pub start_s: f64,
     /// Kim's detector, with the limit used.
     pub kim: Option<(KimResult, f64)>,
     /// The spectral detector, and where its tooth-passing frequency came from.
@@ -410,7 +408,6 @@ pub fn detect(log: &Log, file: &str, args: &DetectArgs) -> Result<Report, CliErr
             _ if args.detector == Which::Both => {
                 // Kim's verdict stands on its own; say why the other is missing.
                 return Ok(Report {
-                    start_s: log.start_s,
                     kim,
                     spectral: None,
                     spectral_skipped: Some(NO_TOOTH_PASSING),
@@ -433,7 +430,6 @@ pub fn detect(log: &Log, file: &str, args: &DetectArgs) -> Result<Report, CliErr
         None
     };
     Ok(Report {
-        start_s: log.start_s,
         kim,
         spectral,
         spectral_skipped: None,
@@ -512,8 +508,9 @@ pub fn text(log: &Log, r: &Report) -> String {
     out
 }
 
-/// Writes the per-window figures: one row per Kim block and per spectral frame.
-pub fn write_csv(r: &Report, w: &mut impl Write) -> std::io::Result<()> {
+/// Writes the per-window figures of `log`: one row per Kim block and per spectral frame, the
+/// window ends on the log's clock.
+pub fn write_csv(log: &Log, r: &Report, w: &mut impl Write) -> std::io::Result<()> {
     writeln!(
         w,
         "detector,window_end_s,rms_m_s2,feed_override,share,non_harmonic_ratio,peak_hz,chatter"
@@ -523,7 +520,7 @@ pub fn write_csv(r: &Report, w: &mut impl Write) -> std::io::Result<()> {
             writeln!(
                 w,
                 "kim,{},{},{},,,,{}",
-                r.start_s + b.end_s,
+                log.start_s + b.end_s,
                 b.rms,
                 b.feed_override,
                 b.chatter
@@ -535,7 +532,7 @@ pub fn write_csv(r: &Report, w: &mut impl Write) -> std::io::Result<()> {
             writeln!(
                 w,
                 "better,{},,,{},{},{},{}",
-                r.start_s + f.end_s,
+                log.start_s + f.end_s,
                 f.share,
                 f.non_harmonic_ratio,
                 f.peak_hz,
@@ -559,7 +556,7 @@ pub fn diagnose_run(mcap: &Path, dir: &Path) -> Result<(String, Vec<PathBuf>), C
     let csv = dir.join("chatter.csv");
     let f = std::fs::File::create(&csv).map_err(|e| CliError::output(&csv, e))?;
     let mut w = std::io::BufWriter::new(f);
-    write_csv(&report, &mut w)
+    write_csv(&log, &report, &mut w)
         .and_then(|_| w.flush())
         .map_err(|e| CliError::output(&csv, e))?;
     Ok((text, vec![txt, csv]))
@@ -574,7 +571,7 @@ pub fn command(args: &DetectArgs) -> Result<(), CliError> {
     if let Some(path) = &args.csv {
         let f = std::fs::File::create(path).map_err(|e| CliError::output(path, e))?;
         let mut w = std::io::BufWriter::new(f);
-        write_csv(&report, &mut w)
+        write_csv(&log, &report, &mut w)
             .and_then(|_| w.flush())
             .map_err(|e| CliError::output(path, e))?;
         crate::outln!("wrote {}", path.display())?;
