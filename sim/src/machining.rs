@@ -33,8 +33,8 @@ use crate::plant::Plant;
 use crate::run::{Channel, Run, Stream};
 use crate::simulate::{
     AxisDynamics, Job, SERVO_CHANNELS, SimError, SimSettings, build_plant, check_following_error,
-    check_servo, check_step, check_strokes, following_error_limits, servo_tick, servo_values,
-    summary,
+    check_servo, check_step, check_strokes, following_error_limits, push_servo_row, servo_channels,
+    servo_tick, summary,
 };
 use nalgebra::Vector3;
 use serde_json::json;
@@ -112,51 +112,35 @@ fn setpoint_at(ipo: &Interpolator, tau: f64, o: f64, cursor: &mut Cursor) -> Opt
 
 /// Servo-rate log of the job: the channels of the other jobs' `servo` stream but the tool
 /// point (a milling run does not evaluate the error chain; the cut's own tool motion is in its
-/// `cutting` stream), with the feed override and the spindle speed.
-#[derive(Default)]
-struct ServoLog {
-    times: Vec<f64>,
-    /// For each of [`SERVO_CHANNELS`], each axis' values.
-    axes: [[Vec<f64>; 3]; SERVO_CHANNELS.len()],
-    feed_override: Vec<f64>,
-    spindle_rpm: Vec<f64>,
-}
+/// `cutting` stream), then the feed override and the spindle speed.
+struct ServoLog(Stream);
 
 impl ServoLog {
-    /// A row at `t` (s): the plant after the servo tick commanded by `command`.
-    fn push(&mut self, t: f64, plant: &dyn Plant, command: &[AxisCommand; 3], o: f64, rpm: f64) {
-        self.times.push(t);
-        let carriages = plant.carriages();
-        for (i, c) in command.iter().enumerate() {
-            let values = servo_values(plant, &carriages, i, c.position);
-            for (channel, v) in self.axes.iter_mut().zip(values) {
-                channel[i].push(v);
-            }
-        }
-        self.feed_override.push(o);
-        self.spindle_rpm.push(rpm);
-    }
-
-    fn stream(self) -> Stream {
-        let ch = |name: String, unit: &str, values: Vec<f64>| Channel {
-            name,
+    fn new() -> Self {
+        let extra = [("feed_override", "1"), ("spindle_rpm", "rpm")].map(|(name, unit)| Channel {
+            name: name.into(),
             unit: unit.into(),
-            values,
-        };
-        let mut channels = Vec::new();
-        for ((name, unit), per_axis) in SERVO_CHANNELS.iter().zip(self.axes) {
-            for (a, values) in ["x", "y", "z"].into_iter().zip(per_axis) {
-                channels.push(ch(format!("{name}_{a}"), unit, values));
-            }
-        }
-        channels.push(ch("feed_override".into(), "1", self.feed_override));
-        channels.push(ch("spindle_rpm".into(), "rpm", self.spindle_rpm));
-        Stream {
+            values: Vec::new(),
+        });
+        ServoLog(Stream {
             name: "servo".into(),
             description: "axis commands, carriage positions, encoders, following errors, motor forces and currents, friction forces, the feed override and the spindle speed".into(),
-            times_s: self.times,
-            channels,
+            times_s: Vec::new(),
+            channels: servo_channels(0).into_iter().chain(extra).collect(),
+        })
+    }
+
+    /// A row at `t` (s): the plant after the servo tick commanded by `command`.
+    fn push(&mut self, t: f64, plant: &dyn Plant, command: &[AxisCommand; 3], o: f64, rpm: f64) {
+        let s = &mut self.0;
+        s.times_s.push(t);
+        let carriages = plant.carriages();
+        for (i, c) in command.iter().enumerate() {
+            push_servo_row(&mut s.channels, plant, &carriages, i, c.position);
         }
+        let n = SERVO_CHANNELS.len() * 3;
+        s.channels[n].values.push(o);
+        s.channels[n + 1].values.push(rpm);
     }
 }
 
@@ -272,7 +256,7 @@ pub fn simulate_machining(
         spindle_rpm: plan.spindle_rpm,
     };
     let log_every = ((1.0 / settings.log_rate_hz) / period).round().max(1.0) as usize;
-    let (mut log, mut cursor) = (ServoLog::default(), Cursor::default());
+    let (mut log, mut cursor) = (ServoLog::new(), Cursor::default());
     let (mut tau, mut k) = (0.0, 0usize);
     let duration = ipo.duration_s();
     let tool_xy = |p: &dyn crate::plant::Plant| {
@@ -288,7 +272,7 @@ pub fn simulate_machining(
             break;
         };
         let commands = servo_tick(plant.as_mut(), &sp, &tcp, period, substeps);
-        check_following_error(plant.as_ref(), &limits, &sp, &job.program)?;
+        check_following_error(plant.as_ref(), &limits, sp.time_s, sp.block, &job.program)?;
         // Logged at the tick's own time, as the other jobs' servo rows (from 0), with the
         // spindle speed of this tick (set below, from its block or the supervisor).
         let logged = k.is_multiple_of(log_every).then_some(k as f64 * period);
@@ -329,7 +313,7 @@ pub fn simulate_machining(
     let cut =
         cut.ok_or_else(|| SimError::Settings("the program ended before its cutting block".into()))?;
     let out = cut.process.finish();
-    let mut streams = vec![log.stream()];
+    let mut streams = vec![log.0];
     streams.extend(out.streams.into_iter().map(|mut s| {
         s.times_s.iter_mut().for_each(|x| *x += cut.start_s);
         s

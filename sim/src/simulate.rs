@@ -397,11 +397,8 @@ impl JobRun<'_> {
             };
             servo_tick(plant.as_mut(), &sp, &tcp, period, substeps);
             // While the axes settle, an alarm names the program's last block.
-            let at = Setpoint {
-                block: sp.block.or(last.and_then(|l| l.block)),
-                ..sp
-            };
-            check_following_error(plant.as_ref(), &limits, &at, &job.program)?;
+            let block = sp.block.or(last.and_then(|l| l.block));
+            check_following_error(plant.as_ref(), &limits, sp.time_s, block, &job.program)?;
             let carriages = plant.carriages();
             let q = Vector3::from_fn(|i, _| carriages[i].position_m);
             let direction = directions(&mut trackers, &q);
@@ -486,14 +483,15 @@ pub(crate) fn following_error_limits(
     })
 }
 
-/// The excess-error alarm, after the controllers' period at `sp`: a drive whose following
+/// The excess-error alarm, after the controllers' period at `time_s`: a drive whose following
 /// error passed its limit (`limits`, m) is not following its command (its torque saturated
 /// against friction or load, a gain set wrong), and a control stops the job there, naming the
-/// block of `program` it was executing.
+/// block of `program` it was executing (`block`).
 pub(crate) fn check_following_error(
     plant: &dyn Plant,
     limits: &[f64; 3],
-    sp: &Setpoint,
+    time_s: f64,
+    block: Option<usize>,
     program: &Program,
 ) -> Result<(), SimError> {
     let errors = plant.following_errors();
@@ -501,9 +499,9 @@ pub(crate) fn check_following_error(
         let e = errors[i];
         if e.abs() > limits[i] {
             return Err(SimError::ExcessError {
-                line: block_line(program, sp.block),
+                line: block_line(program, block),
                 axis,
-                time_s: sp.time_s,
+                time_s,
                 error_mm: e * 1e3,
                 limit_mm: limits[i] * 1e3,
             });
@@ -921,17 +919,34 @@ pub(crate) const SERVO_CHANNELS: [(&str, &str); 8] = [
     ("screw_friction", "N"),
 ];
 
-/// The values of [`SERVO_CHANNELS`] of axis `i` of `plant`, whose carriages are `carriages`,
-/// commanded to `command_m` (the axis coordinate, m).
-pub(crate) fn servo_values(
+/// One empty channel per axis for each of [`SERVO_CHANNELS`] (`command_x`, `command_y`,
+/// `command_z`, `position_x`, ...), room for `rows`.
+pub(crate) fn servo_channels(rows: usize) -> Vec<Channel> {
+    SERVO_CHANNELS
+        .iter()
+        .flat_map(|(name, unit)| {
+            ["x", "y", "z"].map(|a| Channel {
+                name: format!("{name}_{a}"),
+                unit: (*unit).into(),
+                values: Vec::with_capacity(rows),
+            })
+        })
+        .collect()
+}
+
+/// Appends to `channels` (the first ones as [`servo_channels`] orders them) the values of
+/// [`SERVO_CHANNELS`] of axis `i` of `plant`, whose carriages are `carriages`, commanded to
+/// `command_m` (the axis coordinate, m).
+pub(crate) fn push_servo_row(
+    channels: &mut [Channel],
     plant: &dyn Plant,
     carriages: &[CarriageState; 3],
     i: usize,
     command_m: f64,
-) -> [f64; 8] {
+) {
     let d = plant.drive(i);
     let (_, encoder) = d.feedback(carriages[i].position_m);
-    [
+    let values = [
         command_m,
         carriages[i].position_m,
         encoder,
@@ -940,7 +955,10 @@ pub(crate) fn servo_values(
         d.params().current_a(d.motor_force_n),
         carriages[i].friction_force_n,
         d.screw_friction_force_n,
-    ]
+    ];
+    for (c, v) in values.into_iter().enumerate() {
+        channels[c * 3 + i].values.push(v);
+    }
 }
 
 /// Servo rows a run with a [`LogSink`] holds before it hands them on: small enough that a
@@ -1100,10 +1118,7 @@ impl Recorder {
             let carriages = plant.carriages();
             for i in 0..3 {
                 let command = sp.position[i] - machine.volumetric.kinematics.tool_offset[i];
-                let values = servo_values(plant, &carriages, i, command);
-                for (c, v) in values.into_iter().enumerate() {
-                    self.servo.channels[c * 3 + i].values.push(v);
-                }
+                push_servo_row(&mut self.servo.channels, plant, &carriages, i, command);
                 self.servo.channels[SERVO_CHANNELS.len() * 3 + i]
                     .values
                     .push(tool[i]);
@@ -1219,21 +1234,16 @@ impl Recorder {
 /// The `servo` stream with no rows, room for `rows`: for each of [`SERVO_CHANNELS`] one channel
 /// per axis, then the tool point.
 fn servo_stream(rows: usize) -> Stream {
-    let axes = ["x", "y", "z"];
-    let channel = |name: String, unit: &str| Channel {
-        name,
-        unit: unit.into(),
+    let tool = ["x", "y", "z"].map(|a| Channel {
+        name: format!("tool_{a}"),
+        unit: "m".into(),
         values: Vec::with_capacity(rows),
-    };
-    let servo = SERVO_CHANNELS
-        .iter()
-        .flat_map(|(name, unit)| axes.map(|a| channel(format!("{name}_{a}"), unit)));
-    let tool = axes.map(|a| channel(format!("tool_{a}"), "m"));
+    });
     Stream {
         name: "servo".into(),
         description: "axis commands, carriage positions, encoders, following errors, motor forces and currents, friction forces, tool point".into(),
         times_s: Vec::with_capacity(rows),
-        channels: servo.chain(tool).collect(),
+        channels: servo_channels(rows).into_iter().chain(tool).collect(),
     }
 }
 
