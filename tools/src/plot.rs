@@ -10,7 +10,7 @@ use plotters::style::FontStyle;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
 use std::path::Path;
 use std::sync::Once;
-use vmt_ballbar::samples::{TRANSIENT_MIN_DEG, TRANSIENT_S};
+use vmt_ballbar::samples::transient_deg;
 use vmt_sim::run::BallbarTrace;
 
 /// Image formats.
@@ -409,18 +409,6 @@ struct Polar {
     px_per_um: f64,
 }
 
-/// The angle at each end of a trace its scale leaves out, deg: the diagnosis' transient
-/// ([`TRANSIENT_S`] of travel at the feed, at least [`TRANSIENT_MIN_DEG`]).
-fn transient_deg(t: &BallbarTrace) -> f64 {
-    let travel_mm = t.feed_mm_min / 60.0 * TRANSIENT_S;
-    let deg = (travel_mm / t.radius_mm).to_degrees();
-    if deg.is_finite() {
-        deg.max(TRANSIENT_MIN_DEG)
-    } else {
-        TRANSIENT_MIN_DEG
-    }
-}
-
 /// The largest |deviation| of the finite samples of `traces` (µm), and of those more than
 /// [`transient_deg`] from either end of their trace; `None` without a finite sample. The
 /// polar plots of the PNGs and of the Rerun recording take their scales from it.
@@ -440,7 +428,7 @@ pub(crate) fn largest_deviations<'a>(
         let (Some(first), Some(last)) = (finite.first(), finite.last()) else {
             continue;
         };
-        let ends = transient_deg(t);
+        let ends = transient_deg(t.feed_mm_min, t.radius_mm);
         for &(a, d) in &finite {
             all = Some(all.map_or(d, |m| m.max(d)));
             if (a - first.0).abs() >= ends && (last.0 - a).abs() >= ends {

@@ -11,7 +11,7 @@
 use crate::features::{self, Residual};
 use crate::iso230_4::{self, Figures};
 use crate::model::{Fit, FitError, Term, Terms, reversal_angles};
-use crate::samples::{Placement, Samples, TRANSIENT_MIN_DEG, TRANSIENT_S};
+use crate::samples::{self, Placement, Samples};
 use crate::signatures::{self, Point};
 use crate::trace::{Plane, Trace, TraceError};
 use serde::Serialize;
@@ -238,14 +238,11 @@ fn diagnose_test(
     })
 }
 
-/// `t` without its samples within the transient window of either end ([`TRANSIENT_S`] of
-/// travel at its feed, at least [`TRANSIENT_MIN_DEG`]: the samples the fit leaves out); all of
+/// `t` without its samples within the transient window of either end
+/// ([`samples::transient_deg`]: the samples the fit leaves out); all of
 /// it when that would leave nothing.
 pub fn settled(t: &Trace) -> Trace {
-    let travel_mm = t.feed_mm_min / 60.0 * TRANSIENT_S;
-    let window = (travel_mm / t.radius_mm)
-        .to_degrees()
-        .max(TRANSIENT_MIN_DEG);
+    let window = samples::transient_deg(t.feed_mm_min, t.radius_mm);
     let (Some(&a0), Some(&a1)) = (t.angle_deg.first(), t.angle_deg.last()) else {
         return t.clone();
     };

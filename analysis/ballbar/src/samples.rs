@@ -144,6 +144,14 @@ pub const TRANSIENT_S: f64 = 0.15;
 /// The least angle left out at each end, deg.
 pub const TRANSIENT_MIN_DEG: f64 = 3.0;
 
+/// The angle left out at each end of a trace of radius `radius_mm` run at `feed_mm_min`, deg:
+/// [`TRANSIENT_S`] of travel at the feed, at least [`TRANSIENT_MIN_DEG`] (also for a feed or
+/// radius that gives no number). [`Samples::transient_deg`] is the same in its own units.
+pub fn transient_deg(feed_mm_min: f64, radius_mm: f64) -> f64 {
+    let travel_mm = feed_mm_min / 60.0 * TRANSIENT_S;
+    (travel_mm / radius_mm).to_degrees().max(TRANSIENT_MIN_DEG)
+}
+
 impl Samples<'_> {
     /// The angle left out of the fit at each end of the trace, deg: [`TRANSIENT_S`] of travel
     /// at the feed, at least [`TRANSIENT_MIN_DEG`].
