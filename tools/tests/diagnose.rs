@@ -3,8 +3,11 @@
 //! input.
 
 mod common;
+#[path = "common/mcap_records.rs"]
+mod mcap_records;
 
 use common::{stderr, vmt};
+use mcap_records::records;
 use std::path::{Path, PathBuf};
 use vmt_ballbar::synthetic::{Errors, test};
 use vmt_ballbar::{Plane, Trace};
@@ -249,18 +252,16 @@ fn an_arc_shorter_than_a_circle_reports_what_it_cannot_compute() {
     );
 }
 
-/// A run of ours, read back from its MCAP: every figure of the truth is printed beside the
-/// diagnosis.
-#[test]
-fn a_simulated_run_is_read_back_from_its_mcap_and_compared_with_its_truth() {
-    let dir = tempfile::tempdir().unwrap();
+/// The built-in machine's circular test at 50 mm and 3000 mm/min, run by `vmt run` into
+/// `dir/run`; that folder.
+fn simulated_run(dir: &Path) -> PathBuf {
     let text = vmt_scenario::BUILTIN_DEFAULT;
     let cut = text.find("[job]").unwrap();
     let job = "[job]\nkind = \"ballbar\"\nplane = \"XY\"\ncenter_mm = [250.0, 200.0, 200.0]\n\
                radius_mm = 50.0\nfeed_mm_min = 3000.0\narc_deg = 360.0\ndirections = [\"cw\", \"ccw\"]\n";
-    let s = dir.path().join("s.toml");
+    let s = dir.join("s.toml");
     std::fs::write(&s, format!("{}{job}", &text[..cut])).unwrap();
-    let out = dir.path().join("run");
+    let out = dir.join("run");
     let o = vmt(&[
         "run",
         s.to_str().unwrap(),
@@ -269,6 +270,15 @@ fn a_simulated_run_is_read_back_from_its_mcap_and_compared_with_its_truth() {
         "--quiet",
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
+    out
+}
+
+/// A run of ours, read back from its MCAP: every figure of the truth is printed beside the
+/// diagnosis.
+#[test]
+fn a_simulated_run_is_read_back_from_its_mcap_and_compared_with_its_truth() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = simulated_run(dir.path());
     let o = vmt(&["diagnose", out.join("run.mcap").to_str().unwrap()]);
     assert!(o.status.success(), "{}", stderr(&o));
     let report = String::from_utf8_lossy(&o.stdout);
@@ -288,47 +298,24 @@ fn a_simulated_run_is_read_back_from_its_mcap_and_compared_with_its_truth() {
     assert!((v[0] - v[1]).abs() < 0.3, "truth against diagnosis: {line}");
 }
 
-/// The offset of the length field of the first record with `opcode` from `start` on in the
-/// MCAP bytes `b` (records: opcode u8, length u64 little-endian, content).
-fn length_field(b: &[u8], start: usize, opcode: u8) -> usize {
-    let mut at = start;
-    loop {
-        let len = u64::from_le_bytes(b[at + 1..at + 9].try_into().unwrap()) as usize;
-        if b[at] == opcode {
-            return at + 1;
-        }
-        at += 9 + len;
-    }
-}
-
 /// A record whose length field is damaged to terabytes (as two writers racing on one file
 /// left it) is a clear error naming the file, in the data section and in the summary: the
 /// readers had allocated the stated length and aborted the process (exit 134).
 #[test]
 fn a_damaged_record_length_is_an_error_not_an_abort() {
     let dir = tempfile::tempdir().unwrap();
-    let text = vmt_scenario::BUILTIN_DEFAULT;
-    let cut = text.find("[job]").unwrap();
-    let job = "[job]\nkind = \"ballbar\"\nplane = \"XY\"\ncenter_mm = [250.0, 200.0, 200.0]\n\
-               radius_mm = 50.0\nfeed_mm_min = 3000.0\narc_deg = 360.0\ndirections = [\"cw\", \"ccw\"]\n";
-    let s = dir.path().join("s.toml");
-    std::fs::write(&s, format!("{}{job}", &text[..cut])).unwrap();
-    let out = dir.path().join("run");
-    let o = vmt(&[
-        "run",
-        s.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-        "--quiet",
-    ]);
-    assert!(o.status.success(), "{}", stderr(&o));
+    let out = simulated_run(dir.path());
     let good = std::fs::read(out.join("run.mcap")).unwrap();
     // Footer: opcode, length, summary start (u64), ...; it ends 8 + 29 bytes before the end.
     let footer = good.len() - 8 - 29;
     assert_eq!(good[footer], 0x02, "footer opcode");
     let summary_start = u64::from_le_bytes(good[footer + 9..footer + 17].try_into().unwrap());
+    let first_chunk = records(&good)
+        .into_iter()
+        .find(|r| r.opcode == 0x06)
+        .unwrap();
     let damaged = [
-        ("chunk", length_field(&good, 8, 0x06)),
+        ("chunk", first_chunk.at + 1),
         ("summary", summary_start as usize + 1),
     ];
     for (what, at) in damaged {

@@ -4,9 +4,12 @@
 //! The Python tests need `python3 -m pip install -r tools/tests/requirements.txt`; without the
 //! packages they fail and say so.
 
+#[path = "common/mcap_records.rs"]
+mod mcap_records;
 #[path = "common/python.rs"]
 mod python;
 
+use mcap_records::records;
 use python::python;
 use serde_json::{Value, json};
 use std::f64::consts::PI;
@@ -176,29 +179,6 @@ fn ns(t_s: f64) -> u64 {
     (t_s * 1e9).round() as u64
 }
 
-/// The records of the MCAP file `b` in file order up to the data end: (opcode, and for a
-/// metadata record its name).
-fn records(b: &[u8]) -> Vec<(u8, String)> {
-    let mut out = Vec::new();
-    let mut at = 8;
-    while at + 9 <= b.len() {
-        let op = b[at];
-        let len = u64::from_le_bytes(b[at + 1..at + 9].try_into().unwrap()) as usize;
-        let name = if op == 0x0C {
-            let n = u32::from_le_bytes(b[at + 9..at + 13].try_into().unwrap()) as usize;
-            String::from_utf8_lossy(&b[at + 13..at + 13 + n]).into_owned()
-        } else {
-            String::new()
-        };
-        out.push((op, name));
-        if op == 0x0F {
-            break; // data end
-        }
-        at += 9 + len;
-    }
-    out
-}
-
 /// The metadata that identify a run come before its first chunk of messages, so that a file cut short by
 /// a killed job still names its scenario, seed and machine; the ground truth comes last.
 #[test]
@@ -206,7 +186,10 @@ fn an_mcap_names_its_run_before_its_first_chunk() {
     let dir = tempfile::tempdir().expect("temp dir");
     let path = dir.path().join("run.mcap");
     write_mcap(&test_run(), &path).expect("write mcap");
-    let r = records(&std::fs::read(&path).unwrap());
+    let r: Vec<(u8, String)> = records(&std::fs::read(&path).unwrap())
+        .into_iter()
+        .map(|r| (r.opcode, r.name))
+        .collect();
     // A chunk of messages is followed by its message indexes (the first chunk holds only the
     // schemas and channels).
     let index = |op: &u8| *op == 0x07;
