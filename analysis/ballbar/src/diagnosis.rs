@@ -13,6 +13,7 @@ use crate::iso230_4::{self, Figures};
 use crate::model::{Fit, FitError, Term, Terms, reversal_angles};
 use crate::samples::{self, Placement, Samples};
 use crate::signatures::{self, Point};
+use crate::take_up;
 use crate::trace::{Plane, Trace, TraceError};
 use serde::Serialize;
 use thiserror::Error;
@@ -287,21 +288,21 @@ fn diagnose_once(
     let traces = test.traces;
     let refs: Vec<&Trace> = traces.iter().collect();
     let plane = traces[0].plane;
-    let samples: Vec<Samples> = traces
+    let mut samples: Vec<Samples> = traces
         .iter()
         .zip(test.places)
         .zip(deviation)
         .map(|((t, p), d)| Samples::new(t, p, d))
         .collect();
-    let sample_refs: Vec<&Samples> = samples.iter().collect();
     let terms = Terms::for_test(&refs);
-    let fit = Fit::new(plane, &terms.terms, &sample_refs)?;
+    let (fit, take_up) = take_up::fit(plane, &terms.terms, &mut samples, test.reversals)?;
+    let sample_refs: Vec<&Samples> = samples.iter().collect();
     let mut findings = fitted_findings(&fit, &sample_refs, &terms.unresolved);
     let residuals: Vec<Residual> = traces
         .iter()
         .zip(&samples)
-        .zip(test.reversals)
-        .map(|((t, s), rev)| residual(t, s, rev, &fit))
+        .zip(test.reversals.iter().zip(&take_up))
+        .map(|((t, s), (rev, shifts))| residual(t, s, rev, shifts, &fit))
         .collect();
     let noise = features::median(
         &residuals
@@ -415,10 +416,13 @@ fn progress(traces: &[Trace]) -> Vec<Vec<f64>> {
         .collect()
 }
 
+/// The residual of trace `t` from the model `fit` with the backlash's take-up `shifts`
+/// ([`take_up::shifts`]).
 fn residual<'a>(
     t: &'a Trace,
     s: &'a Samples,
     reversals: &'a [Vec<usize>; 2],
+    shifts: &[(usize, f64)],
     fit: &Fit,
 ) -> Residual<'a> {
     let model = fit.compiled(s.radius_um, s.feed_um_per_ms);
@@ -426,6 +430,9 @@ fn residual<'a>(
     let mut r = crate::samples::filled(s.len());
     model.residuals(g, s.cos, s.sin, s.progress, s.deviation_um, &mut r);
     settle_flanks_at_reversals(&mut r, s, reversals, fit);
+    for &(i, d) in shifts {
+        r[i] -= d;
+    }
     let n = t.angle_deg.len();
     let dt_ms = match &t.time_s {
         Some(ts) => (ts[n - 1] - ts[0]) / (n - 1) as f64 * 1e3,

@@ -36,6 +36,8 @@ use std::cell::RefCell;
 pub const SMOOTH_MS: f64 = 4.0;
 /// Zone after a reversal in which a spike is looked for, deg.
 pub const SPIKE_ZONE_DEG: f64 = 3.0;
+/// Width of the moving mean whose remainder is the high-pass residual, deg.
+pub const HIGH_PASS_DEG: f64 = 2.0;
 /// Shortest pitch searched for cyclic errors, mm.
 pub const MIN_PITCH_MM: f64 = 4.0;
 
@@ -55,8 +57,8 @@ pub struct Residual<'a> {
     pub sums: PrefixSums,
     /// Half-width of the window of [`Residual::smooth`], samples.
     pub smooth_half: usize,
-    /// The residual minus its moving mean over 2° (the high-pass part stick-slip is measured
-    /// on).
+    /// The residual minus its moving mean over [`HIGH_PASS_DEG`] (the high-pass part
+    /// stick-slip is measured on).
     pub high_pass: Vec<f64>,
     /// Σ of the squares of `high_pass` over the [`Residual::settled`] samples.
     pub high_pass_sq: f64,
@@ -252,7 +254,7 @@ impl<'a> Residual<'a> {
             dt_ms,
             reversals,
         };
-        let w = (2.0 * res.per_deg()).round().max(3.0) as usize;
+        let w = (HIGH_PASS_DEG * res.per_deg()).round().max(3.0) as usize;
         res.high_pass = res.sums.high_pass(&res.r, w / 2);
         res.high_pass_sq = sum_sq(&res.high_pass);
         res
@@ -376,8 +378,10 @@ pub fn step(res: &Residual, partial: impl Fn(usize) -> f64, i: usize) -> Option<
 /// Stick-slip measure of one axis over the traces: (RMS of the high-pass residual near the
 /// axis' reversals, the same away from all reversals, peak-to-peak near the reversals), µm.
 ///
-/// Near: within 10° of a reversal of the axis but not in the [`SPIKE_ZONE_DEG`] + 1° after it
-/// (the spike is a separate error); away: not within 10° of any reversal. Both only among the
+/// Near: within 10° of a reversal of the axis but not in the [`SPIKE_ZONE_DEG`] after it (the
+/// spike is a separate error) nor within [`HIGH_PASS_DEG`]/2 of that zone, where the high-pass
+/// window reaches into it (a spike of 5 µm put 0.7 µm of "stick-slip" into the degree before
+/// the reversal); away: not within 10° of any reversal. Both only among the
 /// [`Residual::settled`] samples. Only the samples near reversals are visited; the sum over
 /// those away is the settled total less theirs.
 pub fn stick_slip(residuals: &[Residual], axis: usize) -> Option<(f64, f64, f64)> {
@@ -391,7 +395,8 @@ pub fn stick_slip(residuals: &[Residual], axis: usize) -> Option<(f64, f64, f64)
             for &i in &res.reversals[ax] {
                 windows.push((res.window(i, -10.0, 10.0), tag));
                 if ax == axis {
-                    windows.push((res.window(i, 0.0, SPIKE_ZONE_DEG + 1.0), 4));
+                    let reach = HIGH_PASS_DEG / 2.0;
+                    windows.push((res.window(i, -reach, SPIKE_ZONE_DEG + reach), 4));
                 }
             }
         }

@@ -6,6 +6,7 @@
 //!   H, least-squares and minimum-zone centres;
 //! - [`signatures`]: the radial signature of each physical error, to first order;
 //! - [`model`]: the error model and its weighted least-squares fit with confidences;
+//! - [`take_up`]: the take-up of backlash after each reversal, in the fit and the residual;
 //! - [`moving_mean`]: centred moving means from prefix sums;
 //! - [`features`]: reversal spikes, per-side backlash, stick-slip, vibration, start transient and
 //!   cyclic errors in the residual;
@@ -24,6 +25,7 @@ pub mod report;
 pub mod samples;
 pub mod signatures;
 pub mod synthetic;
+pub mod take_up;
 pub mod trace;
 
 pub use diagnosis::{Diagnosis, DiagnosisError, Finding, Options, diagnose};

@@ -338,10 +338,27 @@ pub struct Fit {
     pub sample_sigma_um: f64,
 }
 
-impl Fit {
-    /// Fits `terms` to the prepared traces of a test: the normal equations are accumulated
-    /// group by group from the [`SHAPES`] shape functions (each term is one of them times a
-    /// factor of the trace's set-up), without a design matrix.
+/// The weighted normal equations of a fit, `AᵀWA x = AᵀWy`, factored, with `yᵀWy`: kept so
+/// that the fit can be made again when a few groups' means move ([`Normal::shift`]) without a
+/// pass over all the groups. The residual sum of squares at the solution is
+/// `yᵀWy − xᵀAᵀWy`.
+#[derive(Clone, Debug)]
+pub struct Normal {
+    plane: Plane,
+    terms: Vec<Term>,
+    chol: nalgebra::Cholesky<f64, nalgebra::Dyn>,
+    inv: DMatrix<f64>,
+    aty: DVector<f64>,
+    yy: f64,
+    groups: usize,
+    /// Per trace: each term's shape function and factor.
+    maps: Vec<Vec<(usize, f64)>>,
+}
+
+impl Normal {
+    /// The normal equations of `terms` on the prepared traces of a test, accumulated group by
+    /// group from the [`SHAPES`] shape functions (each term is one of them times a factor of
+    /// the trace's set-up), without a design matrix.
     pub fn new(plane: Plane, terms: &[Term], traces: &[&Samples]) -> Result<Self, FitError> {
         let m: usize = traces.iter().map(|s| s.fit_groups().count()).sum();
         let n = terms.len();
@@ -353,6 +370,7 @@ impl Fit {
         }
         let mut ata = DMatrix::<f64>::zeros(n, n);
         let mut aty = DVector::<f64>::zeros(n);
+        let mut yy = 0.0;
         let mut maps: Vec<Vec<(usize, f64)>> = Vec::new();
         for s in traces {
             let map: Vec<(usize, f64)> = terms
@@ -364,6 +382,7 @@ impl Fit {
             for (pt, y, w) in s.fit_groups() {
                 let f = shapes(pt);
                 let w = *w as f64;
+                yy += w * y * y;
                 for i in 0..SHAPES {
                     let wf = w * f[i];
                     sum_y[i] += wf * y;
@@ -382,30 +401,50 @@ impl Fit {
             maps.push(map);
         }
         let chol = ata.cholesky().ok_or(FitError::Singular)?;
-        let x = chol.solve(&aty);
         let inv = chol.inverse();
-        let mut rss = 0.0;
-        for (s, map) in traces.iter().zip(&maps) {
-            let mut w_shape = [0.0; SHAPES];
-            for ((si, k), v) in map.iter().zip(x.iter()) {
-                w_shape[*si] += k * v;
-            }
-            for (pt, y, w) in s.fit_groups() {
-                let f = shapes(pt);
-                let model: f64 = f.iter().zip(&w_shape).map(|(a, b)| a * b).sum();
-                rss += *w as f64 * (y - model).powi(2);
-            }
-        }
-        let sigma = (rss / (m - n) as f64).sqrt();
         Ok(Self {
             plane,
             terms: terms.to_vec(),
+            chol,
+            inv,
+            aty,
+            yy,
+            groups: m,
+            maps,
+        })
+    }
+
+    /// Moves the mean of a fitted group of trace `trace` (point `pt`, `w` samples) from `from`
+    /// to `to` µm.
+    pub fn shift(&mut self, trace: usize, pt: &Point, w: usize, from: f64, to: f64) {
+        let (f, w) = (shapes(pt), w as f64);
+        for (i, (si, ki)) in self.maps[trace].iter().enumerate() {
+            self.aty[i] += ki * w * f[*si] * (to - from);
+        }
+        self.yy += w * (to * to - from * from);
+    }
+
+    /// The least-squares estimates and their standard errors.
+    pub fn solve(&self) -> Fit {
+        let x = self.chol.solve(&self.aty);
+        let rss = (self.yy - x.dot(&self.aty)).max(0.0);
+        let sigma = (rss / (self.groups - self.terms.len()) as f64).sqrt();
+        Fit {
+            plane: self.plane,
+            terms: self.terms.clone(),
             values: x.iter().copied().collect(),
-            std_errors: (0..n)
-                .map(|i| sigma * inv[(i, i)].max(0.0).sqrt())
+            std_errors: (0..self.terms.len())
+                .map(|i| sigma * self.inv[(i, i)].max(0.0).sqrt())
                 .collect(),
             sample_sigma_um: sigma,
-        })
+        }
+    }
+}
+
+impl Fit {
+    /// Fits `terms` to the prepared traces of a test (see [`Normal`]).
+    pub fn new(plane: Plane, terms: &[Term], traces: &[&Samples]) -> Result<Self, FitError> {
+        Normal::new(plane, terms, traces).map(|n| n.solve())
     }
 
     /// Peak-to-valley (µm) of one unit of each term's signature over the groups of the traces

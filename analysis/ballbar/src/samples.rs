@@ -61,6 +61,8 @@ pub struct Samples<'a> {
     pub groups: Vec<(Point, f64, usize)>,
     /// Whether each group enters the fit (see [`Samples::fit_groups`]).
     pub fitted: Vec<bool>,
+    /// Samples per group (the last may hold fewer).
+    pub group_size: usize,
 }
 
 impl<'a> Samples<'a> {
@@ -100,6 +102,7 @@ impl<'a> Samples<'a> {
             feed_um_per_ms,
             groups,
             fitted: Vec::new(),
+            group_size: size,
         };
         let skip = s.transient_deg();
         let (a, b) = (angle_deg[0], angle_deg[n - 1]);
@@ -111,6 +114,19 @@ impl<'a> Samples<'a> {
             })
             .collect();
         s
+    }
+
+    /// Sets the groups' mean deviations to `base` (one per group) less the mean over each
+    /// group of `shifts` (sample index, µm): the fit of deviations shifted at a few samples
+    /// without a pass over all of them.
+    pub fn shift_groups(&mut self, base: &[f64], shifts: &[(usize, f64)]) {
+        for (g, m) in self.groups.iter_mut().zip(base) {
+            g.1 = *m;
+        }
+        for &(i, d) in shifts {
+            let g = &mut self.groups[i / self.group_size];
+            g.1 -= d / g.2 as f64;
+        }
     }
 
     /// Number of samples.

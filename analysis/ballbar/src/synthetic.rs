@@ -3,12 +3,17 @@
 //! traces that did not come from the simulator, for tests, benchmarks and what-if studies.
 //!
 //! The tool moves on the nominal circle at the feed, sampled at 1 kHz; it is displaced by
-//! `δp = ε_p p − τ_p v_p − (b_p/2) sign v_p − (l_q/2) sign v_q + S_q (1 − (q/R)²) [− γ q] +
+//! `δp = ε_p p − τ_p v_p + β_p − (l_q/2) sign v_q + S_q (1 − (q/R)²) [− γ q] +
 //! A sin(2π p/P + 0.3) − sign(v_p) H_p g((t − t_r)/τ_H)` and likewise for q (see
 //! [`crate::signatures`] for each law). The last term is the reversal spike: after the axis
 //! reverses at `t_r` it lags against its new motion by the pulse `g(x) = x e^(1−x)`, which
 //! peaks at `x = 1` and is `2.446 τ_H` wide at half height, as friction holds it until the
-//! velocity loop's integral breaks it free. The bar reads `|tool − pivot(t)| − R` plus a sine
+//! velocity loop's integral breaks it free. The backlash `β_p` is a play operator of width
+//! `b_p` on the axis' nominal position (a semi-closed loop: the carriage stays where it is
+//! until a flank of the nut pushes it), starting on the flank of the axis' first motion:
+//! `−(b_p/2) sign v_p` away from reversals, taken up over the motor's first `b_p` of travel
+//! after each (see [`crate::signatures`]). A negative `b_p` (a compensation that jumps the
+//! motor across the gap and beyond) is the step `−(b_p/2) sign v_p`. The bar reads `|tool − pivot(t)| − R` plus a sine
 //! vibration, a start transient `T e^(−t/τ_T)` (the radial following error left by a feed-in
 //! at the corner onto the circle, decaying with the position loop) and N(0, σ²) noise,
 //! rounded to 0.1 µm.
@@ -75,6 +80,12 @@ pub fn trace(
     let mut angle_deg = Vec::with_capacity(n);
     let mut deviation_um = Vec::with_capacity(n);
     let mut time_s = Vec::with_capacity(n);
+    let th0 = start_deg.to_radians();
+    let (s0, c0) = (th0 + sg * 1e-3).sin_cos();
+    let mut play = [
+        Play::new(e.backlash_um[0], r_um * th0.cos(), -sg * s0),
+        Play::new(e.backlash_um[1], r_um * th0.sin(), sg * c0),
+    ];
     for i in 0..n {
         let t_ms = i as f64;
         let u = t_ms / duration_ms;
@@ -83,14 +94,10 @@ pub fn trace(
         let (p, q) = (r_um * c, r_um * s);
         let (vp, vq) = (-sg * f * s, sg * f * c);
         let sign = |v: f64| if v > 0.0 { 1.0 } else { -1.0 };
-        let mut dp = e.scale_ppm[0] * 1e-6 * p
-            - e.lag_ms[0] * vp
-            - 0.5 * e.backlash_um[0] * sign(vp)
+        let mut dp = e.scale_ppm[0] * 1e-6 * p - e.lag_ms[0] * vp + play[0].at(p, vp)
             - 0.5 * e.lateral_um[1] * sign(vq)
             + e.straightness_um[1] * (1.0 - (q / r_um).powi(2));
-        let mut dq = e.scale_ppm[1] * 1e-6 * q
-            - e.lag_ms[1] * vq
-            - 0.5 * e.backlash_um[1] * sign(vq)
+        let mut dq = e.scale_ppm[1] * 1e-6 * q - e.lag_ms[1] * vq + play[1].at(q, vq)
             - 0.5 * e.lateral_um[0] * sign(vp)
             + e.straightness_um[0] * (1.0 - (p / r_um).powi(2));
         // Squareness: the q axis' line rotated by γ (sign per plane, ISO 230-1).
@@ -145,6 +152,40 @@ pub fn trace(
         angle_deg,
         deviation_um,
         time_s: Some(time_s),
+    }
+}
+
+/// The backlash of one axis: the carriage's offset from the motor, µm.
+struct Play {
+    /// Width of the gap, µm.
+    b: f64,
+    /// Offset at the last sample, µm.
+    offset: f64,
+    /// Motor position at the last sample, µm.
+    last: f64,
+}
+
+impl Play {
+    /// A gap of `b` µm with the motor at `x` µm, the carriage on the flank that a first
+    /// motion of sign `first` pushes.
+    fn new(b: f64, x: f64, first: f64) -> Self {
+        Self {
+            b,
+            offset: -0.5 * b * first.signum(),
+            last: x,
+        }
+    }
+
+    /// The offset with the motor at `x` µm moving at `v`: the play operator for a gap, the
+    /// step `−(b/2) sign v` for a negative `b`.
+    fn at(&mut self, x: f64, v: f64) -> f64 {
+        if self.b < 0.0 {
+            return -0.5 * self.b * if v > 0.0 { 1.0 } else { -1.0 };
+        }
+        let half = 0.5 * self.b;
+        self.offset = (self.offset - (x - self.last)).clamp(-half, half);
+        self.last = x;
+        self.offset
     }
 }
 
