@@ -224,16 +224,19 @@ fn large_backlash_taken_up_along_the_circle_is_recovered() {
 
 /// A slow circle (50 mm, 100 mm/min) past the X guides' Stribeck dip, with their static
 /// friction raised from 65 to 250 N (and the Stribeck velocity from 1 to 0.5 mm/s): the X
-/// carriage holds longer as it turns round, so X's reversal spike (the quadrant glitch) grows
-/// deeper and wider (2.25 µm over 35 ms on the machine as built, 2.96 µm over 132 ms), Y's
-/// stays as it was, and neither axis shows stick-slip: at this feed an axis passes through the
-/// Stribeck range in a fraction of a second and the velocity loop keeps it moving (the
+/// carriage holds as it turns round until the screw has built up its breakaway force, so the
+/// motor travels 7 times as far (1.8 µm on the machine as built, 12.7 µm) before the carriage
+/// follows, and the step grows (3.45 to 5.26 µm; the truth's figure, 3.26 µm, counts the
+/// screw's stretch at the Coulomb level, whereas near a reversal the friction is on the
+/// Stribeck curve, which probably makes the difference). Y's spike stays as it was, and
+/// neither axis shows stick-slip: at this feed an axis passes through
+/// the Stribeck range in a fraction of a second and the velocity loop keeps it moving (the
 /// simulated drives stick and slip at creep feeds, `sim/tests/friction_physics.rs`). Nothing
-/// about the spike is injected into the trace: it comes from the LuGre friction against the
+/// about the take-up is injected into the trace: it comes from the LuGre friction against the
 /// compliant drive. (This test asserted stick-slip on X until the diagnosis modelled the
 /// take-up of backlash: the 0.7 µm it found was the step model's misfit of the take-up.)
 #[test]
-fn a_static_friction_peak_on_x_deepens_and_widens_its_reversal_spike() {
+fn a_static_friction_peak_on_x_lengthens_its_take_up() {
     let slow = xy_test(50.0, 100.0);
     let stock = "coulomb_n = 50.0, static_n = 65.0, stribeck_mm_s = 1.0";
     let sticky = vmt_scenario::BUILTIN_DEFAULT.replacen(
@@ -246,31 +249,30 @@ fn a_static_friction_peak_on_x_deepens_and_widens_its_reversal_spike() {
         vmt_scenario::BUILTIN_DEFAULT,
         "the X guides' friction"
     );
-    // (height µm, width ms) of each axis' spike.
-    let spikes = |text: &str| {
+    let detail = |f: &vmt_ballbar::Finding, key: &str| {
+        f.details.iter().find(|(k, _)| k == key).map(|(_, v)| *v)
+    };
+    // Per axis: (backlash µm, its take-up's reach µm, spike height µm).
+    let figures = |text: &str| {
         let r = run_on(text, &slow, "[instruments.ballbar]\nnoise_um = 0.1");
         let d = diagnose(&vmt_e2e::traces(&r), &Options::default()).expect("diagnosis");
-        for a in ["x", "y"] {
-            let f = d.finding(&format!("stick_slip_{a}")).expect("stick-slip");
-            assert!(!f.present, "{f:?}");
-        }
         ["x", "y"].map(|a| {
-            let f = d
-                .finding(&format!("reversal_spike_{a}"))
-                .expect("a spike finding");
-            assert!(f.present, "{f:?}");
-            let width = f.details.iter().find(|(k, _)| k == "width_ms").unwrap().1;
-            (f.value.abs(), width)
+            let stick_slip = d.finding(&format!("stick_slip_{a}")).expect("stick-slip");
+            assert!(!stick_slip.present, "{stick_slip:?}");
+            let b = d.finding(&format!("backlash_{a}")).expect("a backlash");
+            let spike = d.finding(&format!("reversal_spike_{a}")).expect("a spike");
+            let reach = detail(b, "take_up_um").expect("the take-up's reach");
+            (b.value, reach, spike.value.abs())
         })
     };
-    let [x0, y0] = spikes(vmt_scenario::BUILTIN_DEFAULT);
-    let [x1, y1] = spikes(&sticky);
+    let [x0, y0] = figures(vmt_scenario::BUILTIN_DEFAULT);
+    let [x1, y1] = figures(&sticky);
     assert!(
-        x1.0 > 1.2 * x0.0 && x1.1 > 2.0 * x0.1,
+        x1.1 > 4.0 * x0.1 && x1.0 > 1.3 * x0.0,
         "X: {x0:?} to {x1:?}"
     );
     assert!(
-        (y1.0 / y0.0 - 1.0).abs() < 0.1 && (y1.1 / y0.1 - 1.0).abs() < 0.1,
-        "Y: {y0:?} to {y1:?}"
+        (y1.2 / y0.2 - 1.0).abs() < 0.1,
+        "Y's spike: {y0:?} to {y1:?}"
     );
 }

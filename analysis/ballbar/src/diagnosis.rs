@@ -288,20 +288,21 @@ fn diagnose_once(
     let traces = test.traces;
     let refs: Vec<&Trace> = traces.iter().collect();
     let plane = traces[0].plane;
-    let mut samples: Vec<Samples> = traces
+    let samples: Vec<Samples> = traces
         .iter()
         .zip(test.places)
         .zip(deviation)
         .map(|((t, p), d)| Samples::new(t, p, d))
         .collect();
     let terms = Terms::for_test(&refs);
-    let (fit, take_up) = take_up::fit(plane, &terms.terms, &mut samples, test.reversals)?;
+    let take_up = take_up::fit(plane, &terms.terms, &samples, test.reversals)?;
+    let fit = take_up.fit;
     let sample_refs: Vec<&Samples> = samples.iter().collect();
     let mut findings = fitted_findings(&fit, &sample_refs, &terms.unresolved);
     let residuals: Vec<Residual> = traces
         .iter()
         .zip(&samples)
-        .zip(test.reversals.iter().zip(&take_up))
+        .zip(test.reversals.iter().zip(&take_up.shifts))
         .map(|((t, s), (rev, shifts))| residual(t, s, rev, shifts, &fit))
         .collect();
     let noise = features::median(
@@ -312,6 +313,7 @@ fn diagnose_once(
     );
     findings.extend(closing_errors(&fit, traces, &samples));
     let local = local_findings(&mut findings, &fit, &residuals, traces, noise);
+    take_up_details(&mut findings, take_up.reach_um, plane);
     findings.extend(local);
     let cyclic = match cyclic_pass {
         CyclicPass::Skip => Vec::new(),
@@ -720,6 +722,18 @@ fn local_findings(
         out.extend(start_transient_finding(t, res, noise, spikes, [p, q]));
     }
     out
+}
+
+/// Adds to each backlash finding the reach of its take-up, `take_up_um` (µm of motor travel
+/// from one flank to the other, see [`take_up`]), where it was fitted.
+fn take_up_details(findings: &mut [Finding], reach_um: [Option<f64>; 2], plane: Plane) {
+    let (p, q) = plane.axes();
+    for (letter, reach) in [p, q].into_iter().zip(reach_um) {
+        let key = format!("backlash_{}", letter.to_ascii_lowercase());
+        if let (Some(reach), Some(f)) = (reach, findings.iter_mut().find(|f| f.key == key)) {
+            f.details.push(("take_up_um".into(), reach));
+        }
+    }
 }
 
 /// The transient at the start of a run, against the noise of its smoothed residual.

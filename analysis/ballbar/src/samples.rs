@@ -116,19 +116,6 @@ impl<'a> Samples<'a> {
         s
     }
 
-    /// Sets the groups' mean deviations to `base` (one per group) less the mean over each
-    /// group of `shifts` (sample index, µm): the fit of deviations shifted at a few samples
-    /// without a pass over all of them.
-    pub fn shift_groups(&mut self, base: &[f64], shifts: &[(usize, f64)]) {
-        for (g, m) in self.groups.iter_mut().zip(base) {
-            g.1 = *m;
-        }
-        for &(i, d) in shifts {
-            let g = &mut self.groups[i / self.group_size];
-            g.1 -= d / g.2 as f64;
-        }
-    }
-
     /// Number of samples.
     pub fn len(&self) -> usize {
         self.cos.len()

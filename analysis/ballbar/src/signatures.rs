@@ -35,8 +35,13 @@
 //! motor's travel `u` from its turning point grows, `δp = d_new (b/2 − min(u, b))`. On the
 //! circle `u = R − |p| = R (1 − |cos θ|)` (q: `R (1 − |sin θ|)`), so the flank takes
 //! `√(2b/R)` rad after the reversal, 1.05° for 25 µm on a 150 mm bar: not a step nor a spike
-//! but a parabola in θ ([`backlash_take_up`]). A compensation that jumps the motor across the
-//! gap (a reading of negative backlash) has no take-up.
+//! but a parabola in θ ([`backlash_take_up`]). Where the step is the screw's elastic stretch
+//! under friction rather than a gap, the carriage slides on its guides' presliding compliance
+//! while the force reverses, and the flank is passed in less travel than the step: the law
+//! takes the reach `a` (µm of motor travel from one flank to the other) as its own parameter,
+//! `δp = d_new b (1/2 − min(u/a, 1))`, `a = b` for a gap held by friction, `a → 0` for a
+//! sudden step. A compensation that jumps the motor across the gap (a reading of negative
+//! backlash) has no take-up.
 //! The servo lag τ of an axis is `(1 − k_vff)/K_v` for a position loop of gain K_v with
 //! velocity feed-forward k_vff. The signs follow ISO 230-1: errors are tool-to-workpiece
 //! displacements along +p, +q; backlash is "backward minus forward" (Ahn & Cho 2002).
@@ -127,17 +132,18 @@ pub fn travel_from_turn(pt: &Point, axis: usize) -> f64 {
     pt.radius_um * (1.0 - across.abs())
 }
 
-/// How far (µm) the take-up of backlash `b` µm of `axis` (0 p, 1 q) moves Δr from the step of
-/// [`backlash`] at a sample after the axis' reversal (see the module notes): `2 u_b (t − b)`
-/// while the travel `t` from the turn is below `b` (the carriage still on its old flank at
-/// `t = 0`), 0 beyond it and for `b ≤ 0`; `u_b` is [`backlash_on_flank`] on the new flank.
-pub fn backlash_take_up(pt: &Point, axis: usize, b: f64) -> f64 {
+/// How far (µm) the take-up of backlash `b` µm of `axis` (0 p, 1 q) over a reach of `reach`
+/// µm of motor travel moves Δr from the step of [`backlash`] at a sample after the axis'
+/// reversal (see the module notes): `2 u_b b (t/a − 1)` while the travel `t` from the turn is
+/// below the reach `a` (the carriage still on its old flank at `t = 0`), 0 beyond it and for
+/// `b ≤ 0`; `u_b` is [`backlash_on_flank`] on the new flank.
+pub fn backlash_take_up(pt: &Point, axis: usize, b: f64, reach: f64) -> f64 {
     let travel = travel_from_turn(pt, axis);
-    if b <= 0.0 || travel >= b {
+    if b <= 0.0 || travel >= reach {
         return 0.0;
     }
     let along = if axis == 0 { pt.sin } else { pt.cos };
-    2.0 * backlash_on_flank(pt, axis, sign(along)) * (travel - b)
+    2.0 * backlash_on_flank(pt, axis, sign(along)) * b * (travel / reach - 1.0)
 }
 
 /// Δr per µm of lateral play of p and of q.
@@ -239,7 +245,7 @@ mod tests {
                     let after = sg * (deg - turn_deg) > 0.0;
                     let model = b * backlash(&p)[axis]
                         + if after {
-                            backlash_take_up(&p, axis, b)
+                            backlash_take_up(&p, axis, b, b)
                         } else {
                             0.0
                         };

@@ -12,8 +12,10 @@
 //! `b_p` on the axis' nominal position (a semi-closed loop: the carriage stays where it is
 //! until a flank of the nut pushes it), starting on the flank of the axis' first motion:
 //! `−(b_p/2) sign v_p` away from reversals, taken up over the motor's first `b_p` of travel
-//! after each (see [`crate::signatures`]). A negative `b_p` (a compensation that jumps the
-//! motor across the gap and beyond) is the step `−(b_p/2) sign v_p`. The bar reads `|tool − pivot(t)| − R` plus a sine
+//! after each (see [`crate::signatures`]), or over a shorter reach `a_p` when one is given
+//! (the carriage's offset then moves `b_p/a_p` times as fast as the motor until it meets the
+//! other flank). A negative `b_p` (a compensation that jumps the motor across the gap and
+//! beyond) is the step `−(b_p/2) sign v_p`. The bar reads `|tool − pivot(t)| − R` plus a sine
 //! vibration, a start transient `T e^(−t/τ_T)` (the radial following error left by a feed-in
 //! at the corner onto the circle, decaying with the position loop) and N(0, σ²) noise,
 //! rounded to 0.1 µm.
@@ -38,6 +40,10 @@ pub struct Errors {
     pub lag_ms: [f64; 2],
     /// Backlash of each axis, µm.
     pub backlash_um: [f64; 2],
+    /// Motor travel over which each axis' backlash is taken up after a reversal, µm: `None`
+    /// for a gap held by friction (its own width); less for a screw's stretch that the
+    /// carriage follows on its guides' presliding compliance.
+    pub backlash_reach_um: [Option<f64>; 2],
     /// Lateral play of each axis (across it, flipping when it reverses), µm.
     pub lateral_um: [f64; 2],
     /// Straightness bow of each axis over the diameter, µm.
@@ -83,8 +89,18 @@ pub fn trace(
     let th0 = start_deg.to_radians();
     let (s0, c0) = (th0 + sg * 1e-3).sin_cos();
     let mut play = [
-        Play::new(e.backlash_um[0], r_um * th0.cos(), -sg * s0),
-        Play::new(e.backlash_um[1], r_um * th0.sin(), sg * c0),
+        Play::new(
+            e.backlash_um[0],
+            e.backlash_reach_um[0],
+            r_um * th0.cos(),
+            -sg * s0,
+        ),
+        Play::new(
+            e.backlash_um[1],
+            e.backlash_reach_um[1],
+            r_um * th0.sin(),
+            sg * c0,
+        ),
     ];
     for i in 0..n {
         let t_ms = i as f64;
@@ -159,6 +175,9 @@ pub fn trace(
 struct Play {
     /// Width of the gap, µm.
     b: f64,
+    /// The offset's change per µm of motor travel between the flanks: 1 for a gap held by
+    /// friction, `b/a` for a reach `a`.
+    rate: f64,
     /// Offset at the last sample, µm.
     offset: f64,
     /// Motor position at the last sample, µm.
@@ -166,11 +185,12 @@ struct Play {
 }
 
 impl Play {
-    /// A gap of `b` µm with the motor at `x` µm, the carriage on the flank that a first
-    /// motion of sign `first` pushes.
-    fn new(b: f64, x: f64, first: f64) -> Self {
+    /// A gap of `b` µm taken up over `reach` µm of travel (`None`: `b`) with the motor at `x`
+    /// µm, the carriage on the flank that a first motion of sign `first` pushes.
+    fn new(b: f64, reach: Option<f64>, x: f64, first: f64) -> Self {
         Self {
             b,
+            rate: reach.map_or(1.0, |a| b / a),
             offset: -0.5 * b * first.signum(),
             last: x,
         }
@@ -183,7 +203,7 @@ impl Play {
             return -0.5 * self.b * if v > 0.0 { 1.0 } else { -1.0 };
         }
         let half = 0.5 * self.b;
-        self.offset = (self.offset - (x - self.last)).clamp(-half, half);
+        self.offset = (self.offset - self.rate * (x - self.last)).clamp(-half, half);
         self.last = x;
         self.offset
     }

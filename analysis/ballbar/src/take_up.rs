@@ -1,17 +1,24 @@
 //! The take-up of backlash after each reversal (see the notes of [`crate::signatures`]) in
 //! the fit and in the residual, and the group that straddles a reversal.
 //!
-//! The take-up of a backlash `b` lasts until the motor has travelled `b` from its turn:
-//! `√(2b/R)` rad of the circle, 1.05° for 25 µm on 150 mm, 0.36° for 3 µm. A step model reads
-//! the parabola as part step and part spike: 25 µm gaps in the X and Y nuts of the built-in
-//! machine read 26.15 and 22.90 µm against the bar's 27.29 and 24.23 µm, with reversal spikes
-//! of 25 µm, stick-slip, transients at the start and a residual of 2.2 µm RMS (0.32 µm with
-//! the take-up). The law is nonlinear in `b` (the flank's length goes with `√b`) but linear
-//! in it for a given window, so the fit is a fixed point: fit the steps, shift the samples
-//! inside the windows of the fitted backlash onto the step model (only the group means move,
-//! [`Samples::shift_groups`], and the normal equations with them, [`Normal::shift`]), fit
-//! again. Each round cuts the change about tenfold; three to five rounds reach
-//! [`CONVERGED_UM`].
+//! The take-up of a gap `b` held by friction lasts until the motor has travelled `b` from its
+//! turn: `√(2b/R)` rad of the circle, 1.05° for 25 µm on 150 mm, 0.36° for 3 µm. A step model
+//! reads the parabola as part step and part spike: 25 µm gaps in the X and Y nuts of the
+//! built-in machine read 26.15 and 22.90 µm against the bar's 27.29 and 24.23 µm, with reversal
+//! spikes of 25 µm, stick-slip, transients at the start and a residual of 2.2 µm RMS (0.22 µm
+//! with the take-up). A step that is the screw's stretch under friction (Z's, whose nut the
+//! head's weight keeps on one flank) is passed in a fraction of its size, so the reach `a` of
+//! the take-up (µm of motor travel from flank to flank) is fitted too, per axis, as a multiple
+//! `k = a/b` in `[0, K_MAX]`.
+//!
+//! For a given reach the law is linear in `b` but for the window's length (`√b`), so the fit is
+//! a fixed point (`Prepared::fixed_point`): fit the steps, move the means of the groups that
+//! hold samples inside the windows of the fitted backlash onto the step model (in the normal
+//! equations, [`Normal::shift`]: no pass over the other groups), fit again. Each round cuts
+//! the change about tenfold; three to five rounds reach [`CONVERGED_UM`]. The reach is chosen
+//! by a golden-section search of the residual's sum of squares over the samples it can move
+//! (from each reversal to `K_MAX b` of travel after it), one axis after the other from
+//! `k = 1`.
 //!
 //! A window starts at the first sample after the axis' reversal inside the trace: a run that
 //! starts at a turn does not say how its approach left the carriage, and samples on the turn
@@ -28,125 +35,319 @@ const MAX_ROUNDS: usize = 8;
 pub const CONVERGED_UM: f64 = 1e-3;
 /// |sin θ| (p) or |cos θ| (q) at or below which a sample lies on the turn itself.
 const ON_TURN: f64 = 1e-9;
+/// The largest reach searched, in steps: a carriage held by static friction above the
+/// Coulomb level waits longer than its gap.
+pub const K_MAX: f64 = 3.0;
+/// Golden-section steps of the search for the reach: to within `K_MAX · 0.618⁸` = 0.06 steps
+/// (0.03 µm of X backlash on 25 µm, whose estimate moves by 0.5 µm per step of reach).
+const SEARCH_STEPS: usize = 8;
+/// The windows are laid out to this multiple of `K_MAX` times the step model's backlash,
+/// which the take-up's fit exceeds by 15 % at most.
+const WINDOW_MARGIN: f64 = 2.0;
 
 /// How far some samples of a trace lie off the step model: (sample index, µm).
 pub type Shifts = Vec<(usize, f64)>;
+
+/// The fit with the take-up of the fitted backlash.
+#[derive(Clone, Debug)]
+pub struct TakeUp {
+    /// The fitted model.
+    pub fit: Fit,
+    /// Each trace's take-up at the fitted backlash and reach, to take from its residual.
+    pub shifts: Vec<Shifts>,
+    /// The reach of each axis' take-up (p, q), µm of motor travel; `None` where no backlash
+    /// was fitted or no reversal lies inside a run.
+    pub reach_um: [Option<f64>; 2],
+}
 
 /// The fitted backlash of p and q, µm (0 for a term not in the model).
 fn fitted_backlash(fit: &Fit) -> [f64; 2] {
     [0, 1].map(|axis| fit.get(Term::Backlash(axis)).map_or(0.0, |(b, _)| b))
 }
 
-/// How far the take-up of backlash `backlash_um` (p, q) moves each sample of a trace off the
-/// step model: (sample index, µm), for the samples after each of the axes' reversals
-/// (`reversals`, the first sample on the new side) whose motor is still within the gap.
-pub fn shifts(s: &Samples, reversals: &[Vec<usize>; 2], backlash_um: [f64; 2]) -> Shifts {
-    let mut out = Vec::new();
-    for (axis, (at, &b)) in reversals.iter().zip(&backlash_um).enumerate() {
-        if b <= 0.0 {
-            continue;
+/// A sample after a reversal: its index, the motor's travel from the turn (µm) and Δr per µm
+/// of backlash on its flank ([`signatures::backlash_on_flank`]).
+#[derive(Clone, Copy, Debug)]
+struct Near {
+    i: usize,
+    travel: f64,
+    unit: f64,
+}
+
+impl Near {
+    /// The take-up of backlash `b` over the reach `a` (µm) here, while `travel < a`:
+    /// `2 u_b b (t/a − 1)` ([`signatures::backlash_take_up`]).
+    fn shift(&self, b: f64, a: f64) -> f64 {
+        2.0 * self.unit * b * (self.travel / a - 1.0)
+    }
+}
+
+/// One trace's samples that the take-up and the straddling groups move.
+#[derive(Debug, Default)]
+struct Windows {
+    /// Per axis, per reversal inside the run: its samples (not those on the turn) while the
+    /// motor's travel is below the window's extent.
+    after: [Vec<Vec<Near>>; 2],
+    /// Per axis: (sample index, Δr per µm of backlash) of the samples of a group holding a
+    /// reversal that lie on the other flank than the group's mean angle.
+    straddle: [Vec<(usize, f64)>; 2],
+}
+
+impl Windows {
+    /// The windows of trace `s` with reversals `reversals`, to `extent_um` of travel per axis.
+    fn new(s: &Samples, reversals: &[Vec<usize>; 2], extent_um: [f64; 2]) -> Self {
+        let mut w = Self::default();
+        for (axis, at) in reversals.iter().enumerate() {
+            let along = |i: usize| if axis == 0 { s.sin[i] } else { s.cos[i] };
+            for &first in at {
+                w.straddle[axis].extend(straddling(s, axis, first));
+                if (0..first).all(|i| along(i).abs() <= ON_TURN) {
+                    continue; // the run starts on the turn: its approach is not known
+                }
+                let mut near = Vec::new();
+                for i in first..s.len() {
+                    let pt = s.point(i);
+                    let travel = signatures::travel_from_turn(&pt, axis);
+                    if travel >= extent_um[axis] {
+                        break;
+                    }
+                    if along(i).abs() > ON_TURN {
+                        let flank = signatures::sign(along(i));
+                        let unit = signatures::backlash_on_flank(&pt, axis, flank);
+                        near.push(Near { i, travel, unit });
+                    }
+                }
+                w.after[axis].push(near);
+            }
         }
-        let on_turn = |i: usize| {
+        w
+    }
+
+    /// The take-up of backlash `b` over `reach` (µm, per axis) at each sample it moves.
+    fn take_up(&self, b: [f64; 2], reach: [f64; 2]) -> impl Iterator<Item = (usize, f64)> + '_ {
+        (0..2).flat_map(move |axis| {
+            let (b, a) = (b[axis], reach[axis]);
+            let live = b > 0.0 && a > 0.0;
+            self.after[axis]
+                .iter()
+                .filter(move |_| live)
+                .flat_map(move |w| w.iter().take_while(move |n| n.travel < a))
+                .map(move |n| (n.i, n.shift(b, a)))
+        })
+    }
+
+    /// Every shift of the fit's groups at backlash `b` and reach `reach`: the take-up and the
+    /// straddling samples.
+    fn all(&self, b: [f64; 2], reach: [f64; 2]) -> impl Iterator<Item = (usize, f64)> + '_ {
+        let straddle = (0..2).flat_map(move |axis| {
+            self.straddle[axis]
+                .iter()
+                .map(move |&(i, unit)| (i, b[axis] * unit))
+        });
+        self.take_up(b, reach).chain(straddle)
+    }
+}
+
+/// The samples of the group that holds reversal `first` of `axis` on the other side of the
+/// turn than the group's mean angle, each with Δr per µm of backlash by which its own flank
+/// differs from the group's (the fit takes the group's flank for all of it: a group of 55
+/// samples straddling the turn took a quarter of the step into its mean and biased the fit of
+/// a step, 25 µm on Y read 24.66).
+fn straddling(s: &Samples, axis: usize, first: usize) -> Vec<(usize, f64)> {
+    let along = |pt: &signatures::Point| if axis == 0 { pt.sin } else { pt.cos };
+    let k = first / s.group_size;
+    let group_flank = signatures::sign(along(&s.groups[k].0));
+    let end = ((k + 1) * s.group_size).min(s.len());
+    (k * s.group_size..end)
+        .filter_map(|i| {
             let pt = s.point(i);
-            let along = if axis == 0 { pt.sin } else { pt.cos };
-            along.abs() <= ON_TURN
-        };
-        for &first in at {
-            if (0..first).all(on_turn) {
-                continue; // the run starts on the turn: its approach is not known
-            }
-            for i in first..s.len() {
-                let pt = s.point(i);
-                if signatures::travel_from_turn(&pt, axis) >= b {
-                    break;
-                }
-                if !on_turn(i) {
-                    out.push((i, signatures::backlash_take_up(&pt, axis, b)));
-                }
-            }
-        }
-    }
-    out
+            let flank = signatures::sign(along(&pt));
+            let u = |f: f64| signatures::backlash_on_flank(&pt, axis, f);
+            (flank != group_flank).then(|| (i, u(flank) - u(group_flank)))
+        })
+        .collect()
 }
 
-/// How far each sample of the group that holds a reversal lies off the step the fit takes for
-/// the whole group (its flank is that of the group's mean angle): (sample index, µm), the
-/// backlash `backlash_um` (p, q) of the sample's own flank less that of the group's, for the
-/// samples on the other side of the turn. A group of 55 samples straddling the turn took a
-/// quarter of the step into its mean and biased the fit of a step: 25 µm on Y read 24.66.
-pub fn straddles(s: &Samples, reversals: &[Vec<usize>; 2], backlash_um: [f64; 2]) -> Shifts {
-    let mut out = Vec::new();
-    for (axis, (at, &b)) in reversals.iter().zip(&backlash_um).enumerate() {
-        if b == 0.0 {
-            continue;
-        }
-        let along = |pt: &crate::signatures::Point| if axis == 0 { pt.sin } else { pt.cos };
-        for &first in at {
-            let k = first / s.group_size;
-            let group_flank = signatures::sign(along(&s.groups[k].0));
-            let end = ((k + 1) * s.group_size).min(s.len());
-            for i in k * s.group_size..end {
-                let pt = s.point(i);
-                let flank = signatures::sign(along(&pt));
-                if flank != group_flank {
-                    let u = |f: f64| signatures::backlash_on_flank(&pt, axis, f);
-                    out.push((i, b * (u(flank) - u(group_flank))));
-                }
-            }
+/// The sum of `shifts` per group of `group_size` samples, by group: runs of one group are
+/// summed as they come (the shifts of a window are in sample order), then the few runs sorted.
+fn per_group(shifts: impl Iterator<Item = (usize, f64)>, group_size: usize) -> Vec<(usize, f64)> {
+    let mut sums: Vec<(usize, f64)> = Vec::new();
+    for (i, d) in shifts {
+        let g = i / group_size;
+        match sums.last_mut() {
+            Some((last, sum)) if *last == g => *sum += d,
+            _ => sums.push((g, d)),
         }
     }
-    out
+    sums.sort_unstable_by_key(|(g, _)| *g);
+    sums.dedup_by(|next, kept| {
+        let same = next.0 == kept.0;
+        if same {
+            kept.1 += next.1;
+        }
+        same
+    });
+    sums
 }
 
-/// The fit of `terms` to the traces `samples` with the take-up of the fitted backlash, and
-/// each trace's [`shifts`] at the fitted backlash (to take from its residual). The groups of
-/// `samples` are left shifted by the take-up and the [`straddles`] of the last round; each
-/// round updates the normal equations with the groups that moved ([`Normal::shift`]).
+/// What every fit of the search starts from.
+struct Prepared<'a> {
+    samples: &'a [Samples<'a>],
+    /// The normal equations of the deviations as measured.
+    normal: Normal,
+    windows: Vec<Windows>,
+}
+
+impl Prepared<'_> {
+    /// The fixed point of the fit with the take-up over the reaches `k` (p, q, in steps), from
+    /// the backlash `b0`.
+    fn fixed_point(&self, k: [f64; 2], b0: [f64; 2]) -> Fit {
+        let mut normal = self.normal.clone();
+        let mut applied: Vec<Vec<(usize, f64)>> = vec![Vec::new(); self.samples.len()];
+        let mut b = b0;
+        let mut fit = None;
+        for _ in 0..MAX_ROUNDS {
+            let reach = [k[0] * b[0], k[1] * b[1]];
+            for (trace, (s, w)) in self.samples.iter().zip(&self.windows).enumerate() {
+                let next = per_group(w.all(b, reach), s.group_size);
+                move_groups(&mut normal, trace, s, &applied[trace], &next);
+                applied[trace] = next;
+            }
+            let next = normal.solve();
+            let nb = fitted_backlash(&next);
+            fit = Some(next);
+            if (0..2).all(|a| (nb[a] - b[a]).abs() < CONVERGED_UM) {
+                break;
+            }
+            b = nb;
+        }
+        fit.unwrap_or_else(|| self.normal.solve())
+    }
+
+    /// Σ r² of the residual of `fit` with its take-up over the reaches `k` at the samples of
+    /// the windows of `axis`.
+    fn window_sum_sq(&self, fit: &Fit, k: [f64; 2], axis: usize) -> f64 {
+        let b = fitted_backlash(fit)[axis];
+        let reach = k[axis] * b;
+        let mut sum = 0.0;
+        for (s, w) in self.samples.iter().zip(&self.windows) {
+            let model = fit.compiled(s.radius_um, s.feed_um_per_ms);
+            for near in w.after[axis].iter().filter(|n| !n.is_empty()) {
+                let at = near[0].i..near[near.len() - 1].i + 1;
+                let mut r = vec![0.0; at.len()];
+                model.residuals(
+                    s.sense.sign(),
+                    &s.cos[at.clone()],
+                    &s.sin[at.clone()],
+                    &s.progress[at.clone()],
+                    &s.deviation_um[at.clone()],
+                    &mut r,
+                );
+                if b > 0.0 && reach > 0.0 {
+                    for n in near.iter().take_while(|n| n.travel < reach) {
+                        r[n.i - at.start] -= n.shift(b, reach);
+                    }
+                }
+                sum += r.iter().map(|x| x * x).sum::<f64>();
+            }
+        }
+        sum
+    }
+}
+
+/// Moves the means of the fitted groups of trace `trace` from their shifts `from` to `to`
+/// (group, Σ µm, both by group) in `normal`.
+fn move_groups(
+    normal: &mut Normal,
+    trace: usize,
+    s: &Samples,
+    from: &[(usize, f64)],
+    to: &[(usize, f64)],
+) {
+    let mut changes: Vec<(usize, f64, f64)> = from.iter().map(|&(g, x)| (g, x, 0.0)).collect();
+    for &(g, y) in to {
+        match changes.binary_search_by_key(&g, |c| c.0) {
+            Ok(k) => changes[k].2 = y,
+            Err(k) => changes.insert(k, (g, 0.0, y)),
+        }
+    }
+    for (g, old, new) in changes {
+        let (pt, mean, w) = &s.groups[g];
+        if s.fitted[g] && old != new {
+            let n = *w as f64;
+            normal.shift(trace, pt, *w, mean - old / n, mean - new / n);
+        }
+    }
+}
+
+/// The `k` in `[0, K_MAX]` that minimises `cost` (golden-section search).
+fn golden(mut cost: impl FnMut(f64) -> f64) -> f64 {
+    let g = (5f64.sqrt() - 1.0) / 2.0;
+    let (mut a, mut b) = (0.0, K_MAX);
+    let (mut c, mut d) = (b - g * (b - a), a + g * (b - a));
+    let (mut fc, mut fd) = (cost(c), cost(d));
+    for _ in 0..SEARCH_STEPS {
+        if fc <= fd {
+            (b, d, fd) = (d, c, fc);
+            c = b - g * (b - a);
+            fc = cost(c);
+        } else {
+            (a, c, fc) = (c, d, fd);
+            d = a + g * (b - a);
+            fd = cost(d);
+        }
+    }
+    if fc <= fd { c } else { d }
+}
+
+/// The fit of `terms` to the traces `samples` with the take-up of the fitted backlash over
+/// the fitted reach.
 pub fn fit(
     plane: Plane,
     terms: &[Term],
-    samples: &mut [Samples],
+    samples: &[Samples],
     reversals: &[[Vec<usize>; 2]],
-) -> Result<(Fit, Vec<Shifts>), FitError> {
-    let mut normal = Normal::new(plane, terms, &samples.iter().collect::<Vec<_>>())?;
-    let mut fit = normal.solve();
-    let base: Vec<Vec<f64>> = samples
-        .iter()
-        .map(|s| s.groups.iter().map(|g| g.1).collect())
-        .collect();
-    let mut shifted = false;
-    for _ in 0..MAX_ROUNDS {
-        let b = fitted_backlash(&fit);
-        let round: Vec<Shifts> = samples
+) -> Result<TakeUp, FitError> {
+    let normal = Normal::new(plane, terms, &samples.iter().collect::<Vec<_>>())?;
+    let step = fitted_backlash(&normal.solve());
+    let extent = step.map(|b| WINDOW_MARGIN * K_MAX * b.max(0.0));
+    let prepared = Prepared {
+        samples,
+        windows: samples
             .iter()
             .zip(reversals)
-            .map(|(s, rev)| [shifts(s, rev, b), straddles(s, rev, b)].concat())
-            .collect();
-        let none = round.iter().all(Vec::is_empty);
-        if none && !shifted {
-            break;
+            .map(|(s, rev)| Windows::new(s, rev, extent))
+            .collect(),
+        normal,
+    };
+    let mut k = [1.0, 1.0];
+    let mut fit = prepared.fixed_point(k, step);
+    let mut searched = [false; 2];
+    for axis in 0..2 {
+        let b = fitted_backlash(&fit);
+        let windows = prepared.windows.iter().flat_map(|w| &w.after[axis]);
+        if b[axis] <= 0.0 || windows.clone().all(Vec::is_empty) {
+            continue;
         }
-        for (trace, ((s, m), sh)) in samples.iter_mut().zip(&base).zip(&round).enumerate() {
-            let before: Vec<f64> = s.groups.iter().map(|g| g.1).collect();
-            s.shift_groups(m, sh);
-            for ((g, fitted), from) in s.groups.iter().zip(&s.fitted).zip(before) {
-                if *fitted && g.1 != from {
-                    normal.shift(trace, &g.0, g.2, from, g.1);
-                }
-            }
-        }
-        shifted = !none;
-        fit = normal.solve();
-        let next = fitted_backlash(&fit);
-        if (0..2).all(|k| (next[k] - b[k]).abs() < CONVERGED_UM) {
-            break;
-        }
+        k[axis] = golden(|x| {
+            let mut trial = k;
+            trial[axis] = x;
+            let f = prepared.fixed_point(trial, b);
+            prepared.window_sum_sq(&f, trial, axis)
+        });
+        searched[axis] = true;
+        fit = prepared.fixed_point(k, b);
     }
     let b = fitted_backlash(&fit);
-    let shifts = samples
+    let reach = [k[0] * b[0], k[1] * b[1]];
+    let shifts = prepared
+        .windows
         .iter()
-        .zip(reversals)
-        .map(|(s, rev)| shifts(s, rev, b))
+        .map(|w| w.take_up(b, reach).collect())
         .collect();
-    Ok((fit, shifts))
+    Ok(TakeUp {
+        fit,
+        shifts,
+        reach_um: [0, 1].map(|a| searched[a].then_some(reach[a])),
+    })
 }
