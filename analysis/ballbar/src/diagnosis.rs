@@ -419,7 +419,7 @@ fn progress(traces: &[Trace]) -> Vec<Vec<f64>> {
 }
 
 /// The residual of trace `t` from the model `fit` with the backlash's take-up `shifts`
-/// ([`take_up::shifts`]).
+/// (the take-up's `shifts`, see [`take_up::TakeUp`]).
 fn residual<'a>(
     t: &'a Trace,
     s: &'a Samples,
@@ -447,10 +447,6 @@ fn residual<'a>(
         .settled_within(s.transient_deg())
 }
 
-/// |sin θ| (p) or |cos θ| (q) at or below which a sample is on the axis' reversal itself:
-/// rounding leaves 1e-16 where the angle is a multiple of 90°, a recorded 0.0001° is 2e-6.
-const ON_REVERSAL: f64 = 1e-9;
-
 /// A sample taken on an axis' reversal itself (the first or last sample of a run at 0°, 90°…,
 /// or one that falls on the turn) has no direction of motion to say which flank of its backlash
 /// the axis bears on: the model's backlash term there is 0 or the sign of a rounding error, and
@@ -477,7 +473,7 @@ fn settle_flanks_at_reversals(r: &mut [f64], s: &Samples, reversals: &[Vec<usize
             } else {
                 (pt.cos, pt.sin)
             };
-            if along.abs() > ON_REVERSAL || across == 0.0 {
+            if along.abs() > signatures::ON_TURN || across == 0.0 {
                 continue;
             }
             let term = |flank: f64| b * signatures::backlash_on_flank(&pt, axis, flank);
@@ -724,13 +720,14 @@ fn local_findings(
     out
 }
 
-/// Adds to each backlash finding the reach of its take-up, `take_up_um` (µm of motor travel
-/// from one flank to the other, see [`take_up`]), where it was fitted.
+/// Adds to each backlash finding reported present the reach of its take-up, `take_up_um` (µm
+/// of motor travel from one flank to the other, see [`take_up`]).
 fn take_up_details(findings: &mut [Finding], reach_um: [Option<f64>; 2], plane: Plane) {
     let (p, q) = plane.axes();
     for (letter, reach) in [p, q].into_iter().zip(reach_um) {
         let key = format!("backlash_{}", letter.to_ascii_lowercase());
-        if let (Some(reach), Some(f)) = (reach, findings.iter_mut().find(|f| f.key == key)) {
+        let found = findings.iter_mut().find(|f| f.key == key && f.present);
+        if let (Some(reach), Some(f)) = (reach, found) {
             f.details.push(("take_up_um".into(), reach));
         }
     }

@@ -138,13 +138,26 @@ pub fn travel_from_turn(pt: &Point, axis: usize) -> f64 {
 /// below the reach `a` (the carriage still on its old flank at `t = 0`), 0 beyond it and for
 /// `b ≤ 0`; `u_b` is [`backlash_on_flank`] on the new flank.
 pub fn backlash_take_up(pt: &Point, axis: usize, b: f64, reach: f64) -> f64 {
-    let travel = travel_from_turn(pt, axis);
-    if b <= 0.0 || travel >= reach {
+    let along = if axis == 0 { pt.sin } else { pt.cos };
+    let unit = backlash_on_flank(pt, axis, sign(along));
+    take_up_at(unit, travel_from_turn(pt, axis), b, reach)
+}
+
+/// [`backlash_take_up`] at a sample whose Δr per µm of backlash on its flank is `unit` and
+/// whose motor has travelled `travel` µm from the turn: `2 u_b b (t/a − 1)` for `t < a`, 0
+/// beyond the reach and for `b ≤ 0` or `a ≤ 0` (a sudden step).
+#[inline]
+pub fn take_up_at(unit: f64, travel: f64, b: f64, reach: f64) -> f64 {
+    if b <= 0.0 || reach <= 0.0 || travel >= reach {
         return 0.0;
     }
-    let along = if axis == 0 { pt.sin } else { pt.cos };
-    2.0 * backlash_on_flank(pt, axis, sign(along)) * b * (travel / reach - 1.0)
+    2.0 * unit * b * (travel / reach - 1.0)
 }
+
+/// |sin θ| (p) or |cos θ| (q) at or below which a sample lies on the axis' turn itself, with
+/// no direction of motion to say which flank of its backlash it bears on: rounding leaves
+/// 1e-16 where the angle is a multiple of 90°, a recorded 0.0001° is 2e-6.
+pub const ON_TURN: f64 = 1e-9;
 
 /// Δr per µm of lateral play of p and of q.
 pub fn lateral_play(pt: &Point) -> [f64; 2] {
@@ -214,47 +227,54 @@ mod tests {
     }
 
     /// The take-up is the play operator of the module notes: a carriage left at its old flank
-    /// until the motor has travelled `b` from its turn, then on the step of [`backlash`]. Checked
-    /// against the operator run on the nominal circle after each reversal of p and of q, in both
-    /// senses.
+    /// until the motor has travelled the reach `a` from its turn, its offset moving `b/a` times
+    /// as fast as the motor (`a = b`: a gap held by friction), then on the step of
+    /// [`backlash`]. Checked against the operator run on the nominal circle after each reversal
+    /// of p and of q, in both senses, for reaches shorter than, equal to and longer than `b`.
     #[test]
     fn the_take_up_is_a_play_operator_on_the_nominal_path() {
         let b = 25.0;
-        for sense in [Sense::Cw, Sense::Ccw] {
-            for (axis, turn_deg) in [(0, 0.0), (0, 180.0), (1, 90.0), (1, 270.0)] {
-                let sg = sense.sign();
-                let axis_at = |deg: f64| {
-                    let th = f64::to_radians(deg);
-                    150e3 * if axis == 0 { th.cos() } else { th.sin() }
-                };
-                // The carriage's offset δ from the motor, on the flank the approach left it.
-                let start = turn_deg - sg * 2.0;
-                let approach = axis_at(start + sg * 1e-3) - axis_at(start);
-                let mut delta = -0.5 * b * approach.signum();
-                let mut last = axis_at(start);
-                for k in 1..4000 {
-                    let deg = start + sg * k as f64 * 1e-3;
-                    let now = axis_at(deg);
-                    delta = (delta - (now - last)).clamp(-0.5 * b, 0.5 * b);
-                    last = now;
-                    let p = pt(deg.to_radians(), sense);
-                    let radial = delta * if axis == 0 { p.cos } else { p.sin };
-                    if (deg - turn_deg).abs() < 1e-6 {
-                        continue; // on the turn: no direction of motion, no flank
-                    }
-                    let after = sg * (deg - turn_deg) > 0.0;
-                    let model = b * backlash(&p)[axis]
-                        + if after {
-                            backlash_take_up(&p, axis, b, b)
-                        } else {
-                            0.0
-                        };
-                    assert!(
-                        (radial - model).abs() < 1e-6,
-                        "{sense:?} axis {axis} at {deg}°: {radial} against {model}"
-                    );
+        for reach in [5.0, 25.0, 60.0] {
+            for sense in [Sense::Cw, Sense::Ccw] {
+                for (axis, turn_deg) in [(0, 0.0), (0, 180.0), (1, 90.0), (1, 270.0)] {
+                    check_play(b, reach, sense, axis, turn_deg);
                 }
             }
+        }
+    }
+
+    fn check_play(b: f64, reach: f64, sense: Sense, axis: usize, turn_deg: f64) {
+        let sg = sense.sign();
+        let axis_at = |deg: f64| {
+            let th = f64::to_radians(deg);
+            150e3 * if axis == 0 { th.cos() } else { th.sin() }
+        };
+        // The carriage's offset δ from the motor, on the flank the approach left it.
+        let start = turn_deg - sg * 2.0;
+        let approach = axis_at(start + sg * 1e-3) - axis_at(start);
+        let mut delta = -0.5 * b * approach.signum();
+        let mut last = axis_at(start);
+        for k in 1..4000 {
+            let deg = start + sg * k as f64 * 1e-3;
+            let now = axis_at(deg);
+            delta = (delta - b / reach * (now - last)).clamp(-0.5 * b, 0.5 * b);
+            last = now;
+            let p = pt(deg.to_radians(), sense);
+            let radial = delta * if axis == 0 { p.cos } else { p.sin };
+            if (deg - turn_deg).abs() < 1e-6 {
+                continue; // on the turn: no direction of motion, no flank
+            }
+            let after = sg * (deg - turn_deg) > 0.0;
+            let take_up = if after {
+                backlash_take_up(&p, axis, b, reach)
+            } else {
+                0.0
+            };
+            let model = b * backlash(&p)[axis] + take_up;
+            assert!(
+                (radial - model).abs() < 1e-6,
+                "{sense:?} axis {axis}, reach {reach}, at {deg}°: {radial} against {model}"
+            );
         }
     }
 

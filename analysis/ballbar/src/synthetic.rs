@@ -12,10 +12,10 @@
 //! `b_p` on the axis' nominal position (a semi-closed loop: the carriage stays where it is
 //! until a flank of the nut pushes it), starting on the flank of the axis' first motion:
 //! `−(b_p/2) sign v_p` away from reversals, taken up over the motor's first `b_p` of travel
-//! after each (see [`crate::signatures`]), or over a shorter reach `a_p` when one is given
+//! after each (see [`crate::signatures`]), or over another reach `a_p` when one is given
 //! (the carriage's offset then moves `b_p/a_p` times as fast as the motor until it meets the
-//! other flank). A negative `b_p` (a compensation that jumps the motor across the gap and
-//! beyond) is the step `−(b_p/2) sign v_p`. The bar reads `|tool − pivot(t)| − R` plus a sine
+//! other flank; `a_p ≤ 0` is a sudden step). A negative `b_p` (a compensation that jumps the
+//! motor across the gap and beyond) is the step `−(b_p/2) sign v_p`. The bar reads `|tool − pivot(t)| − R` plus a sine
 //! vibration, a start transient `T e^(−t/τ_T)` (the radial following error left by a feed-in
 //! at the corner onto the circle, decaying with the position loop) and N(0, σ²) noise,
 //! rounded to 0.1 µm.
@@ -86,8 +86,18 @@ pub fn trace(
     let mut angle_deg = Vec::with_capacity(n);
     let mut deviation_um = Vec::with_capacity(n);
     let mut time_s = Vec::with_capacity(n);
+    // The axes' first motions: their velocities at the start, or just after it for an axis
+    // that starts on its turn.
     let th0 = start_deg.to_radians();
-    let (s0, c0) = (th0 + sg * 1e-3).sin_cos();
+    let first = |f: fn(f64) -> f64| {
+        let v = f(th0);
+        if v.abs() > crate::signatures::ON_TURN {
+            v
+        } else {
+            f(th0 + sg * 1e-6)
+        }
+    };
+    let (s0, c0) = (first(f64::sin), first(f64::cos));
     let mut play = [
         Play::new(
             e.backlash_um[0],
@@ -185,12 +195,13 @@ struct Play {
 }
 
 impl Play {
-    /// A gap of `b` µm taken up over `reach` µm of travel (`None`: `b`) with the motor at `x`
-    /// µm, the carriage on the flank that a first motion of sign `first` pushes.
+    /// A gap of `b` µm taken up over `reach` µm of travel (`None`: `b`; zero or less: a sudden
+    /// step) with the motor at `x` µm, the carriage on the flank that a first motion of sign
+    /// `first` pushes.
     fn new(b: f64, reach: Option<f64>, x: f64, first: f64) -> Self {
         Self {
             b,
-            rate: reach.map_or(1.0, |a| b / a),
+            rate: reach.map_or(1.0, |a| if a > 0.0 { b / a } else { f64::INFINITY }),
             offset: -0.5 * b * first.signum(),
             last: x,
         }
@@ -199,7 +210,7 @@ impl Play {
     /// The offset with the motor at `x` µm moving at `v`: the play operator for a gap, the
     /// step `−(b/2) sign v` for a negative `b`.
     fn at(&mut self, x: f64, v: f64) -> f64 {
-        if self.b < 0.0 {
+        if self.b < 0.0 || self.rate.is_infinite() {
             return -0.5 * self.b * if v > 0.0 { 1.0 } else { -1.0 };
         }
         let half = 0.5 * self.b;

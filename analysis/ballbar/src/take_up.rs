@@ -17,24 +17,29 @@
 //! equations, [`Normal::shift`]: no pass over the other groups), fit again. Each round cuts
 //! the change about tenfold; three to five rounds reach [`CONVERGED_UM`]. The reach is chosen
 //! by a golden-section search of the residual's sum of squares over the samples it can move
-//! (from each reversal to `K_MAX b` of travel after it), one axis after the other from
-//! `k = 1`.
+//! (from each reversal to `WINDOW_MARGIN · K_MAX` times the step model's backlash of travel
+//! after it), one axis after the other from `k = 1`.
 //!
-//! A window starts at the first sample after the axis' reversal inside the trace: a run that
-//! starts at a turn does not say how its approach left the carriage, and samples on the turn
-//! itself take their flank from the residual (`settle_flanks_at_reversals`).
+//! A window starts at the first sample after the axis' reversal inside the trace (after the
+//! first of the flips of jitter about the turn, counting only the samples on the new side). A
+//! run that starts on a turn does not say how its approach left the carriage: no take-up
+//! there. In the fit a sample on the turn itself bears on the old flank (the first motion's,
+//! at a turn the run starts on); in the residual it takes the flank that fits it
+//! (`settle_flanks_at_reversals`).
 
 use crate::model::{Fit, FitError, Normal, Term};
 use crate::samples::Samples;
-use crate::signatures;
+use crate::signatures::{self, ON_TURN};
 use crate::trace::Plane;
 
 /// The most rounds of the fixed point.
 const MAX_ROUNDS: usize = 8;
 /// The change of both backlash estimates (µm) below which the fixed point has converged.
 pub const CONVERGED_UM: f64 = 1e-3;
-/// |sin θ| (p) or |cos θ| (q) at or below which a sample lies on the turn itself.
-const ON_TURN: f64 = 1e-9;
+/// |sin θ| (p) or |cos θ| (q) of a run's first sample at or below which the run starts on the
+/// axis' turn (within 0.006°; a start recorded as 0.0001° is 1.7e-6): its approach is not
+/// known, so the flank the carriage left it on is not either.
+const STARTS_ON_TURN: f64 = 1e-4;
 /// The largest reach searched, in steps: a carriage held by static friction above the
 /// Coulomb level waits longer than its gap.
 pub const K_MAX: f64 = 3.0;
@@ -55,8 +60,9 @@ pub struct TakeUp {
     pub fit: Fit,
     /// Each trace's take-up at the fitted backlash and reach, to take from its residual.
     pub shifts: Vec<Shifts>,
-    /// The reach of each axis' take-up (p, q), µm of motor travel; `None` where no backlash
-    /// was fitted or no reversal lies inside a run.
+    /// The reach of each axis' take-up (p, q), µm of motor travel (the backlash itself where
+    /// no reversal inside a run let it be searched); `None` where the fitted backlash is not
+    /// positive.
     pub reach_um: [Option<f64>; 2],
 }
 
@@ -75,10 +81,10 @@ struct Near {
 }
 
 impl Near {
-    /// The take-up of backlash `b` over the reach `a` (µm) here, while `travel < a`:
-    /// `2 u_b b (t/a − 1)` ([`signatures::backlash_take_up`]).
+    /// The take-up of backlash `b` over the reach `a` (µm) here
+    /// ([`signatures::take_up_at`]).
     fn shift(&self, b: f64, a: f64) -> f64 {
-        2.0 * self.unit * b * (self.travel / a - 1.0)
+        signatures::take_up_at(self.unit, self.travel, b, a)
     }
 }
 
@@ -95,28 +101,57 @@ struct Windows {
 
 impl Windows {
     /// The windows of trace `s` with reversals `reversals`, to `extent_um` of travel per axis.
+    /// The flips of a sign that follow one another within a window (jitter about a turn) are
+    /// one reversal: the carriage stays on its old flank until the take-up after the last of
+    /// them. A run that starts on the turn ([`STARTS_ON_TURN`]) has no take-up at it.
     fn new(s: &Samples, reversals: &[Vec<usize>; 2], extent_um: [f64; 2]) -> Self {
         let mut w = Self::default();
         for (axis, at) in reversals.iter().enumerate() {
             let along = |i: usize| if axis == 0 { s.sin[i] } else { s.cos[i] };
-            for &first in at {
-                w.straddle[axis].extend(straddling(s, axis, first));
-                if (0..first).all(|i| along(i).abs() <= ON_TURN) {
-                    continue; // the run starts on the turn: its approach is not known
+            let window_end = |from: usize| {
+                (from..s.len())
+                    .find(|&i| signatures::travel_from_turn(&s.point(i), axis) >= extent_um[axis])
+                    .unwrap_or(s.len())
+            };
+            // The samples still at the turn the run starts on, if it starts on one.
+            let at_start = if !s.is_empty() && along(0).abs() <= STARTS_ON_TURN {
+                window_end(0)
+            } else {
+                0
+            };
+            let mut straddled = Vec::new();
+            let mut cluster: Option<usize> = None;
+            for (j, &last) in at.iter().enumerate() {
+                let end = window_end(last);
+                let first = *cluster.get_or_insert(last);
+                if at.get(j + 1).is_some_and(|&next| next < end) {
+                    continue; // not the last flip of this turn
                 }
-                let mut near = Vec::new();
-                for i in first..s.len() {
-                    let pt = s.point(i);
-                    let travel = signatures::travel_from_turn(&pt, axis);
-                    if travel >= extent_um[axis] {
-                        break;
-                    }
-                    if along(i).abs() > ON_TURN {
+                cluster = None;
+                let known = first >= at_start;
+                let group = first / s.group_size;
+                if !straddled.contains(&group) {
+                    straddled.push(group);
+                    w.straddle[axis].extend(straddling(s, axis, first, known));
+                }
+                if !known {
+                    continue;
+                }
+                // From the first flip on, the samples on the new side: between the flips the
+                // carriage has not left its old flank.
+                let new_side = signatures::sign(along(last));
+                let near = (first..end)
+                    .filter(|&i| along(i).abs() > ON_TURN && signatures::sign(along(i)) == new_side)
+                    .map(|i| {
+                        let pt = s.point(i);
                         let flank = signatures::sign(along(i));
-                        let unit = signatures::backlash_on_flank(&pt, axis, flank);
-                        near.push(Near { i, travel, unit });
-                    }
-                }
+                        Near {
+                            i,
+                            travel: signatures::travel_from_turn(&pt, axis),
+                            unit: signatures::backlash_on_flank(&pt, axis, flank),
+                        }
+                    })
+                    .collect();
                 w.after[axis].push(near);
             }
         }
@@ -152,16 +187,28 @@ impl Windows {
 /// turn than the group's mean angle, each with Δr per µm of backlash by which its own flank
 /// differs from the group's (the fit takes the group's flank for all of it: a group of 55
 /// samples straddling the turn took a quarter of the step into its mean and biased the fit of
-/// a step, 25 µm on Y read 24.66).
-fn straddling(s: &Samples, axis: usize, first: usize) -> Vec<(usize, f64)> {
+/// a step, 25 µm on Y read 24.66). A sample on the turn itself bears on the old flank, where
+/// the take-up starts, or, at a turn the run starts on (`known` false), on the flank of its
+/// first motion.
+fn straddling(s: &Samples, axis: usize, first: usize, known: bool) -> Vec<(usize, f64)> {
     let along = |pt: &signatures::Point| if axis == 0 { pt.sin } else { pt.cos };
     let k = first / s.group_size;
     let group_flank = signatures::sign(along(&s.groups[k].0));
     let end = ((k + 1) * s.group_size).min(s.len());
+    let new_flank = (first..s.len())
+        .map(|i| along(&s.point(i)))
+        .find(|a| a.abs() > ON_TURN)
+        .map_or(0.0, signatures::sign);
+    let on_turn_flank = if known { -new_flank } else { new_flank };
     (k * s.group_size..end)
         .filter_map(|i| {
             let pt = s.point(i);
-            let flank = signatures::sign(along(&pt));
+            let a = along(&pt);
+            let flank = if a.abs() <= ON_TURN {
+                on_turn_flank
+            } else {
+                signatures::sign(a)
+            };
             let u = |f: f64| signatures::backlash_on_flank(&pt, axis, f);
             (flank != group_flank).then(|| (i, u(flank) - u(group_flank)))
         })
@@ -322,7 +369,6 @@ pub fn fit(
     };
     let mut k = [1.0, 1.0];
     let mut fit = prepared.fixed_point(k, step);
-    let mut searched = [false; 2];
     for axis in 0..2 {
         let b = fitted_backlash(&fit);
         let windows = prepared.windows.iter().flat_map(|w| &w.after[axis]);
@@ -335,7 +381,6 @@ pub fn fit(
             let f = prepared.fixed_point(trial, b);
             prepared.window_sum_sq(&f, trial, axis)
         });
-        searched[axis] = true;
         fit = prepared.fixed_point(k, b);
     }
     let b = fitted_backlash(&fit);
@@ -348,6 +393,6 @@ pub fn fit(
     Ok(TakeUp {
         fit,
         shifts,
-        reach_um: [0, 1].map(|a| searched[a].then_some(reach[a])),
+        reach_um: [0, 1].map(|a| (b[a] > 0.0).then_some(reach[a])),
     })
 }
