@@ -431,6 +431,24 @@ impl Dataset {
         self.parameters.iter().find(|p| p.paths.contains(&path))
     }
 
+    /// The entries that draw a key of the table that holds `key` (its siblings and their
+    /// members): a check of the table's consistency, such as a circle against the strokes at
+    /// `job.center_mm`, refuses one key for the value drawn for another.
+    pub fn entries_beside(&self, key: &str) -> Vec<&Parameter> {
+        let Ok(path) = key_path(key) else {
+            return Vec::new();
+        };
+        let table = &path.0[..path.0.len().saturating_sub(1)];
+        self.parameters
+            .iter()
+            .filter(|p| {
+                p.paths
+                    .iter()
+                    .any(|q| q.0.len() > table.len() && q.0.starts_with(table))
+            })
+            .collect()
+    }
+
     /// Draws machine `seed`: every parameter from its distribution (a generator seeded with
     /// `seed`, parameters in name order), written into the scenario with `simulation.seed = seed`.
     /// `seed` must fit a TOML integer (below 2^63).

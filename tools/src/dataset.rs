@@ -440,7 +440,26 @@ fn refused_draws(
                 e.message
             )
         }
-        None => format!("{e}: {share}"),
+        None => {
+            // A key no entry draws, refused for what an entry beside it drew.
+            let beside: Vec<String> = ds
+                .entries_beside(key)
+                .iter()
+                .map(|p| {
+                    let at = p.position.map(|(l, c)| format!(" ({file}:{l}:{c})"));
+                    let entry = vmt_scenario::KeyPath::of(&["dataset", "parameters", &p.name]);
+                    format!("`{entry}`{}", at.unwrap_or_default())
+                })
+                .collect();
+            if beside.is_empty() {
+                format!("{e}: {share}")
+            } else {
+                format!(
+                    "{e}: {share}; entries drawing that table: {}",
+                    beside.join(", ")
+                )
+            }
+        }
     }
 }
 

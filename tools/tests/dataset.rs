@@ -508,6 +508,35 @@ fn bad_draws_are_refused_before_anything_is_simulated() {
     assert!(!out.exists(), "{e}");
 }
 
+/// A circle drawn past the strokes is refused at `job.center_mm`, which no entry draws (the
+/// check weighs the centre against the radius): the refusal names the entry that draws a key
+/// of that table, `job.radius_mm`, at its line.
+#[test]
+fn a_draw_refused_at_another_key_names_the_entries_of_its_table() {
+    let tmp = tempfile::tempdir().unwrap();
+    let entry = r#""job.radius_mm" = { distribution = "uniform", min = 100.0, max = 300.0 }"#;
+    let s = scenario(
+        tmp.path(),
+        Some((
+            r#""machine.axes.x.drive.backlash_um" = { distribution = "uniform", min = 0.0, max = 6.0, p_absent = 0.33 }"#,
+            entry,
+        )),
+    );
+    let out = tmp.path().join("ds");
+    let o = dataset_run(&s, &out, 20, 1, 2);
+    let e = stderr(&o);
+    assert!(!o.status.success(), "{e}");
+    let at = format!(
+        "entries drawing that table: `dataset.parameters.\"job.radius_mm\"` ({}:{}:",
+        s.display(),
+        line_of(&s, entry)
+    );
+    for w in ["key `job.center_mm`", "beyond its stroke", at.as_str()] {
+        assert!(e.contains(w), "`{w}` not in: {e}");
+    }
+    assert!(!out.exists(), "{e}");
+}
+
 /// A run that fails in simulation (a gain so low that the ball bar reads beyond its range)
 /// stops the dataset naming the run and the scenario kept to reproduce it; the other runs
 /// are written, and `vmt accuracy` does not advise running `vmt dataset` again.
