@@ -453,7 +453,8 @@ fn residual<'a>(
 /// the flank the axis really bears on then leaves half the backlash or all of it in the
 /// residual, which the start transient and the spikes would take for a shape of their own.
 /// Such samples (only the ends and the neighbours of a sign change can be) take the flank that
-/// leaves the smaller residual.
+/// leaves the smaller residual; so do the first and last samples of a run within
+/// [`signatures::STARTS_ON_TURN`] of a turn, whose approach is not known.
 fn settle_flanks_at_reversals(r: &mut [f64], s: &Samples, reversals: &[Vec<usize>; 2], fit: &Fit) {
     let n = r.len();
     for (axis, at) in reversals.iter().enumerate() {
@@ -473,7 +474,10 @@ fn settle_flanks_at_reversals(r: &mut [f64], s: &Samples, reversals: &[Vec<usize
             } else {
                 (pt.cos, pt.sin)
             };
-            if along.abs() > signatures::ON_TURN || across == 0.0 {
+            let end = i == 0 || i == n - 1;
+            let on_turn = along.abs() <= signatures::ON_TURN
+                || (end && along.abs() <= signatures::STARTS_ON_TURN);
+            if !on_turn || across == 0.0 {
                 continue;
             }
             let term = |flank: f64| b * signatures::backlash_on_flank(&pt, axis, flank);

@@ -40,8 +40,8 @@
 //! while the force reverses, and the flank is passed in less travel than the step: the law
 //! takes the reach `a` (µm of motor travel from one flank to the other) as its own parameter,
 //! `δp = d_new b (1/2 − min(u/a, 1))`, `a = b` for a gap held by friction, `a → 0` for a
-//! sudden step. A compensation that jumps the motor across the gap (a reading of negative
-//! backlash) has no take-up.
+//! sudden step. A compensation that overshoots the gap (a reading of negative backlash) is
+//! passed over a reach too, as a controller spreads the compensation over a few milliseconds.
 //! The servo lag τ of an axis is `(1 − k_vff)/K_v` for a position loop of gain K_v with
 //! velocity feed-forward k_vff. The signs follow ISO 230-1: errors are tool-to-workpiece
 //! displacements along +p, +q; backlash is "backward minus forward" (Ahn & Cho 2002).
@@ -136,7 +136,7 @@ pub fn travel_from_turn(pt: &Point, axis: usize) -> f64 {
 /// µm of motor travel moves Δr from the step of [`backlash`] at a sample after the axis'
 /// reversal (see the module notes): `2 u_b b (t/a − 1)` while the travel `t` from the turn is
 /// below the reach `a` (the carriage still on its old flank at `t = 0`), 0 beyond it and for
-/// `b ≤ 0`; `u_b` is [`backlash_on_flank`] on the new flank.
+/// `b = 0`; `u_b` is [`backlash_on_flank`] on the new flank.
 pub fn backlash_take_up(pt: &Point, axis: usize, b: f64, reach: f64) -> f64 {
     let along = if axis == 0 { pt.sin } else { pt.cos };
     let unit = backlash_on_flank(pt, axis, sign(along));
@@ -145,10 +145,10 @@ pub fn backlash_take_up(pt: &Point, axis: usize, b: f64, reach: f64) -> f64 {
 
 /// [`backlash_take_up`] at a sample whose Δr per µm of backlash on its flank is `unit` and
 /// whose motor has travelled `travel` µm from the turn: `2 u_b b (t/a − 1)` for `t < a`, 0
-/// beyond the reach and for `b ≤ 0` or `a ≤ 0` (a sudden step).
+/// beyond the reach and for `b = 0` or `a ≤ 0` (a sudden step).
 #[inline]
 pub fn take_up_at(unit: f64, travel: f64, b: f64, reach: f64) -> f64 {
-    if b <= 0.0 || reach <= 0.0 || travel >= reach {
+    if b == 0.0 || reach <= 0.0 || travel >= reach {
         return 0.0;
     }
     2.0 * unit * b * (travel / reach - 1.0)
@@ -158,6 +158,11 @@ pub fn take_up_at(unit: f64, travel: f64, b: f64, reach: f64) -> f64 {
 /// no direction of motion to say which flank of its backlash it bears on: rounding leaves
 /// 1e-16 where the angle is a multiple of 90°, a recorded 0.0001° is 2e-6.
 pub const ON_TURN: f64 = 1e-9;
+
+/// |sin θ| (p) or |cos θ| (q) of a run's first (or last) sample at or below which the run
+/// starts (ends) on the axis' turn, within 0.006° (a start recorded as 0.0001° is 1.7e-6):
+/// its approach is not known, so neither is the flank its first samples bear on.
+pub const STARTS_ON_TURN: f64 = 1e-4;
 
 /// Δr per µm of lateral play of p and of q.
 pub fn lateral_play(pt: &Point) -> [f64; 2] {

@@ -86,15 +86,16 @@ pub fn trace(
     let mut angle_deg = Vec::with_capacity(n);
     let mut deviation_um = Vec::with_capacity(n);
     let mut time_s = Vec::with_capacity(n);
-    // The axes' first motions: their velocities at the start, or just after it for an axis
-    // that starts on its turn.
+    // The axes' first motions: their velocities at the start, or after the turn for an axis
+    // that starts on it (within `STARTS_ON_TURN`, as the diagnosis takes it: the approach is
+    // not known, and the carriage is taken to bear on the flank of the motion after the turn).
     let th0 = start_deg.to_radians();
     let first = |f: fn(f64) -> f64| {
         let v = f(th0);
-        if v.abs() > crate::signatures::ON_TURN {
+        if v.abs() > crate::signatures::STARTS_ON_TURN {
             v
         } else {
-            f(th0 + sg * 1e-6)
+            f(th0 + sg * 1e-3)
         }
     };
     let (s0, c0) = (first(f64::sin), first(f64::cos));

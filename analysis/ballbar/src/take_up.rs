@@ -9,7 +9,9 @@
 //! with the take-up). A step that is the screw's stretch under friction (Z's, whose nut the
 //! head's weight keeps on one flank) is passed in a fraction of its size, so the reach `a` of
 //! the take-up (µm of motor travel from flank to flank) is fitted too, per axis, as a multiple
-//! `k = a/b` in `[0, K_MAX]`.
+//! `k = a/|b|`: 0 (a sudden step) or `[K_MIN, K_MAX]`. A negative backlash (a compensation
+//! that overshoots the gap, which a controller spreads over a few milliseconds) is taken over
+//! its reach likewise.
 //!
 //! For a given reach the law is linear in `b` but for the window's length (`√b`), so the fit is
 //! a fixed point (`Prepared::fixed_point`): fit the steps, move the means of the groups that
@@ -29,26 +31,25 @@
 
 use crate::model::{Fit, FitError, Normal, Term};
 use crate::samples::Samples;
-use crate::signatures::{self, ON_TURN};
+use crate::signatures::{self, ON_TURN, STARTS_ON_TURN};
 use crate::trace::Plane;
 
 /// The most rounds of the fixed point.
 const MAX_ROUNDS: usize = 8;
 /// The change of both backlash estimates (µm) below which the fixed point has converged.
 pub const CONVERGED_UM: f64 = 1e-3;
-/// |sin θ| (p) or |cos θ| (q) of a run's first sample at or below which the run starts on the
-/// axis' turn (within 0.006°; a start recorded as 0.0001° is 1.7e-6): its approach is not
-/// known, so the flank the carriage left it on is not either.
-const STARTS_ON_TURN: f64 = 1e-4;
-/// The largest reach searched, in steps: a carriage held by static friction above the
-/// Coulomb level waits longer than its gap.
-pub const K_MAX: f64 = 3.0;
-/// Golden-section steps of the search for the reach: to within `K_MAX · 0.618⁸` = 0.06 steps
-/// (0.03 µm of X backlash on 25 µm, whose estimate moves by 0.5 µm per step of reach).
-const SEARCH_STEPS: usize = 8;
+/// The largest reach searched, in steps: a carriage held by static friction far above the
+/// Coulomb level waits longer than its gap (7 steps on the built-in machine's X guides with
+/// their static friction raised fivefold, at 100 mm/min).
+pub const K_MAX: f64 = 8.0;
+/// The smallest non-zero reach searched, in steps; a sudden step (0) is tried too.
+pub const K_MIN: f64 = 0.01;
+/// Golden-section steps of the search for the reach, on its logarithm: to within a factor
+/// `(K_MAX/K_MIN)^(0.618¹⁰)` = 1.05.
+const SEARCH_STEPS: usize = 10;
 /// The windows are laid out to this multiple of `K_MAX` times the step model's backlash,
 /// which the take-up's fit exceeds by 15 % at most.
-const WINDOW_MARGIN: f64 = 2.0;
+const WINDOW_MARGIN: f64 = 1.2;
 
 /// How far some samples of a trace lie off the step model: (sample index, µm).
 pub type Shifts = Vec<(usize, f64)>;
@@ -60,9 +61,9 @@ pub struct TakeUp {
     pub fit: Fit,
     /// Each trace's take-up at the fitted backlash and reach, to take from its residual.
     pub shifts: Vec<Shifts>,
-    /// The reach of each axis' take-up (p, q), µm of motor travel (the backlash itself where
-    /// no reversal inside a run let it be searched); `None` where the fitted backlash is not
-    /// positive.
+    /// The reach of each axis' take-up (p, q), µm of motor travel; `None` where no reversal
+    /// of the axis inside a run let it be fitted (its take-up is then taken over the
+    /// backlash itself).
     pub reach_um: [Option<f64>; 2],
 }
 
@@ -162,7 +163,7 @@ impl Windows {
     fn take_up(&self, b: [f64; 2], reach: [f64; 2]) -> impl Iterator<Item = (usize, f64)> + '_ {
         (0..2).flat_map(move |axis| {
             let (b, a) = (b[axis], reach[axis]);
-            let live = b > 0.0 && a > 0.0;
+            let live = b != 0.0 && a > 0.0;
             self.after[axis]
                 .iter()
                 .filter(move |_| live)
@@ -254,7 +255,7 @@ impl Prepared<'_> {
         let mut b = b0;
         let mut fit = None;
         for _ in 0..MAX_ROUNDS {
-            let reach = [k[0] * b[0], k[1] * b[1]];
+            let reach = [k[0] * b[0].abs(), k[1] * b[1].abs()];
             for (trace, (s, w)) in self.samples.iter().zip(&self.windows).enumerate() {
                 let next = per_group(w.all(b, reach), s.group_size);
                 move_groups(&mut normal, trace, s, &applied[trace], &next);
@@ -275,7 +276,7 @@ impl Prepared<'_> {
     /// the windows of `axis`.
     fn window_sum_sq(&self, fit: &Fit, k: [f64; 2], axis: usize) -> f64 {
         let b = fitted_backlash(fit)[axis];
-        let reach = k[axis] * b;
+        let reach = k[axis] * b.abs();
         let mut sum = 0.0;
         for (s, w) in self.samples.iter().zip(&self.windows) {
             let model = fit.compiled(s.radius_um, s.feed_um_per_ms);
@@ -290,7 +291,7 @@ impl Prepared<'_> {
                     &s.deviation_um[at.clone()],
                     &mut r,
                 );
-                if b > 0.0 && reach > 0.0 {
+                if b != 0.0 && reach > 0.0 {
                     for n in near.iter().take_while(|n| n.travel < reach) {
                         r[n.i - at.start] -= n.shift(b, reach);
                     }
@@ -327,24 +328,30 @@ fn move_groups(
     }
 }
 
-/// The `k` in `[0, K_MAX]` that minimises `cost` (golden-section search).
+/// The `k`, 0 or in `[K_MIN, K_MAX]`, that minimises `cost`: a golden-section search on
+/// `ln k`, then 0 if it does better.
 fn golden(mut cost: impl FnMut(f64) -> f64) -> f64 {
     let g = (5f64.sqrt() - 1.0) / 2.0;
-    let (mut a, mut b) = (0.0, K_MAX);
+    let (mut a, mut b) = (K_MIN.ln(), K_MAX.ln());
     let (mut c, mut d) = (b - g * (b - a), a + g * (b - a));
-    let (mut fc, mut fd) = (cost(c), cost(d));
+    let (mut fc, mut fd) = (cost(c.exp()), cost(d.exp()));
     for _ in 0..SEARCH_STEPS {
         if fc <= fd {
             (b, d, fd) = (d, c, fc);
             c = b - g * (b - a);
-            fc = cost(c);
+            fc = cost(c.exp());
         } else {
             (a, c, fc) = (c, d, fd);
             d = a + g * (b - a);
-            fd = cost(d);
+            fd = cost(d.exp());
         }
     }
-    if fc <= fd { c } else { d }
+    let (k, best) = if fc <= fd {
+        (c.exp(), fc)
+    } else {
+        (d.exp(), fd)
+    };
+    if cost(0.0) < best { 0.0 } else { k }
 }
 
 /// The fit of `terms` to the traces `samples` with the take-up of the fitted backlash over
@@ -357,7 +364,7 @@ pub fn fit(
 ) -> Result<TakeUp, FitError> {
     let normal = Normal::new(plane, terms, &samples.iter().collect::<Vec<_>>())?;
     let step = fitted_backlash(&normal.solve());
-    let extent = step.map(|b| WINDOW_MARGIN * K_MAX * b.max(0.0));
+    let extent = step.map(|b| WINDOW_MARGIN * K_MAX * b.abs());
     let prepared = Prepared {
         samples,
         windows: samples
@@ -369,12 +376,14 @@ pub fn fit(
     };
     let mut k = [1.0, 1.0];
     let mut fit = prepared.fixed_point(k, step);
+    let mut searched = [false; 2];
     for axis in 0..2 {
         let b = fitted_backlash(&fit);
         let windows = prepared.windows.iter().flat_map(|w| &w.after[axis]);
-        if b[axis] <= 0.0 || windows.clone().all(Vec::is_empty) {
+        if b[axis] == 0.0 || windows.clone().all(Vec::is_empty) {
             continue;
         }
+        searched[axis] = true;
         k[axis] = golden(|x| {
             let mut trial = k;
             trial[axis] = x;
@@ -384,7 +393,7 @@ pub fn fit(
         fit = prepared.fixed_point(k, b);
     }
     let b = fitted_backlash(&fit);
-    let reach = [k[0] * b[0], k[1] * b[1]];
+    let reach = [k[0] * b[0].abs(), k[1] * b[1].abs()];
     let shifts = prepared
         .windows
         .iter()
@@ -393,6 +402,6 @@ pub fn fit(
     Ok(TakeUp {
         fit,
         shifts,
-        reach_um: [0, 1].map(|a| (b[a] > 0.0).then_some(reach[a])),
+        reach_um: [0, 1].map(|a| searched[a].then_some(reach[a])),
     })
 }

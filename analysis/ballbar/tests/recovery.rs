@@ -208,6 +208,47 @@ fn a_sawtooth_near_the_x_reversals_is_stick_slip_of_x() {
     absent(&d, "stick_slip_y");
 }
 
+/// A sudden step (a compensation jumping the gap, a reach of zero) is fitted as one: reach 0,
+/// no reversal spike (the search had stopped at 2.4 % of the step, and the misfit of that ramp
+/// was reported as spikes of 0.9 of the backlash).
+#[test]
+fn a_sudden_step_is_fitted_as_one() {
+    let e = Errors {
+        backlash_um: [5.0, 5.0],
+        backlash_reach_um: [Some(0.0), Some(0.0)],
+        ..noisy()
+    };
+    let d = run(Plane::Xy, &e);
+    for (key, spike) in [
+        ("backlash_x", "reversal_spike_x"),
+        ("backlash_y", "reversal_spike_y"),
+    ] {
+        check(&d, key, 5.0, 0.05, true);
+        let f = d.finding(key).expect("a backlash");
+        let reach = f
+            .details
+            .iter()
+            .find(|(k, _)| k == "take_up_um")
+            .expect("its reach");
+        assert_eq!(reach.1, 0.0, "{f:?}");
+        absent(&d, spike);
+    }
+}
+
+/// Runs that start a hair off a turn (0.0001° from X's, 0.0001° from Y's): their approach is
+/// not known, and no transient is reported at their start (3.5 µm was, for 10 µm of backlash).
+#[test]
+fn a_run_starting_a_hair_off_a_turn_shows_no_transient() {
+    for (axis, start_deg) in [(0, 0.0001), (0, 359.9999), (1, 89.9999), (1, 90.0001)] {
+        let mut e = noisy();
+        e.backlash_um[axis] = 10.0;
+        let d = diagnose(&runs_from(start_deg, &e), &Options::default()).expect("diagnosis");
+        check(&d, ["backlash_x", "backlash_y"][axis], 10.0, 0.1, true);
+        absent(&d, "start_transient_cw");
+        absent(&d, "start_transient_ccw");
+    }
+}
+
 #[test]
 fn lateral_play_is_told_apart_from_backlash() {
     let e = Errors {
