@@ -42,11 +42,14 @@ pub const CONVERGED_UM: f64 = 1e-3;
 /// Coulomb level waits longer than its gap (7 steps on the built-in machine's X guides with
 /// their static friction raised fivefold, at 100 mm/min).
 pub const K_MAX: f64 = 8.0;
-/// The smallest non-zero reach searched, in steps; a sudden step (0) is tried too.
-pub const K_MIN: f64 = 0.01;
+/// The smallest non-zero reach searched, in steps; a sudden step (0) is tried too. At 1 kHz,
+/// 1000 mm/min and 150 mm the first sample after a turn is 0.0009 µm of travel from it: a
+/// reach of 0.001 of a 20 µm step spans four samples, and 0.005 of it (ten samples) had been
+/// read as 0.01 with a false spike of 7.8 µm when the search stopped there.
+pub const K_MIN: f64 = 1e-3;
 /// Golden-section steps of the search for the reach, on its logarithm: to within a factor
-/// `(K_MAX/K_MIN)^(0.618¹⁰)` = 1.05.
-const SEARCH_STEPS: usize = 10;
+/// `exp(ln(K_MAX/K_MIN) · 0.618¹²)` = 1.03.
+const SEARCH_STEPS: usize = 12;
 /// The windows are laid out to this multiple of `K_MAX` times the step model's backlash,
 /// which the take-up's fit exceeds by 15 % at most.
 const WINDOW_MARGIN: f64 = 1.2;
