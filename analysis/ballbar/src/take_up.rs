@@ -38,9 +38,9 @@ use crate::trace::Plane;
 const MAX_ROUNDS: usize = 8;
 /// The change of both backlash estimates (µm) below which the fixed point has converged.
 pub const CONVERGED_UM: f64 = 1e-3;
-/// The largest reach searched, in steps: a carriage held by static friction far above the
-/// Coulomb level waits longer than its gap (7 steps on the built-in machine's X guides with
-/// their static friction raised fivefold, at 100 mm/min).
+/// The largest reach searched, in steps: a carriage held by static friction above the
+/// Coulomb level waits longer than its gap (2.4 steps on the built-in machine's X guides with
+/// their static friction raised from 65 to 250 N, at 100 mm/min).
 pub const K_MAX: f64 = 8.0;
 /// The smallest non-zero reach searched, in steps; a sudden step (0) is tried too. At 1 kHz,
 /// 1000 mm/min and 150 mm the first sample after a turn is 0.0009 µm of travel from it: a
