@@ -295,14 +295,18 @@ fn diagnose_once(
         .map(|((t, p), d)| Samples::new(t, p, d))
         .collect();
     let terms = Terms::for_test(&refs);
-    let take_up = take_up::fit(plane, &terms.terms, &samples, test.reversals)?;
-    let fit = take_up.fit;
+    let take_up::TakeUp {
+        fit,
+        shifts,
+        reach_um,
+        at_limit,
+    } = take_up::fit(plane, &terms.terms, &samples, test.reversals)?;
     let sample_refs: Vec<&Samples> = samples.iter().collect();
     let mut findings = fitted_findings(&fit, &sample_refs, &terms.unresolved);
     let residuals: Vec<Residual> = traces
         .iter()
         .zip(&samples)
-        .zip(test.reversals.iter().zip(&take_up.shifts))
+        .zip(test.reversals.iter().zip(&shifts))
         .map(|((t, s), (rev, shifts))| residual(t, s, rev, shifts, &fit))
         .collect();
     let noise = features::median(
@@ -313,7 +317,7 @@ fn diagnose_once(
     );
     findings.extend(closing_errors(&fit, traces, &samples));
     let local = local_findings(&mut findings, &fit, &residuals, traces, noise);
-    take_up_details(&mut findings, take_up.reach_um, plane);
+    take_up_details(&mut findings, reach_um, at_limit, plane);
     findings.extend(local);
     let cyclic = match cyclic_pass {
         CyclicPass::Skip => Vec::new(),
@@ -725,14 +729,26 @@ fn local_findings(
 }
 
 /// Adds to each backlash finding reported present the reach of its take-up, `take_up_um` (µm
-/// of motor travel from one flank to the other, see [`take_up`]).
-fn take_up_details(findings: &mut [Finding], reach_um: [Option<f64>; 2], plane: Plane) {
+/// of motor travel from one flank to the other, see [`take_up`]), and says so in its name when
+/// the reach came out at the search's limit.
+fn take_up_details(
+    findings: &mut [Finding],
+    reach_um: [Option<f64>; 2],
+    at_limit: [bool; 2],
+    plane: Plane,
+) {
     let (p, q) = plane.axes();
-    for (letter, reach) in [p, q].into_iter().zip(reach_um) {
+    for (axis, letter) in [p, q].into_iter().enumerate() {
         let key = format!("backlash_{}", letter.to_ascii_lowercase());
         let found = findings.iter_mut().find(|f| f.key == key && f.present);
-        if let (Some(reach), Some(f)) = (reach, found) {
+        if let (Some(reach), Some(f)) = (reach_um[axis], found) {
             f.details.push(("take_up_um".into(), reach));
+            if at_limit[axis] {
+                f.name.push_str(&format!(
+                    " (taken up over {} steps or more: the take-up's limit)",
+                    take_up::K_MAX
+                ));
+            }
         }
     }
 }

@@ -50,6 +50,9 @@ pub const K_MIN: f64 = 1e-3;
 /// Golden-section steps of the search for the reach, on its logarithm: to within a factor
 /// `exp(ln(K_MAX/K_MIN) · 0.618¹²)` = 1.03.
 const SEARCH_STEPS: usize = 12;
+/// The share of [`K_MAX`] above which a fitted reach is at the search's limit: the last
+/// golden-section bracket's width on the logarithm.
+const AT_LIMIT: f64 = 0.97;
 /// The windows are laid out to this multiple of `K_MAX` times the step model's backlash,
 /// which the take-up's fit exceeds by 15 % at most.
 const WINDOW_MARGIN: f64 = 1.2;
@@ -68,6 +71,9 @@ pub struct TakeUp {
     /// of the axis inside a run let it be fitted (its take-up is then taken over the
     /// backlash itself).
     pub reach_um: [Option<f64>; 2],
+    /// Whether each axis' reach came out at the top of the search ([`K_MAX`] steps): the
+    /// take-up may be longer than the model holds.
+    pub at_limit: [bool; 2],
 }
 
 /// The fitted backlash of p and q, µm (0 for a term not in the model).
@@ -406,5 +412,6 @@ pub fn fit(
         fit,
         shifts,
         reach_um: [0, 1].map(|a| searched[a].then_some(reach[a])),
+        at_limit: [0, 1].map(|a| searched[a] && k[a] >= K_MAX * AT_LIMIT),
     })
 }

@@ -210,6 +210,22 @@ fn a_sawtooth_near_the_x_reversals_is_stick_slip_of_x() {
     absent(&d, "stick_slip_y");
 }
 
+/// A take-up longer than the search's limit (12 steps against 8) is said to be at the limit in
+/// the finding's name; one within it (5 steps) is not.
+#[test]
+fn a_take_up_beyond_the_search_is_named_so() {
+    for (reach, limited) in [(50.0, false), (120.0, true)] {
+        let e = Errors {
+            backlash_um: [10.0, 0.0],
+            backlash_reach_um: [Some(reach), None],
+            ..noisy()
+        };
+        let d = run(Plane::Xy, &e);
+        let f = d.finding("backlash_x").expect("a backlash");
+        assert_eq!(f.name.contains("the take-up's limit"), limited, "{f:?}");
+    }
+}
+
 /// A sudden step (a compensation jumping the gap, a reach of zero) is fitted as one: reach 0,
 /// no reversal spike (the search had stopped at 2.4 % of the step, and the misfit of that ramp
 /// was reported as spikes of 0.9 of the backlash).
