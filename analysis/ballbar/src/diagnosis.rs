@@ -473,11 +473,7 @@ fn settle_flanks_at_reversals(r: &mut [f64], s: &Samples, reversals: &[Vec<usize
         near.dedup();
         for i in near {
             let pt = s.point(i);
-            let (along, across) = if axis == 0 {
-                (pt.sin, pt.cos)
-            } else {
-                (pt.cos, pt.sin)
-            };
+            let (along, across) = (pt.turning(axis), pt.own(axis));
             let end = i == 0 || i == n - 1;
             let on_turn = along.abs() <= signatures::ON_TURN
                 || (end && along.abs() <= signatures::STARTS_ON_TURN);
@@ -822,14 +818,7 @@ fn side_details(
     let basis = Term::Backlash(axis);
     // The backlash moves the axis by ±b/2: Δr is that times cos θ (p) or sin θ (q), which the
     // windows 2–12° from the turn hold at 0.99 on the median; per unit of it the step is b.
-    let along_axis = |res: &Residual, j: usize| {
-        let pt = res.point(j);
-        if axis == 0 {
-            pt.cos.abs()
-        } else {
-            pt.sin.abs()
-        }
-    };
+    let along_axis = |res: &Residual, j: usize| res.point(j).own(axis).abs();
     for res in residuals {
         let unit = |j: usize| basis.basis(&res.point(j), fit.plane) / along_axis(res, j);
         let partial = |j: usize| res.r[j] / along_axis(res, j) + b * unit(j);

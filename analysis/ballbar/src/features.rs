@@ -190,7 +190,7 @@ fn lanes(v: &[f64], f: impl Fn(f64) -> f64) -> f64 {
 /// Sample indices at which an axis reverses: where sin θ (p axis, `axis` 0) or cos θ (q axis)
 /// changes sign.
 pub fn reversals(points: &[Point], axis: usize) -> Vec<usize> {
-    let f = |p: &Point| if axis == 0 { p.sin } else { p.cos };
+    let f = |p: &Point| p.turning(axis);
     (1..points.len())
         .filter(|&i| (f(&points[i]) > 0.0) != (f(&points[i - 1]) > 0.0))
         .collect()
@@ -692,7 +692,7 @@ pub fn cyclic(
     let mut a = Vec::with_capacity(points.len());
     let mut b = Vec::with_capacity(points.len());
     for (p, (r, w)) in points.iter().zip(r.iter().zip(w)) {
-        let g = if axis == 0 { p.cos } else { p.sin };
+        let g = p.own(axis);
         t.push(std::f64::consts::TAU * dk * radius_mm * g);
         a.push(w * r * g);
         b.push(w * g * g);
@@ -743,7 +743,7 @@ pub fn refit_cyclic(
     for (pt, (r, w)) in points.iter().zip(r.iter().zip(w)) {
         let radius_mm = pt.radius_um * 1e-3;
         for (c, pair) in found.iter().zip(row.chunks_mut(2)) {
-            let g = if c.axis == 0 { pt.cos } else { pt.sin };
+            let g = pt.own(c.axis);
             let (sin, cos) = (std::f64::consts::TAU * radius_mm * g / c.pitch_mm).sin_cos();
             pair.copy_from_slice(&[g * sin, g * cos]);
         }

@@ -442,11 +442,6 @@ impl Normal {
 }
 
 impl Fit {
-    /// Fits `terms` to the prepared traces of a test (see [`Normal`]).
-    pub fn new(plane: Plane, terms: &[Term], traces: &[&Samples]) -> Result<Self, FitError> {
-        Normal::new(plane, terms, traces).map(|n| n.solve())
-    }
-
     /// Peak-to-valley (µm) of one unit of each term's signature over the groups of the traces
     /// (in the order of `terms`).
     pub fn unit_contributions(&self, traces: &[&Samples]) -> Vec<f64> {

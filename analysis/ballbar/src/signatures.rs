@@ -65,6 +65,22 @@ pub struct Point {
     pub feed_um_per_ms: f64,
 }
 
+impl Point {
+    /// The direction cosine of `axis` (0 p, 1 q) here: cos θ for p, sin θ for q. The axis
+    /// stands at R times it, and a displacement along it moves Δr by as much times it.
+    #[inline]
+    pub fn own(&self, axis: usize) -> f64 {
+        if axis == 0 { self.cos } else { self.sin }
+    }
+
+    /// The other cosine: sin θ for p, cos θ for q. It is 0 where `axis` turns and changes sign
+    /// there, with the axis' direction of motion.
+    #[inline]
+    pub fn turning(&self, axis: usize) -> f64 {
+        if axis == 0 { self.sin } else { self.cos }
+    }
+}
+
 /// Sign of the squareness signature in each plane (see the module table).
 pub const fn squareness_sign(plane: Plane) -> f64 {
     match plane {
@@ -128,8 +144,7 @@ pub fn backlash_on_flank(pt: &Point, axis: usize, flank: f64) -> f64 {
 /// The motor's travel (µm) from the turning point of `axis` (0 p, 1 q) on the circle:
 /// `R − |p|` for p, `R − |q|` for q.
 pub fn travel_from_turn(pt: &Point, axis: usize) -> f64 {
-    let across = if axis == 0 { pt.cos } else { pt.sin };
-    pt.radius_um * (1.0 - across.abs())
+    pt.radius_um * (1.0 - pt.own(axis).abs())
 }
 
 /// How far (µm) the take-up of backlash `b` µm of `axis` (0 p, 1 q) over a reach of `reach`
@@ -138,8 +153,7 @@ pub fn travel_from_turn(pt: &Point, axis: usize) -> f64 {
 /// below the reach `a` (the carriage still on its old flank at `t = 0`), 0 beyond it and for
 /// `b = 0`; `u_b` is [`backlash_on_flank`] on the new flank.
 pub fn backlash_take_up(pt: &Point, axis: usize, b: f64, reach: f64) -> f64 {
-    let along = if axis == 0 { pt.sin } else { pt.cos };
-    let unit = backlash_on_flank(pt, axis, sign(along));
+    let unit = backlash_on_flank(pt, axis, sign(pt.turning(axis)));
     take_up_at(unit, travel_from_turn(pt, axis), b, reach)
 }
 
@@ -265,7 +279,7 @@ mod tests {
             delta = (delta - b / reach * (now - last)).clamp(-0.5 * b, 0.5 * b);
             last = now;
             let p = pt(deg.to_radians(), sense);
-            let radial = delta * if axis == 0 { p.cos } else { p.sin };
+            let radial = delta * p.own(axis);
             if (deg - turn_deg).abs() < 1e-6 {
                 continue; // on the turn: no direction of motion, no flank
             }

@@ -117,7 +117,7 @@ impl Windows {
     fn new(s: &Samples, reversals: &[Vec<usize>; 2], extent_um: [f64; 2]) -> Self {
         let mut w = Self::default();
         for (axis, at) in reversals.iter().enumerate() {
-            let along = |i: usize| if axis == 0 { s.sin[i] } else { s.cos[i] };
+            let along = |i: usize| s.point(i).turning(axis);
             let window_end = |from: usize| {
                 (from..s.len())
                     .find(|&i| signatures::travel_from_turn(&s.point(i), axis) >= extent_um[axis])
@@ -201,19 +201,18 @@ impl Windows {
 /// the take-up starts, or, at a turn the run starts on (`known` false), on the flank of its
 /// first motion.
 fn straddling(s: &Samples, axis: usize, first: usize, known: bool) -> Vec<(usize, f64)> {
-    let along = |pt: &signatures::Point| if axis == 0 { pt.sin } else { pt.cos };
     let k = first / s.group_size;
-    let group_flank = signatures::sign(along(&s.groups[k].0));
+    let group_flank = signatures::sign(s.groups[k].0.turning(axis));
     let end = ((k + 1) * s.group_size).min(s.len());
     let new_flank = (first..s.len())
-        .map(|i| along(&s.point(i)))
+        .map(|i| s.point(i).turning(axis))
         .find(|a| a.abs() > ON_TURN)
         .map_or(0.0, signatures::sign);
     let on_turn_flank = if known { -new_flank } else { new_flank };
     (k * s.group_size..end)
         .filter_map(|i| {
             let pt = s.point(i);
-            let a = along(&pt);
+            let a = pt.turning(axis);
             let flank = if a.abs() <= ON_TURN {
                 on_turn_flank
             } else {
@@ -261,24 +260,21 @@ impl Prepared<'_> {
     fn fixed_point(&self, k: [f64; 2], b0: [f64; 2]) -> Fit {
         let mut normal = self.normal.clone();
         let mut applied: Vec<Vec<(usize, f64)>> = vec![Vec::new(); self.samples.len()];
-        let mut b = b0;
-        let mut fit = None;
-        for _ in 0..MAX_ROUNDS {
+        let (mut b, mut round) = (b0, 1);
+        loop {
             let reach = [k[0] * b[0].abs(), k[1] * b[1].abs()];
             for (trace, (s, w)) in self.samples.iter().zip(&self.windows).enumerate() {
                 let next = per_group(w.all(b, reach), s.group_size);
                 move_groups(&mut normal, trace, s, &applied[trace], &next);
                 applied[trace] = next;
             }
-            let next = normal.solve();
-            let nb = fitted_backlash(&next);
-            fit = Some(next);
-            if (0..2).all(|a| (nb[a] - b[a]).abs() < CONVERGED_UM) {
-                break;
+            let fit = normal.solve();
+            let nb = fitted_backlash(&fit);
+            if round == MAX_ROUNDS || (0..2).all(|a| (nb[a] - b[a]).abs() < CONVERGED_UM) {
+                return fit;
             }
-            b = nb;
+            (b, round) = (nb, round + 1);
         }
-        fit.unwrap_or_else(|| self.normal.solve())
     }
 
     /// Σ r² of the residual of `fit` with its take-up over the reaches `k` at the samples of
