@@ -3,14 +3,17 @@
 mod common;
 
 use nalgebra::Vector3;
+use serde_json::Value;
 use vmt_model::drive::{AxisCommand, Drive};
 use vmt_model::machine::Machine;
+use vmt_model::thermal_deformation::ThermalDeformation;
 use vmt_sim::ballbar::BallbarSpec;
 use vmt_sim::interpolator::{InterpolatorConfig, Limits};
 use vmt_sim::nc::{CircularTest, Plane, parse};
 use vmt_sim::plant::{Fidelity, MultibodyPlant, Plant, layout};
 use vmt_sim::run::{BallbarTrace, Run};
 use vmt_sim::simulate::{AxisDynamics, BallbarSetup, Job, SimError, SimSettings, simulate};
+use vmt_sim::truth::{TruthInputs, test_figures};
 
 fn machine() -> Machine {
     let mut m = vmt_scenario::builtin().unwrap().machine;
@@ -42,12 +45,25 @@ fn try_circle_run(
     spec: BallbarSpec,
 ) -> Result<Run, SimError> {
     let m = machine();
+    let job = circle_job(feed_mm_min, spec);
+    let settings = SimSettings {
+        fidelity,
+        plant_substeps: 2,
+        log_rate_hz: 1000.0,
+        seed: 7,
+    };
+    let ipo = InterpolatorConfig::new(Limits::default());
+    simulate(&m, &axes, &ipo, &job, &settings, "", &mut |_| {})
+}
+
+/// The ISO 230-4 test of `circle_run`: 150 mm in XY about (250, 200, 200) mm, CW and CCW.
+fn circle_job(feed_mm_min: f64, spec: BallbarSpec) -> Job {
     let center = Vector3::new(0.25, 0.2, 0.2);
     let test = CircularTest::iso230_4(Plane::Xy, center, 0.15, feed_mm_min / 60_000.0);
     let start = test.start_point();
     let program = parse(&test.gcode(), start).unwrap();
     let data = test.data_blocks(&program).unwrap();
-    let job = Job {
+    Job {
         program,
         ballbar: vec![BallbarSetup {
             name: None,
@@ -60,15 +76,114 @@ fn try_circle_run(
             circle: None,
         }],
         laser: None,
+    }
+}
+
+/// The truth's figures of `circle_job` at `feed_mm_min` on the geometrically perfect machine
+/// with drives `axes` (no run: the truth is computed from the parameters).
+fn circle_figures(axes: &[AxisDynamics; 3], feed_mm_min: f64) -> serde_json::Map<String, Value> {
+    let m = machine();
+    let job = circle_job(feed_mm_min, BallbarSpec::default());
+    let chain = m.volumetric.evaluator(&ThermalDeformation::default());
+    let inputs = TruthInputs {
+        machine: &m,
+        axes,
+        job: &job,
+        at_tests: std::slice::from_ref(&chain),
     };
-    let settings = SimSettings {
-        fidelity,
-        plant_substeps: 2,
-        log_rate_hz: 1000.0,
-        seed: 7,
+    test_figures(&inputs, &job.ballbar[0], &chain)
+}
+
+/// Without a Stribeck peak (static = Coulomb friction) a moving axis stands a constant
+/// `b/2 + F_c/k` behind its encoder plus the viscous lag `σ2 v/k`: the truth's backlash is
+/// `b + 2 F_c/k`, with no viscous share (a lag is no step), and its servo mismatch gains
+/// `σ2,x/k_x − σ2,y/k_y` beside the servos' `1/K_v,x − 1/K_v,y`, whatever the feed.
+#[test]
+fn the_drives_lost_motion_is_the_gap_and_coulomb_stretch_and_their_viscous_friction_a_lag() {
+    let flat = |a: &mut AxisDynamics, coulomb_n: f64, viscous: f64, k: f64| {
+        let f = &mut a.drive.guide_friction;
+        (f.coulomb_n, f.static_n, f.sigma2_n_s_per_m) = (coulomb_n, coulomb_n, viscous);
+        a.drive.screw.stiffness_n_per_m = k;
     };
-    let ipo = InterpolatorConfig::new(Limits::default());
-    simulate(&m, &axes, &ipo, &job, &settings, "", &mut |_| {})
+    let (mut x, mut y) = (
+        common::axis(250.0, 3e-6, 31.0),
+        common::axis(450.0, 0.5e-6, 35.0),
+    );
+    flat(&mut x, 40.0, 3000.0, 1.5e8);
+    flat(&mut y, 90.0, 800.0, 2.2e8);
+    let axes = [x, y, common::axis(180.0, 0.0, 33.0)];
+    for feed in [250.0, 1000.0, 4000.0] {
+        let f = circle_figures(&axes, feed);
+        let get = |k: &str| f[k].as_f64().unwrap();
+        let (bx, by) = (3.0 + 2.0 * 40.0 / 150.0, 0.5 + 2.0 * 90.0 / 220.0);
+        assert!((get("backlash_x") - bx).abs() < 1e-9, "{feed}: {f:?}");
+        assert!((get("backlash_y") - by).abs() < 1e-9, "{feed}: {f:?}");
+        let ms = 1e3 * (1.0 / 31.0 - 1.0 / 35.0 + 3000.0 / 1.5e8 - 800.0 / 2.2e8);
+        assert!(
+            (get("servo_mismatch_xy") - ms).abs() < 1e-9,
+            "{feed}: {f:?}"
+        );
+    }
+}
+
+/// A Stribeck peak (250 N static over 50 N Coulomb, `v_s` = 5 mm/s) on X's guides: near its
+/// reversals X slides slower than `v_s` and its screw stretches under up to 250 N, a hump that
+/// the bar reads partly as lost motion and partly as a lead (less lag). Truth and trace agree:
+/// the trace's least-squares lost motion and lag difference of X, fitted as the truth projects
+/// them (radius, centre, the two axes' lost motions, the lag difference, over both full turns
+/// of the data arcs), equal the truth's within 0.1 µm and 0.01 ms, and the hump adds 1.5 µm.
+#[test]
+fn a_stribeck_hump_at_the_reversals_reads_as_more_lost_motion_and_less_lag() {
+    let mut x = common::axis(250.0, 1e-6, 33.0);
+    let f = &mut x.drive.guide_friction;
+    (f.static_n, f.stribeck_m_s) = (250.0, 5e-3);
+    let axes = [
+        x,
+        common::axis(450.0, 1e-6, 33.0),
+        common::axis(180.0, 0.0, 33.0),
+    ];
+    let run = circle_run(axes, 1000.0, Fidelity::Reduced);
+    let truth = &run.ground_truth["ballbar"]["tests"][0]["figures"];
+    let get = |k: &str| truth[k].as_f64().unwrap();
+    let coulomb_level = 1.0 + 2.0 * 50.0 / 180.0;
+    assert!(get("backlash_x") > coulomb_level + 1.5, "{truth}");
+    let (mut ata, mut atb) = (
+        nalgebra::SMatrix::<f64, 6, 6>::zeros(),
+        nalgebra::SVector::<f64, 6>::zeros(),
+    );
+    for dir in ["cw", "ccw"] {
+        let t = trace(&run, dir);
+        let s = (t.angle_deg[t.angle_deg.len() - 1] - t.angle_deg[0]).signum();
+        // Tool speed, mm/s, so that the lag comes out in ms.
+        let v = 1000.0 / 60.0;
+        for (a, d) in t.angle_deg.iter().zip(&t.deviation_um) {
+            let (sin, cos) = a.to_radians().sin_cos();
+            let (vx, vy) = (-s * v * sin, s * v * cos);
+            let row = nalgebra::SVector::<f64, 6>::from([
+                1.0,
+                cos,
+                sin,
+                -0.5 * vx.signum() * cos,
+                -0.5 * vy.signum() * sin,
+                -vx * cos,
+            ]);
+            ata += row * row.transpose();
+            atb += row * *d;
+        }
+    }
+    let fit = ata.lu().solve(&atb).unwrap();
+    assert!(
+        (fit[3] - get("backlash_x")).abs() < 0.1,
+        "X {fit} vs {truth}"
+    );
+    assert!(
+        (fit[4] - get("backlash_y")).abs() < 0.1,
+        "Y {fit} vs {truth}"
+    );
+    assert!(
+        (fit[5] - get("servo_mismatch_xy")).abs() < 0.01,
+        "lag {fit} vs {truth}"
+    );
 }
 
 /// A pivot set 300 µm off along +X shortens the bar by 300 µm at 0° (and lengthens it at

@@ -49,12 +49,14 @@ pub const FAILED_DIR: &str = "failed-runs";
 const IDS_LISTED: usize = 5;
 /// The identity file of a dataset folder.
 pub const IDENTITY_FILE: &str = "dataset.json";
-/// The version of what `labels.json` holds: 2 since the truth's injected squareness is in µrad
-/// (format 1, without the key in `dataset.json`, wrote it in rad under the same keys). Runs of
-/// two formats never share a dataset. A change of a key's meaning or unit bumps it; keys only
-/// added (as the laser truth's drive share at rest was) do not, since no value read before
+/// The version of what `labels.json` holds: 3 since the truth's backlash and servo mismatch
+/// figures are the drives' lost motion and lag along the circle (format 2 counted the guideways'
+/// viscous friction at the test feed as lost motion), 2 since the injected squareness is in
+/// µrad (format 1, without the key in `dataset.json`, wrote it in rad under the same keys). Runs
+/// of two formats never share a dataset. A change of a key's meaning or unit bumps it; keys
+/// only added (as the laser truth's drive share at rest was) do not, since no value read before
 /// changes.
-pub const LABELS_FORMAT: u64 = 2;
+pub const LABELS_FORMAT: u64 = 3;
 
 /// What `vmt dataset` is asked for.
 pub struct Request<'a> {
@@ -196,7 +198,8 @@ fn claim(out: &Path, want: &Identity) -> Result<(), CliError> {
             }
             if have.labels_format != want.labels_format {
                 let which = if have.labels_format < want.labels_format {
-                    "an older vmt's; format 1 or unknown wrote the injected squareness in rad"
+                    "an older vmt's: format 2 counted the viscous friction as backlash, format \
+                     1 or unknown also wrote the injected squareness in rad"
                 } else {
                     "a newer vmt's"
                 };
