@@ -451,9 +451,7 @@ pub fn test_figures(
     );
     for (i, (axis, other)) in [(pa, qa), (qa, pa)].into_iter().enumerate() {
         let (along, across) = reversal_change(inputs, chain, b, (axis, other), &arcs, base);
-        let drive = share.lost_motion_m[i].unwrap_or_else(|| {
-            backlash_seen_m(&axes[axis.index()], b.feed_m_s, loads[axis.index()])
-        }) * 1e6;
+        let drive = share.lost_motion_m[i] * 1e6;
         let l = axis.to_string().to_lowercase();
         put(format!("backlash_{l}"), (drive + along) * k);
         put(format!("lateral_play_{l}"), across * k);
@@ -625,10 +623,10 @@ fn mean_error(
 }
 
 /// What the feed drives add to a circular test's backlash and servo-mismatch figures: the lost
-/// motion of each plane axis (`[p, q]`, m; `None` where the test cannot show it: the axis
-/// runs one way only) and the apparent lag of `p` less that of `q` (s), beyond the servos'.
+/// motion of each plane axis (`[p, q]`, m) and the apparent lag of `p` less that of `q` (s),
+/// beyond the servos'.
 struct DriveShare {
-    lost_motion_m: [Option<f64>; 2],
+    lost_motion_m: [f64; 2],
     lag_s: f64,
 }
 
@@ -649,7 +647,9 @@ const SHARE_SAMPLES_PER_TURN: f64 = 36_000.0;
 /// what the diagnosis fits it with: radius and centre (1, cos θ, sin θ), each axis' lost
 /// motion `l` (`−½ l sign(v) cos θ` for p, `sin θ` for q, when the axis runs both ways) and,
 /// when both senses were run, a lag difference `Δτ` (`−Δτ v_p cos θ`; a lag common to both
-/// axes leaves the radius unchanged). At the test feed far above `v_s` the lost motion is
+/// axes leaves the radius unchanged). An axis that runs one way only (the test cannot show its
+/// lost motion) gets that of a reversal at the test feed under the Stribeck force, and with
+/// one sense only the lag stays the servos'. At the test feed far above `v_s` the lost motion is
 /// `b + 2 F_c/k` and the lag `σ2/k` per axis; with a wide Stribeck range the hump raises the
 /// lost motion and lowers the lag (a 250 N static peak over 50 N Coulomb with `v_s` = 5 mm/s,
 /// at 1000 mm/min on 150 mm: +1.9 µm and −0.08 ms on a 180 N/µm screw). The take-up of the
@@ -714,8 +714,16 @@ fn drive_share(
         let i = fitted.iter().position(|&f| f == c)?;
         x.as_ref().map(|x| x[i])
     };
+    let at_feed = |a: Axis| {
+        let d = &axes[a.index()];
+        let friction = d.drive.guide_friction.stribeck_force(b.feed_m_s);
+        reversal_at_rest_m(d, friction, loads[a.index()])
+    };
     DriveShare {
-        lost_motion_m: [coef(3), coef(4)],
+        lost_motion_m: [
+            coef(3).unwrap_or_else(|| at_feed(pa)),
+            coef(4).unwrap_or_else(|| at_feed(qa)),
+        ],
         lag_s: coef(5).unwrap_or(0.0),
     }
 }

@@ -9,7 +9,7 @@ use vmt_model::machine::Machine;
 use vmt_model::thermal_deformation::ThermalDeformation;
 use vmt_sim::ballbar::BallbarSpec;
 use vmt_sim::interpolator::{InterpolatorConfig, Limits};
-use vmt_sim::nc::{CircularTest, Plane, parse};
+use vmt_sim::nc::{ArcDirection, CircularTest, Plane, parse};
 use vmt_sim::plant::{Fidelity, MultibodyPlant, Plant, layout};
 use vmt_sim::run::{BallbarTrace, Run};
 use vmt_sim::simulate::{AxisDynamics, BallbarSetup, Job, SimError, SimSettings, simulate};
@@ -45,7 +45,7 @@ fn try_circle_run(
     spec: BallbarSpec,
 ) -> Result<Run, SimError> {
     let m = machine();
-    let job = circle_job(feed_mm_min, spec);
+    let job = circle_job(&circle_test(feed_mm_min), spec);
     let settings = SimSettings {
         fidelity,
         plant_substeps: 2,
@@ -57,9 +57,14 @@ fn try_circle_run(
 }
 
 /// The ISO 230-4 test of `circle_run`: 150 mm in XY about (250, 200, 200) mm, CW and CCW.
-fn circle_job(feed_mm_min: f64, spec: BallbarSpec) -> Job {
+fn circle_test(feed_mm_min: f64) -> CircularTest {
     let center = Vector3::new(0.25, 0.2, 0.2);
-    let test = CircularTest::iso230_4(Plane::Xy, center, 0.15, feed_mm_min / 60_000.0);
+    CircularTest::iso230_4(Plane::Xy, center, 0.15, feed_mm_min / 60_000.0)
+}
+
+/// The job of `test` (in XY), with the ball bar `spec`.
+fn circle_job(test: &CircularTest, spec: BallbarSpec) -> Job {
+    let center = test.center;
     let start = test.start_point();
     let program = parse(&test.gcode(), start).unwrap();
     let data = test.data_blocks(&program).unwrap();
@@ -79,11 +84,11 @@ fn circle_job(feed_mm_min: f64, spec: BallbarSpec) -> Job {
     }
 }
 
-/// The truth's figures of `circle_job` at `feed_mm_min` on the geometrically perfect machine
-/// with drives `axes` (no run: the truth is computed from the parameters).
-fn circle_figures(axes: &[AxisDynamics; 3], feed_mm_min: f64) -> serde_json::Map<String, Value> {
+/// The truth's figures of `test` on the geometrically perfect machine with drives `axes` (no
+/// run: the truth is computed from the parameters).
+fn circle_figures(axes: &[AxisDynamics; 3], test: &CircularTest) -> serde_json::Map<String, Value> {
     let m = machine();
-    let job = circle_job(feed_mm_min, BallbarSpec::default());
+    let job = circle_job(test, BallbarSpec::default());
     let chain = m.volumetric.evaluator(&ThermalDeformation::default());
     let inputs = TruthInputs {
         machine: &m,
@@ -97,7 +102,9 @@ fn circle_figures(axes: &[AxisDynamics; 3], feed_mm_min: f64) -> serde_json::Map
 /// Without a Stribeck peak (static = Coulomb friction) a moving axis stands a constant
 /// `b/2 + F_c/k` behind its encoder plus the viscous lag `σ2 v/k`: the truth's backlash is
 /// `b + 2 F_c/k`, with no viscous share (a lag is no step), and its servo mismatch gains
-/// `σ2,x/k_x − σ2,y/k_y` beside the servos' `1/K_v,x − 1/K_v,y`, whatever the feed.
+/// `σ2,x/k_x − σ2,y/k_y` beside the servos' `1/K_v,x − 1/K_v,y`, whatever the feed. A test
+/// that cannot show them (a 60° arc one way: neither axis reverses) keeps the same lost motion
+/// and the servos' lag alone.
 #[test]
 fn the_drives_lost_motion_is_the_gap_and_coulomb_stretch_and_their_viscous_friction_a_lag() {
     let flat = |a: &mut AxisDynamics, coulomb_n: f64, viscous: f64, k: f64| {
@@ -112,16 +119,25 @@ fn the_drives_lost_motion_is_the_gap_and_coulomb_stretch_and_their_viscous_frict
     flat(&mut x, 40.0, 3000.0, 1.5e8);
     flat(&mut y, 90.0, 800.0, 2.2e8);
     let axes = [x, y, common::axis(180.0, 0.0, 33.0)];
-    for feed in [250.0, 1000.0, 4000.0] {
-        let f = circle_figures(&axes, feed);
+    let (bx, by) = (3.0 + 2.0 * 40.0 / 150.0, 0.5 + 2.0 * 90.0 / 220.0);
+    let servos = 1e3 * (1.0 / 31.0 - 1.0 / 35.0);
+    let viscous = 1e3 * (3000.0 / 1.5e8 - 800.0 / 2.2e8);
+    let one_way = CircularTest {
+        arc_deg: 60.0,
+        start_deg: 20.0,
+        directions: vec![ArcDirection::Ccw],
+        ..circle_test(1000.0)
+    };
+    let tests = [250.0, 1000.0, 4000.0].map(|feed| (circle_test(feed), viscous));
+    for (test, lag) in tests.into_iter().chain([(one_way, 0.0)]) {
+        let f = circle_figures(&axes, &test);
         let get = |k: &str| f[k].as_f64().unwrap();
-        let (bx, by) = (3.0 + 2.0 * 40.0 / 150.0, 0.5 + 2.0 * 90.0 / 220.0);
-        assert!((get("backlash_x") - bx).abs() < 1e-9, "{feed}: {f:?}");
-        assert!((get("backlash_y") - by).abs() < 1e-9, "{feed}: {f:?}");
-        let ms = 1e3 * (1.0 / 31.0 - 1.0 / 35.0 + 3000.0 / 1.5e8 - 800.0 / 2.2e8);
+        assert!((get("backlash_x") - bx).abs() < 1e-9, "{test:?}: {f:?}");
+        assert!((get("backlash_y") - by).abs() < 1e-9, "{test:?}: {f:?}");
+        let ms = servos + lag;
         assert!(
             (get("servo_mismatch_xy") - ms).abs() < 1e-9,
-            "{feed}: {f:?}"
+            "{test:?}: {f:?}"
         );
     }
 }
