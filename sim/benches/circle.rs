@@ -10,7 +10,8 @@
 //!
 //! Measured 24 November 2026 on the idle 2-core machine: reduced 513–574× real time (about
 //! 235 ns per servo tick; 445× with two plant steps per period), multibody 119–125×; peak RSS
-//! 68 MB. Where a reduced tick goes (perf): the drive step 29 % (two LuGre contacts per axis,
+//! 68 MB, 48 MB since the servo log is allocated for the settling wait too (reduced 589×, 25
+//! November, another machine, where it had measured 564× before). Where a reduced tick goes (perf): the drive step 29 % (two LuGre contacts per axis,
 //! each one division and one or two inline `exp`; the three axes stage by stage, see
 //! `Drive::step_all`), the interpolator 27 % (libm's `sincos` of the arc 9 %), the per-tick
 //! bookkeeping of `simulate` 13 %, the controllers 10 %, the error chain at the sample rate 5 %.

@@ -1006,8 +1006,10 @@ impl Closing {
 }
 
 impl Recorder {
-    /// `block_times` as [`Interpolator::block_times`] gives them; `ticks` servo ticks to come
-    /// (the log is allocated for them at once, or for one block when `blocks`).
+    /// `block_times` as [`Interpolator::block_times`] gives them; `ticks` servo ticks of the
+    /// program to come (the log is allocated at once for them and the longest wait for the axes
+    /// to settle after them, [`SETTLE_LIMIT_S`], so that it never grows by doubling at the end; or
+    /// for one block when `blocks`).
     fn new(
         job: &Job,
         settings: &SimSettings,
@@ -1041,7 +1043,8 @@ impl Recorder {
             let seed = settings.seed.wrapping_add(0x006c_6173_6572);
             Laser::new(l, block_times, period, seed)
         });
-        let logged = ticks.div_ceil(log_every);
+        let settle = (SETTLE_LIMIT_S / period).ceil() as usize + 1;
+        let logged = (ticks + settle).div_ceil(log_every);
         let rows = if blocks {
             logged.min(LOG_BLOCK_ROWS)
         } else {
