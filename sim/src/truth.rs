@@ -705,10 +705,8 @@ fn drive_share(
             _ => true,
         })
         .collect();
-    let sub = nalgebra::DMatrix::from_fn(fitted.len(), fitted.len(), |i, j| {
-        normal[(fitted[i], fitted[j])]
-    });
-    let sub_rhs = nalgebra::DVector::from_fn(fitted.len(), |i, _| rhs[fitted[i]]);
+    let sub = normal.select_rows(&fitted).select_columns(&fitted);
+    let sub_rhs = rhs.select_rows(&fitted);
     let x = sub.cholesky().map(|c| c.solve(&sub_rhs));
     let coef = |c: usize| {
         let i = fitted.iter().position(|&f| f == c)?;
