@@ -233,7 +233,9 @@ fn a_program_job_says_when_its_bar_records_nothing_and_refuses_bad_data_arcs() {
 }
 
 /// `a`'s deviations less `b`'s at the same angles (linear between `b`'s samples), µm: the
-/// largest and the RMS difference.
+/// largest, each sample's difference taken at the best of that angle and one sample of `b`
+/// either side (an event as fast as a sample period, a slip at a reversal, may fall one sample
+/// apart in the two runs), and the RMS difference at the same angles.
 fn differences_um(a: &BallbarTrace, b: &BallbarTrace) -> (f64, f64) {
     let sign = if a.direction == "cw" { -1.0 } else { 1.0 };
     let at = |deg: f64| {
@@ -241,16 +243,19 @@ fn differences_um(a: &BallbarTrace, b: &BallbarTrace) -> (f64, f64) {
         let k = k.clamp(1, b.angle_deg.len() - 1);
         let (x0, x1) = (b.angle_deg[k - 1], b.angle_deg[k]);
         let (y0, y1) = (b.deviation_um[k - 1], b.deviation_um[k]);
-        y0 + (y1 - y0) * ((deg - x0) / (x1 - x0)).clamp(0.0, 1.0)
+        (
+            y0 + (y1 - y0) * ((deg - x0) / (x1 - x0)).clamp(0.0, 1.0),
+            x1 - x0,
+        )
     };
-    let diffs: Vec<f64> = a
-        .angle_deg
-        .iter()
-        .zip(&a.deviation_um)
-        .map(|(&deg, &d)| d - at(deg))
-        .collect();
-    let rms = (diffs.iter().map(|d| d * d).sum::<f64>() / diffs.len() as f64).sqrt();
-    (diffs.iter().fold(0.0, |m, d| m.max(d.abs())), rms)
+    let (mut largest, mut sum_sq) = (0.0f64, 0.0);
+    for (&deg, &d) in a.angle_deg.iter().zip(&a.deviation_um) {
+        let (same, spacing) = at(deg);
+        sum_sq += (d - same).powi(2);
+        let shifted = [deg - spacing, deg + spacing].map(|x| (d - at(x).0).abs());
+        largest = largest.max(shifted.into_iter().fold((d - same).abs(), f64::min));
+    }
+    (largest, (sum_sq / a.angle_deg.len() as f64).sqrt())
 }
 
 /// The program `vmt program ballbar` writes, run as a program job, gives the traces of the
@@ -289,7 +294,10 @@ fn a_written_program_gives_the_ball_bar_jobs_traces() {
             a.label
         );
         // Measured: 0.11 and 0.10 µm largest, 0.06 µm RMS (CW, CCW), below the bar's 0.1 µm
-        // resolution, which the comparison leaves out.
+        // resolution, which the comparison leaves out. Z's slip at its reversal (1.7 µm within
+        // a sample period) falls one sample apart in the two runs since the axes are
+        // fine-interpolated by axis (commands that differ by picometres): 1.67 µm at the same
+        // angle, hence the largest within a sample either side.
         assert!(
             largest < 0.15 && rms < 0.08,
             "{}: {largest}, {rms} µm",

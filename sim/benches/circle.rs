@@ -11,10 +11,16 @@
 //! Measured 24 November 2026 on the idle 2-core machine: reduced 513–574× real time (about
 //! 235 ns per servo tick; 445× with two plant steps per period), multibody 119–125×; peak RSS
 //! 68 MB, 48 MB since the servo log is allocated for the settling wait too (reduced 589×, 25
-//! November, another machine, where it had measured 564× before). Where a reduced tick goes (perf): the drive step 29 % (two LuGre contacts per axis,
-//! each one division and one or two inline `exp`; the three axes stage by stage, see
-//! `Drive::step_all`), the interpolator 27 % (libm's `sincos` of the arc 9 %), the per-tick
-//! bookkeeping of `simulate` 13 %, the controllers 10 %, the error chain at the sample rate 5 %.
+//! November, another machine, where it had measured 564× before).
+//!
+//! 25 November, since the axes are fine-interpolated between IPO samples where the path allows
+//! (`sim/src/interpolator/mod.rs`, stage 4): reduced 650–683× against 595–602× for the build
+//! before (criterion medians, the two builds alternated), about 190 ns per tick; multibody
+//! 125×. Where a reduced tick goes now (perf): the drive step 28 % (two LuGre contacts per
+//! axis, each one division and one or two inline `exp`; the three axes stage by stage, see
+//! `Drive::step_all`), the per-tick bookkeeping of `simulate` 15 %, the controllers 13 %, the
+//! interpolator 16 % (11 % of it handing over the setpoint; `sincos` 2 %, was 11 %), the error
+//! chain at the sample rate 5 %.
 //! The reduced goal needs about 60 ns per servo tick for everything (README, "Benchmarks").
 
 use criterion::{Criterion, SamplingMode, Throughput, criterion_group, criterion_main};

@@ -11,6 +11,8 @@
 //! average (Peano kernel `6τ(1 − τ)`) of the jerk of the sampled profile, so it never exceeds
 //! `j_max`.
 
+use std::ops::{Add, Div, Mul, Sub};
+
 use super::profile::PathState;
 
 /// Path parameter and speed at every IPO tick.
@@ -41,6 +43,12 @@ impl IpoSamples {
         self.samples.len()
     }
 
+    /// The sample of tick `k`: `s` (m) and `ṡ` (m/s), acceleration 0.
+    pub fn sample(&self, k: usize) -> Option<PathState> {
+        let &[s, v] = self.samples.get(k)?;
+        Some(PathState { s, v, a: 0.0 })
+    }
+
     /// The interpolated state at `τ ∈ [0, 1)` of the interval starting at tick `k`; the sample
     /// itself (acceleration 0) at the last tick.
     pub fn at(&self, k: usize, tau: f64) -> PathState {
@@ -54,22 +62,30 @@ impl IpoSamples {
                 a: 0.0,
             };
         };
-        let h = self.period;
-        let delta = s1 - s0;
-        let (t2, t3) = (tau * tau, tau * tau * tau);
-        PathState {
-            s: s0
-                + (3.0 * t2 - 2.0 * t3) * delta
-                + (tau - 2.0 * t2 + t3) * h * v0
-                + (t3 - t2) * h * v1,
-            v: ((6.0 * tau - 6.0 * t2) * delta
-                + (1.0 - 4.0 * tau + 3.0 * t2) * h * v0
-                + (3.0 * t2 - 2.0 * tau) * h * v1)
-                / h,
-            a: ((6.0 - 12.0 * tau) * delta
-                + (6.0 * tau - 4.0) * h * v0
-                + (6.0 * tau - 2.0) * h * v1)
-                / (h * h),
-        }
+        let [s, v, a] = hermite(tau, self.period, s0, v0, s1, v1);
+        PathState { s, v, a }
     }
+}
+
+/// The cubic Hermite polynomial of the module doc through `(x₀, ẋ₀)` at `τ = 0` and `(x₁, ẋ₁)`
+/// at `τ = 1` of an interval of `h` seconds: its value, rate and second rate at `τ` (`x₀` and
+/// `ẋ₀` exactly at `τ = 0`). For the path parameter and for the axes' positions alike.
+#[inline]
+pub(crate) fn hermite<T>(tau: f64, h: f64, x0: T, v0: T, x1: T, v1: T) -> [T; 3]
+where
+    T: Copy + Add<Output = T> + Sub<Output = T> + Mul<f64, Output = T> + Div<f64, Output = T>,
+{
+    let delta = x1 - x0;
+    let (t2, t3) = (tau * tau, tau * tau * tau);
+    [
+        x0 + delta * (3.0 * t2 - 2.0 * t3)
+            + v0 * ((tau - 2.0 * t2 + t3) * h)
+            + v1 * ((t3 - t2) * h),
+        (delta * (6.0 * tau - 6.0 * t2)
+            + v0 * ((1.0 - 4.0 * tau + 3.0 * t2) * h)
+            + v1 * ((3.0 * t2 - 2.0 * tau) * h))
+            / h,
+        (delta * (6.0 - 12.0 * tau) + v0 * ((6.0 * tau - 4.0) * h) + v1 * ((6.0 * tau - 2.0) * h))
+            / (h * h),
+    ]
 }

@@ -291,6 +291,22 @@ impl Geometry {
         }
     }
 
+    /// Bounds on `|p⁽ᵏ⁾(s)|`, the 2nd, 3rd and 4th derivatives of the position by path length
+    /// over the segment, 1/m, 1/m², 1/m³. Zero on a line. On a helix `p = c + r(σ)·e(θ) + n·h·σ`
+    /// (`σ = s/L`, `r = r₀ + Δr·σ`, `θ = θ₀ + φσ`, angle rate `ω = |φ|/L`), Leibniz' rule with
+    /// `r″ = 0` and `|e⁽ʲ⁾| = 1` gives `|p⁽ᵏ⁾| ≤ r_max ω^k + k (|Δr|/L) ω^(k−1)`.
+    pub fn derivative_bounds(&self) -> [f64; 3] {
+        match self {
+            Geometry::Line(_) => [0.0; 3],
+            Geometry::Helix(helix) => {
+                let omega = helix.sweep.abs() / helix.length;
+                let growth = helix.radius_change.abs() / helix.length;
+                let r = helix.max_radius();
+                [2, 3, 4].map(|k| r * omega.powi(k) + f64::from(k) * growth * omega.powi(k - 1))
+            }
+        }
+    }
+
     /// Unit tangent at the start.
     pub fn start_tangent(&self) -> Vector3<f64> {
         self.point(0.0).tangent.normalize()
