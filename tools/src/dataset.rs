@@ -670,6 +670,7 @@ fn key_unit(key: &str) -> Option<String> {
             "k" => "K",
             "s" => "s",
             "ms" => "ms",
+            "ppm" => "ppm",
             "us" => "µs",
             "min" => "min",
             _ => return None,
@@ -699,17 +700,19 @@ fn key_unit(key: &str) -> Option<String> {
     }
 }
 
-/// The unit of ground-truth figure `key` (as sim's `truth::test_figures` computes them).
-fn truth_unit(key: &str) -> &'static str {
-    if key.starts_with("scale_mismatch") {
+/// The manifest's column of ground-truth figure `key` (as sim's `truth::test_figures` computes
+/// them): `truth.<key>_<unit>`, the unit in the scenario's tokens (`um`, `ppm`, `um_per_m`, `ms`).
+fn truth_column(key: &str) -> String {
+    let unit = if key.starts_with("scale_mismatch") {
         "ppm"
     } else if key.starts_with("squareness") {
-        "µm/m"
+        "um_per_m"
     } else if key.starts_with("servo_mismatch") {
         "ms"
     } else {
-        "µm"
-    }
+        "um"
+    };
+    format!("truth.{key}_{unit}")
 }
 
 /// The Parquet key-value metadata: `unit.<column>` for every column of a known unit and
@@ -810,15 +813,13 @@ fn manifest(dir: &Path) -> Result<Manifest, CliError> {
         .and_then(|l| l["keys"].as_object().cloned())
         .unwrap_or_default();
     let mut metadata = column_metadata(&names, &keys);
+    let truth_columns: Vec<String> = truths.iter().map(|k| truth_column(k)).collect();
     metadata.extend(
-        truths
+        truth_columns
             .iter()
-            .map(|k| (format!("unit.truth.{k}"), truth_unit(k).to_string())),
+            .filter_map(|c| Some((format!("unit.{c}"), key_unit(c)?))),
     );
-    let numbers = names
-        .into_iter()
-        .chain(truths.into_iter().map(|k| format!("truth.{k}")))
-        .collect();
+    let numbers = names.into_iter().chain(truth_columns).collect();
     Ok(Manifest {
         numbers,
         rows,
@@ -1083,6 +1084,10 @@ mod tests {
             ("instruments.ballbar.bar_alpha_per_k", Some("1/K")),
             ("machine.axes.x.drive.encoder_counts_per_rev", None),
             ("machine.errors.squareness.ec0y_urad", Some("µrad")),
+            ("truth.backlash_x_um", Some("µm")),
+            ("truth.scale_mismatch_xy_ppm", Some("ppm")),
+            ("truth.squareness_xy_um_per_m", Some("µm/m")),
+            ("truth.servo_mismatch_xy_ms", Some("ms")),
         ] {
             assert_eq!(key_unit(key).as_deref(), unit, "{key}");
         }

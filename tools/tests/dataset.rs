@@ -78,8 +78,8 @@ fn same_seed_gives_identical_files_with_one_and_two_threads_and_resumes() {
         "id,seed,",
         "machine.axes.x.drive.backlash_um",
         "scale_x",
-        "truth.backlash_x",
-        "truth.servo_mismatch_xy",
+        "truth.backlash_x_um",
+        "truth.servo_mismatch_xy_ms",
     ] {
         assert!(header.contains(column), "{column} not in {header}");
     }
@@ -173,10 +173,10 @@ print(json.dumps({"columns": t.column_names, "types": [str(f.type) for f in t.sc
             "keys.scale_x",
             r#"["machine.errors.x.forward.EXX_um[1]","machine.errors.x.backward.EXX_um[1]"]"#,
         ),
-        ("unit.truth.backlash_x", "µm"),
-        ("unit.truth.scale_mismatch_xy", "ppm"),
-        ("unit.truth.servo_mismatch_xy", "ms"),
-        ("unit.truth.squareness_xy", "µm/m"),
+        ("unit.truth.backlash_x_um", "µm"),
+        ("unit.truth.scale_mismatch_xy_ppm", "ppm"),
+        ("unit.truth.servo_mismatch_xy_ms", "ms"),
+        ("unit.truth.squareness_xy_um_per_m", "µm/m"),
     ] {
         assert_eq!(meta[key], value, "{key} in {meta}");
     }
