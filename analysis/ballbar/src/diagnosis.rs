@@ -263,6 +263,26 @@ pub fn settled(t: &Trace) -> Trace {
     s
 }
 
+/// Leaves the reversal spikes of trace `t` out of the fit of `s`: the groups holding a sample
+/// from an axis' reversal to [`features::SPIKE_ZONE_DEG`] of travel after it. A spike follows
+/// its reversal in either sense, so the difference of the CW and CCW runs holds it as a short
+/// step at the turn, of the sign of the backlash signature there. Fitted, the 1.8 µm spikes
+/// of 40 ms of the built-in machine at 2000 mm/min on 100 mm (noise-free) read as 0.08 µm more
+/// backlash on both axes, 0.07–0.08 µm of closing error and 0.10–0.14 µm of lateral play; with
+/// 2° to 5° left out the backlash is within 0.005 µm of the truth, the closing errors within
+/// 0.025 µm and the lateral plays 0.06–0.09 µm. The steps, the take-up and the spikes
+/// themselves are read from the residual, which keeps every sample.
+fn leave_out_spikes(s: &mut Samples, t: &Trace, reversals: &[Vec<usize>; 2]) {
+    for &first in reversals.iter().flatten() {
+        let turn = t.angle_deg[first];
+        let end = t.angle_deg[first..]
+            .iter()
+            .position(|a| (a - turn).abs() >= features::SPIKE_ZONE_DEG)
+            .map_or(t.angle_deg.len(), |k| first + k);
+        s.leave_out(first..end);
+    }
+}
+
 /// The findings of one pass (ranked), the residual's RMS and the noise (µm).
 type Pass = (Vec<Finding>, f64, f64);
 
@@ -288,12 +308,15 @@ fn diagnose_once(
     let traces = test.traces;
     let refs: Vec<&Trace> = traces.iter().collect();
     let plane = traces[0].plane;
-    let samples: Vec<Samples> = traces
+    let mut samples: Vec<Samples> = traces
         .iter()
         .zip(test.places)
         .zip(deviation)
         .map(|((t, p), d)| Samples::new(t, p, d))
         .collect();
+    for ((s, t), reversals) in samples.iter_mut().zip(traces).zip(test.reversals) {
+        leave_out_spikes(s, t, reversals);
+    }
     let terms = Terms::for_test(&refs);
     let take_up::TakeUp {
         fit,

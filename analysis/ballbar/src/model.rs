@@ -8,10 +8,11 @@
 //! ```
 //!
 //! with s the progress over the whole test (time when the traces carry it), so that a drift of
-//! the pivot or the bar is one continuous law across the CW and CCW runs. Samples are averaged in
-//! groups (see [`crate::samples`]) and the groups weighted by their size, which is the
-//! generalised least-squares estimate for white sample noise; the covariance of the estimate is
-//! `σ̂² (AᵀWA)⁻¹` with `σ̂² = Σ w r² / (n_groups − n_terms)`.
+//! the pivot or the bar is one continuous law across the CW and CCW runs. Samples are averaged
+//! in groups (see [`crate::samples`]; the groups of the start and end transients, and in a
+//! diagnosis those of the reversal spikes, are left out) and the groups weighted by their size,
+//! which is the generalised least-squares estimate for white sample noise; the covariance of the
+//! estimate is `σ̂² (AᵀWA)⁻¹` with `σ̂² = Σ w r² / (n_groups − n_terms)`.
 //!
 //! A term enters only where the test can tell it from the others (see [`Terms::for_test`]):
 //! backlash needs a reversal of its axis inside the arc or both senses, lateral play a reversal

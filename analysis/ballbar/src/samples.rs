@@ -165,7 +165,20 @@ impl Samples<'_> {
             .max(TRANSIENT_MIN_DEG)
     }
 
-    /// The groups without those within [`Samples::transient_deg`] of either end.
+    /// Leaves out of the fit every group that holds a sample of `range` (sample indices).
+    pub fn leave_out(&mut self, range: std::ops::Range<usize>) {
+        let end = range.end.min(self.len());
+        if range.start >= end {
+            return;
+        }
+        let groups = range.start / self.group_size..=(end - 1) / self.group_size;
+        for f in &mut self.fitted[groups] {
+            *f = false;
+        }
+    }
+
+    /// The groups without those within [`Samples::transient_deg`] of either end and those left
+    /// out ([`Samples::leave_out`]: the diagnosis leaves out the reversal spikes).
     pub fn fit_groups(&self) -> impl Iterator<Item = &(Point, f64, usize)> + '_ {
         self.groups
             .iter()
@@ -399,6 +412,38 @@ mod tests {
         #[test]
         fn blocks_of_close_angles_match_sin_cos(start in -360.0..0.0f64, step in 1e-3..0.02f64, n in 2usize..5000) {
             check_trig(start, step, n)?;
+        }
+    }
+
+    proptest! {
+        /// [`Samples::leave_out`] takes out of the fit exactly the groups that hold a sample of
+        /// its range (clipped to the trace) and leaves the others as they were.
+        #[test]
+        fn leave_out_takes_exactly_the_groups_of_its_range(
+            n in 300usize..5000,
+            start in 0usize..6000,
+            len in 0usize..800,
+        ) {
+            let angle_deg: Vec<f64> = (0..n).map(|i| i as f64 * 360.0 / n as f64).collect();
+            let t = Trace {
+                label: "t".into(),
+                plane: crate::trace::Plane::Xy,
+                sense: Sense::Ccw,
+                radius_mm: 100.0,
+                feed_mm_min: 1000.0,
+                deviation_um: vec![0.0; n],
+                angle_deg,
+                time_s: None,
+            };
+            let place = Placement::new(&t, vec![0.0; n]);
+            let mut s = Samples::new(&t, &place, &t.deviation_um);
+            let before = s.fitted.clone();
+            s.leave_out(start..start + len);
+            for (g, (&was, &is)) in before.iter().zip(&s.fitted).enumerate() {
+                let held = g * s.group_size..((g + 1) * s.group_size).min(n);
+                let hit = held.start < start + len && start < held.end;
+                prop_assert_eq!(is, was && !hit, "group {}", g);
+            }
         }
     }
 
