@@ -4,7 +4,7 @@
 use crate::laser::{DriveSample, LaserRun, LaserTruth};
 use crate::nc::program::{ArcDirection, Motion, Plane, Program};
 use crate::simulate::{AxisDynamics, BallbarSetup, Job};
-use nalgebra::Vector3;
+use nalgebra::{Matrix2, Vector2, Vector3};
 use serde_json::{Value, json};
 use std::f64::consts::TAU;
 use vmt_model::drive::Feedback;
@@ -367,8 +367,9 @@ fn amplitude_gain(d: &AxisDynamics, omega: f64) -> f64 {
 /// eccentricity, with `d` the drives' static deflection under their constant load (a hanging
 /// Z head sits `m g / k` plus half its gap lower than its encoder says). Backlash and lateral
 /// play of an axis: the change of `δ` along and across the axis when it reverses (backward minus
-/// forward), averaged over the data arcs as the signatures weigh it (see `reversal_change`);
-/// the backlash adds the drive's lost motion along the circle (`drive_share`: the gap and the
+/// forward), averaged over the data arcs as the signatures weigh it (see `reversal_change`),
+/// the across change's growth along the axis its angular play (µrad: a table's yaw backlash
+/// turns it about the plane's normal); the backlash adds the drive's lost motion along the circle (`drive_share`: the gap and the
 /// screw's stretch under the guideway friction, the Stribeck hump at the reversals included).
 /// Servo mismatch: `(1 - k_vff,p)/K_v,p - (1 - k_vff,q)/K_v,q` (ms) plus the drives' apparent
 /// lag difference (`drive_share`: `σ2/k` of the viscous friction, less the hump's lead).
@@ -450,11 +451,14 @@ pub fn test_figures(
         (lag_s(&axes[pa.index()]) - lag_s(&axes[qa.index()]) + share.lag_s) * 1e3 * k,
     );
     for (i, (axis, other)) in [(pa, qa), (qa, pa)].into_iter().enumerate() {
-        let (along, across) = reversal_change(inputs, chain, b, (axis, other), &arcs, base);
+        let change = reversal_change(inputs, chain, b, (axis, other), &arcs, base);
         let drive = share.lost_motion_m[i] * 1e6;
         let l = axis.to_string().to_lowercase();
-        put(format!("backlash_{l}"), (drive + along) * k);
-        put(format!("lateral_play_{l}"), across * k);
+        put(format!("backlash_{l}"), (drive + change.along_um) * k);
+        put(format!("lateral_play_{l}"), change.across_um * k);
+        // The bar reads the in-plane position along the axis times k, and the play across it
+        // times k again.
+        put(format!("angular_play_{l}"), change.angular_urad * k * k);
         put(
             format!("cyclic_{l}"),
             cyclic_seen_m(&axes[axis.index()].drive) * 1e6 * k,
@@ -726,15 +730,50 @@ fn drive_share(
     }
 }
 
+/// What changes when an axis reverses: along it and across it (µm), and how much those changes
+/// grow across and along the axis (µrad, summed: the bar reads both as one angular play).
+struct ReversalChange {
+    along_um: f64,
+    across_um: f64,
+    angular_urad: f64,
+}
+
+/// A weighted least-squares line `c ≈ c₀ + g·x` through points `(x, c)`.
+#[derive(Default)]
+struct Line {
+    ata: Matrix2<f64>,
+    aty: Vector2<f64>,
+}
+
+impl Line {
+    fn add(&mut self, w: f64, x: f64, c: f64) {
+        let row = Vector2::new(1.0, x);
+        self.ata += w * row * row.transpose();
+        self.aty += w * c * row;
+    }
+
+    /// `(c₀, g)`; without spread in `x`, the weighted mean and no slope.
+    fn fit(&self) -> (f64, f64) {
+        match self.ata.lu().solve(&self.aty) {
+            Some(v) => (v[0], v[1]),
+            None => (self.aty[0] / self.ata[(0, 0)], 0.0),
+        }
+    }
+}
+
 /// The change of the tool-point error when `axis` reverses (backward minus forward), along it
-/// and along `other`, µm, averaged over the data arcs `arcs` (start angle, signed sweep, rad)
-/// and the directions of `other`, the third axis in its direction of `base`. Each point
-/// weighs as the signature's least squares weigh it: the change along `axis` (the backlash,
-/// `± cos θ` from the axis) by the square of the axis' share of the radius, the change along
-/// `other` (the lateral play, `± |sin θ|`) by the square of `other`'s share. On a full circle
-/// a change that is linear in the position averages to its value at the two reversal points;
-/// on a half circle over the top the Z backlash weighs most at the top, Z's lateral play at
-/// the arc's ends.
+/// and along `other`, averaged over the data arcs `arcs` (start angle, signed sweep, rad) and
+/// the directions of `other`, the third axis in its direction of `base`. Each point weighs as
+/// the signature's least squares weigh it: the change along `axis` (the backlash, `± cos θ`
+/// from the axis) by the square of the axis' share of the radius, the change along `other`
+/// (the lateral play, `± |sin θ|`) by the square of `other`'s share. On a full circle a change
+/// that is linear in the position averages to its value at the two reversal points; on a half
+/// circle over the top the Z backlash weighs most at the top, Z's lateral play at the arc's
+/// ends. The angular play is the slope of the across change along the axis plus that of the
+/// along change across it, each a weighted least-squares line with the same weights: both
+/// read `σ (εR/2) |sin θ| cos θ` on the bar (for p), so a carriage turning about the plane's
+/// normal shows only where the two differ (a turn about the circle's centre moves nothing
+/// radially).
 fn reversal_change(
     inputs: &TruthInputs,
     chain: &VolumetricEvaluator,
@@ -742,13 +781,14 @@ fn reversal_change(
     (axis, other): (Axis, Axis),
     arcs: &[(f64, f64)],
     base: [Direction; 3],
-) -> (f64, f64) {
+) -> ReversalChange {
     let (pa, qa) = b.plane.axes();
     let (centre, radius) = b.tool_circle();
     let full = [(0.0, TAU)];
     let arcs = if arcs.is_empty() { &full[..] } else { arcs };
     let n = 360;
-    let (mut along, mut across, mut w_along, mut w_across) = (0.0, 0.0, 0.0, 0.0);
+    let (mut along, mut w_along) = (0.0, 0.0);
+    let (mut along_line, mut across_line) = (Line::default(), Line::default());
     for &(start, sweep) in arcs {
         for j in 0..=n {
             let th = start + sweep * j as f64 / n as f64;
@@ -762,11 +802,20 @@ fn reversal_change(
                 change += 0.5 * (at(Direction::Backward) - at(Direction::Forward));
             }
             let (wa, wc) = (radial[axis.index()].powi(2), radial[other.index()].powi(2));
+            let (x_along, x_across) = (
+                radius * radial[axis.index()],
+                radius * radial[other.index()],
+            );
             along += wa * change[axis.index()];
-            across += wc * change[other.index()];
             w_along += wa;
-            w_across += wc;
+            along_line.add(wa, x_across, change[axis.index()]);
+            across_line.add(wc, x_along, change[other.index()]);
         }
     }
-    (along / w_along * 1e6, across / w_across * 1e6)
+    let (across, turn_across) = across_line.fit();
+    ReversalChange {
+        along_um: along / w_along * 1e6,
+        across_um: across * 1e6,
+        angular_urad: (turn_across + along_line.fit().1) * 1e6,
+    }
 }

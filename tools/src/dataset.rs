@@ -49,14 +49,16 @@ pub const FAILED_DIR: &str = "failed-runs";
 const IDS_LISTED: usize = 5;
 /// The identity file of a dataset folder.
 pub const IDENTITY_FILE: &str = "dataset.json";
-/// The version of what `labels.json` holds: 3 since the truth's backlash and servo mismatch
-/// figures are the drives' lost motion and lag along the circle (format 2 counted the guideways'
-/// viscous friction at the test feed as lost motion), 2 since the injected squareness is in
+/// The version of what `labels.json` holds: 4 since the truth states each axis' angular play and
+/// the lateral play of a partial arc is the intercept of a line along the axis (format 3 had
+/// no angular play and the plain weighted mean), 3 since the truth's backlash and servo
+/// mismatch figures are the drives' lost motion and lag along the circle (format 2 counted the
+/// guideways' viscous friction at the test feed as lost motion), 2 since the injected squareness is in
 /// µrad (format 1, without the key in `dataset.json`, wrote it in rad under the same keys). Runs
 /// of two formats never share a dataset. A change of a key's meaning or unit bumps it; keys
 /// only added (as the laser truth's drive share at rest was) do not, since no value read before
 /// changes.
-pub const LABELS_FORMAT: u64 = 3;
+pub const LABELS_FORMAT: u64 = 4;
 
 /// What `vmt dataset` is asked for.
 pub struct Request<'a> {
@@ -198,8 +200,9 @@ fn claim(out: &Path, want: &Identity) -> Result<(), CliError> {
             }
             if have.labels_format != want.labels_format {
                 let which = if have.labels_format < want.labels_format {
-                    "an older vmt's: format 2 counted the viscous friction as backlash, format \
-                     1 or unknown also wrote the injected squareness in rad"
+                    "an older vmt's: format 3 had no angular play, format 2 also counted the \
+                     viscous friction as backlash, format 1 or unknown also wrote the injected \
+                     squareness in rad"
                 } else {
                     "a newer vmt's"
                 };
@@ -701,7 +704,8 @@ fn key_unit(key: &str) -> Option<String> {
 }
 
 /// The manifest's column of ground-truth figure `key` (as sim's `truth::test_figures` computes
-/// them): `truth.<key>_<unit>`, the unit in the scenario's tokens (`um`, `ppm`, `um_per_m`, `ms`).
+/// them): `truth.<key>_<unit>`, the unit in the scenario's tokens (`um`, `ppm`, `um_per_m`, `ms`,
+/// `urad`).
 fn truth_column(key: &str) -> String {
     let unit = if key.starts_with("scale_mismatch") {
         "ppm"
@@ -709,6 +713,8 @@ fn truth_column(key: &str) -> String {
         "um_per_m"
     } else if key.starts_with("servo_mismatch") {
         "ms"
+    } else if key.starts_with("angular_play") {
+        "urad"
     } else {
         "um"
     };

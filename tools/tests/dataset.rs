@@ -406,7 +406,7 @@ fn a_folder_of_another_seed_scenario_or_smaller_count_is_refused() {
     // Runs in labels format 1 (an older vmt: dataset.json without the key, or no dataset.json)
     // are never mixed with this vmt's.
     let identity: Value = serde_json::from_slice(&bytes(&out, "dataset.json")).unwrap();
-    assert_eq!(identity["labels_format"], 3);
+    assert_eq!(identity["labels_format"], 4);
     let mut old = identity.clone();
     old.as_object_mut().unwrap().remove("labels_format");
     std::fs::write(out.join("dataset.json"), old.to_string()).unwrap();
@@ -415,7 +415,7 @@ fn a_folder_of_another_seed_scenario_or_smaller_count_is_refused() {
         &[
             &folder,
             "labels in format 1 (an older vmt's",
-            "writes format 3",
+            "writes format 4",
             "new --out",
         ],
     );

@@ -562,6 +562,15 @@ fn describe(term: Term, plane: Plane) -> Option<(String, String, &'static str)> 
             format!("Lateral play {} (across {})", ax(i), ax(1 - i)),
             "µm",
         ),
+        Term::AngularPlay(i) => (
+            format!("angular_play_{}", lower(ax(i))),
+            format!(
+                "Angular play {} (turns about {} as it reverses)",
+                ax(i),
+                plane_normal(plane)
+            ),
+            "µrad",
+        ),
         Term::Straightness(i) => (
             format!("straightness_{}", lower(ax(i))),
             format!(
@@ -573,6 +582,15 @@ fn describe(term: Term, plane: Plane) -> Option<(String, String, &'static str)> 
         ),
         Term::RadialDrift | Term::PivotDrift(_) => return None,
     })
+}
+
+/// The axis normal to a plane.
+const fn plane_normal(plane: Plane) -> char {
+    match plane {
+        Plane::Xy => 'Z',
+        Plane::Zx => 'Y',
+        Plane::Yz => 'X',
+    }
 }
 
 /// The ISO 230-1 name of the squareness a plane's test measures.

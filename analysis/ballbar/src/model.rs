@@ -15,8 +15,8 @@
 //! estimate is `σ̂² (AᵀWA)⁻¹` with `σ̂² = Σ w r² / (n_groups − n_terms)`.
 //!
 //! A term enters only where the test can tell it from the others (see [`Terms::for_test`]):
-//! backlash needs a reversal of its axis inside the arc or both senses, lateral play a reversal
-//! in both senses, servo mismatch both senses, drift full circles; on a half circle or less
+//! backlash needs a reversal of its axis inside the arc or both senses, lateral and angular
+//! play a reversal in both senses, servo mismatch both senses, drift full circles; on a half circle or less
 //! the terms that the axes' unfitted bows move most are fitted but not reported
 //! ([`Terms::unresolved`]).
 
@@ -47,16 +47,19 @@ pub enum Term {
     Backlash(usize),
     /// Lateral play of p (0) or q (1), µm.
     LateralPlay(usize),
+    /// Angular play of p (0) or q (1) about the plane's normal, µrad.
+    AngularPlay(usize),
     /// Straightness (bow over the diameter) of p (0) or q (1), µm.
     Straightness(usize),
 }
 
 /// Number of shape functions of [`Compiled`].
-pub const SHAPES: usize = 15;
+pub const SHAPES: usize = 17;
 
-/// The model as weights of 15 shape functions of a sample, so that the deviation of a sample
+/// The model as weights of 17 shape functions of a sample, so that the deviation of a sample
 /// is one dot product:
-/// `[1, c, s, c²−s², sc, σ sgn(s) c, σ sgn(c) s, σ|s|, σ|c|, c²s, s²c, u, u c, u s, σ sc]`
+/// `[1, c, s, c²−s², sc, σ sgn(s) c, σ sgn(c) s, σ|s|, σ|c|, c²s, s²c, u, u c, u s, σ sc,
+/// σ|s|c, σ|c|s]`
 /// with c = cos θ, s = sin θ, σ the sense and u the progress. [`Term::basis`] is the reference;
 /// a test checks that both agree.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -80,7 +83,11 @@ impl Compiled {
         out: &mut [f64],
     ) {
         let w = &self.w;
-        let (k4, ps, pc) = (w[4] + g * w[14], [g * w[5], g * w[7]], [g * w[8], g * w[6]]);
+        let k4 = w[4] + g * w[14];
+        let (ps, pc) = (
+            [g * w[5], g * w[7], g * w[15]],
+            [g * w[8], g * w[6], g * w[16]],
+        );
         let n = out.len();
         let (cos, sin, progress, deviation) =
             (&cos[..n], &sin[..n], &progress[..n], &deviation[..n]);
@@ -92,8 +99,8 @@ impl Compiled {
                 + w[2] * s
                 + w[3] * (c * c - s * s)
                 + sc * (k4 + w[9] * c + w[10] * s)
-                + signed(s, ps[0] * c + ps[1] * s)
-                + signed(c, pc[0] * c + pc[1] * s)
+                + signed(s, ps[0] * c + ps[1] * s + ps[2] * sc)
+                + signed(c, pc[0] * c + pc[1] * s + pc[2] * sc)
                 + u * (w[11] + w[12] * c + w[13] * s);
             out[i] = deviation[i] - model;
         }
@@ -130,6 +137,8 @@ pub fn shapes(pt: &Point) -> [f64; SHAPES] {
         u * c,
         u * s,
         g * s * c,
+        g * s.abs() * c,
+        g * c.abs() * s,
     ]
 }
 
@@ -143,6 +152,7 @@ impl Term {
             Term::Squareness => (4, signatures::squareness_sign(plane) * radius_um * 1e-6),
             Term::Backlash(i) => (5 + i, if i == 0 { 0.5 } else { -0.5 }),
             Term::LateralPlay(i) => (7 + i, if i == 0 { 0.5 } else { -0.5 }),
+            Term::AngularPlay(i) => (15 + i, [0.5, -0.5][i] * radius_um * 1e-6),
             Term::Straightness(i) => (9 + i, -1.0),
             Term::RadialDrift => (11, 1.0),
             Term::PivotDrift(i) => (12 + i, -1.0),
@@ -164,6 +174,7 @@ impl Term {
             Term::ServoMismatch => signatures::servo_mismatch(pt),
             Term::Backlash(i) => signatures::backlash(pt)[i],
             Term::LateralPlay(i) => signatures::lateral_play(pt)[i],
+            Term::AngularPlay(i) => signatures::angular_play(pt)[i],
             Term::Straightness(i) => signatures::straightness(pt)[i],
         }
     }
@@ -252,6 +263,11 @@ impl Terms {
             add(Term::Backlash(axis), reverses(axis) || both, NEEDS_REVERSAL);
             add(
                 Term::LateralPlay(axis),
+                both && reverses(axis),
+                NEEDS_REVERSAL_BOTH,
+            );
+            add(
+                Term::AngularPlay(axis),
                 both && reverses(axis),
                 NEEDS_REVERSAL_BOTH,
             );
@@ -507,7 +523,7 @@ mod tests {
     use crate::trace::Sense;
     use proptest::prelude::*;
 
-    const ALL: [Term; 15] = [
+    const ALL: [Term; 17] = [
         Term::Radius,
         Term::Pivot(0),
         Term::Pivot(1),
@@ -521,6 +537,8 @@ mod tests {
         Term::Backlash(1),
         Term::LateralPlay(0),
         Term::LateralPlay(1),
+        Term::AngularPlay(0),
+        Term::AngularPlay(1),
         Term::Straightness(0),
         Term::Straightness(1),
     ];
@@ -567,7 +585,7 @@ mod tests {
         #[test]
         fn compiled_model_equals_the_sum_of_signatures(
             theta in -7.0..7.0f64, u in 0.0..1.0f64, ccw: bool, plane in 0usize..3,
-            values in proptest::collection::vec(-50.0..50.0f64, 15),
+            values in proptest::collection::vec(-50.0..50.0f64, 17),
         ) {
             let plane = Plane::ALL[plane];
             let pt = Point {
@@ -579,7 +597,7 @@ mod tests {
                 plane,
                 terms: ALL.to_vec(),
                 values: values.clone(),
-                std_errors: vec![0.0; 15],
+                std_errors: vec![0.0; 17],
                 sample_sigma_um: 0.0,
             };
             let direct: f64 = ALL.iter().zip(&values).map(|(t, v)| v * t.basis(&pt, plane)).sum();

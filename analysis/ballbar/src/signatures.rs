@@ -22,6 +22,8 @@
 //! | backlash b_q | δq = −(b_q/2) sign v_q | −σ (b_q/2) sign(cos θ) sin θ |
 //! | lateral play l_p (play of p across, flips when p reverses) | δq = −(l_p/2) sign v_p | σ (l_p/2) \|sin θ\| |
 //! | lateral play l_q | δp = −(l_q/2) sign v_q | −σ (l_q/2) \|cos θ\| |
+//! | angular play ε_p (µrad: p's carriage turns about the plane's normal when p reverses) | δq = −(ε_p/2) sign v_p · p | σ (ε_p R/2) \|sin θ\| cos θ |
+//! | angular play ε_q | δp = −(ε_q/2) sign v_q · q | −σ (ε_q R/2) \|cos θ\| sin θ |
 //! | straightness S_p (bow of p towards +q, µm over 2R) | δq = S_p (1 − (p/R)²) | −S_p cos²θ sin θ (+ first harmonic) |
 //! | straightness S_q (bow of q towards +p) | δp = S_q (1 − (q/R)²) | −S_q sin²θ cos θ (+ first harmonic) |
 //! | drift over the test (progress s ∈ [−½, ½], 0 in its middle) | pivot moves by d·s, bar grows by g·s | g s − (d_p cos θ + d_q sin θ) s |
@@ -183,6 +185,15 @@ pub fn lateral_play(pt: &Point) -> [f64; 2] {
     let (s, c) = (pt.sin, pt.cos);
     let sg = pt.sense.sign();
     [0.5 * sg * s.abs(), -0.5 * sg * c.abs()]
+}
+
+/// Δr per µrad of angular play of p and of q: the lateral play growing along the axis, `ε`
+/// times the distance from the circle's centre (a carriage that turns by `ε` about the
+/// plane's normal when it reverses, a table's yaw backlash).
+pub fn angular_play(pt: &Point) -> [f64; 2] {
+    let (s, c) = (pt.sin, pt.cos);
+    let half = 0.5 * pt.sense.sign() * pt.radius_um * 1e-6;
+    [half * s.abs() * c, -half * c.abs() * s]
 }
 
 /// Δr per µm of straightness (bow over the diameter) of p and of q.
