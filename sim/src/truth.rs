@@ -752,12 +752,14 @@ impl Line {
         self.aty += w * c * row;
     }
 
-    /// `(c₀, g)`; without spread in `x`, the weighted mean and no slope.
-    fn fit(&self) -> (f64, f64) {
-        match self.ata.lu().solve(&self.aty) {
-            Some(v) => (v[0], v[1]),
-            None => (self.aty[0] / self.ata[(0, 0)], 0.0),
-        }
+    /// The weighted mean of `c`.
+    fn mean(&self) -> f64 {
+        self.aty[0] / self.ata[(0, 0)]
+    }
+
+    /// The slope `g`; 0 without spread in `x`.
+    fn slope(&self) -> f64 {
+        self.ata.lu().solve(&self.aty).map_or(0.0, |v| v[1])
     }
 }
 
@@ -787,7 +789,6 @@ fn reversal_change(
     let full = [(0.0, TAU)];
     let arcs = if arcs.is_empty() { &full[..] } else { arcs };
     let n = 360;
-    let (mut along, mut w_along) = (0.0, 0.0);
     let (mut along_line, mut across_line) = (Line::default(), Line::default());
     for &(start, sweep) in arcs {
         for j in 0..=n {
@@ -806,16 +807,13 @@ fn reversal_change(
                 radius * radial[axis.index()],
                 radius * radial[other.index()],
             );
-            along += wa * change[axis.index()];
-            w_along += wa;
             along_line.add(wa, x_across, change[axis.index()]);
             across_line.add(wc, x_along, change[other.index()]);
         }
     }
-    let (across, turn_across) = across_line.fit();
     ReversalChange {
-        along_um: along / w_along * 1e6,
-        across_um: across * 1e6,
-        angular_urad: (turn_across + along_line.fit().1) * 1e6,
+        along_um: along_line.mean() * 1e6,
+        across_um: across_line.mean() * 1e6,
+        angular_urad: (across_line.slope() + along_line.slope()) * 1e6,
     }
 }

@@ -49,9 +49,8 @@ pub const FAILED_DIR: &str = "failed-runs";
 const IDS_LISTED: usize = 5;
 /// The identity file of a dataset folder.
 pub const IDENTITY_FILE: &str = "dataset.json";
-/// The version of what `labels.json` holds: 4 since the truth states each axis' angular play and
-/// the lateral play of a partial arc is the intercept of a line along the axis (format 3 had
-/// no angular play and the plain weighted mean), 3 since the truth's backlash and servo
+/// The version of what `labels.json` holds: 4 since the truth states each axis' angular play
+/// (format 3 had none, and a dataset of both would lack it in some runs), 3 since the truth's backlash and servo
 /// mismatch figures are the drives' lost motion and lag along the circle (format 2 counted the
 /// guideways' viscous friction at the test feed as lost motion), 2 since the injected squareness is in
 /// µrad (format 1, without the key in `dataset.json`, wrote it in rad under the same keys). Runs
