@@ -368,9 +368,10 @@ fn amplitude_gain(d: &AxisDynamics, omega: f64) -> f64 {
 /// Z head sits `m g / k` plus half its gap lower than its encoder says). Backlash and lateral
 /// play of an axis: the change of `δ` along and across the axis when it reverses (backward minus
 /// forward), averaged over the data arcs as the signatures weigh it (see `reversal_change`),
-/// the across change's growth along the axis its angular play (µrad: a table's yaw backlash
-/// turns it about the plane's normal); the backlash adds the drive's lost motion along the circle (`drive_share`: the gap and the
-/// screw's stretch under the guideway friction, the Stribeck hump at the reversals included).
+/// the growth of those changes across and along the axis its angular play (µrad: a table's
+/// yaw backlash turns it about the plane's normal); the backlash adds the drive's lost motion
+/// along the circle (`drive_share`: the gap and the screw's stretch under the guideway
+/// friction, the Stribeck hump at the reversals included).
 /// Servo mismatch: `(1 - k_vff,p)/K_v,p - (1 - k_vff,q)/K_v,q` (ms) plus the drives' apparent
 /// lag difference (`drive_share`: `σ2/k` of the viscous friction, less the hump's lead).
 pub fn test_figures(

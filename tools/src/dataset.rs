@@ -50,11 +50,11 @@ const IDS_LISTED: usize = 5;
 /// The identity file of a dataset folder.
 pub const IDENTITY_FILE: &str = "dataset.json";
 /// The version of what `labels.json` holds: 4 since the truth states each axis' angular play
-/// (format 3 had none, and a dataset of both would lack it in some runs), 3 since the truth's backlash and servo
-/// mismatch figures are the drives' lost motion and lag along the circle (format 2 counted the
-/// guideways' viscous friction at the test feed as lost motion), 2 since the injected squareness is in
-/// µrad (format 1, without the key in `dataset.json`, wrote it in rad under the same keys). Runs
-/// of two formats never share a dataset. A change of a key's meaning or unit bumps it; keys
+/// (format 3 had none, and a dataset of both would lack it in some runs), 3 since the truth's
+/// backlash and servo mismatch figures are the drives' lost motion and lag along the circle
+/// (format 2 counted the guideways' viscous friction at the test feed as lost motion), 2 since
+/// the injected squareness is in µrad (format 1, without the key in `dataset.json`, wrote it in
+/// rad under the same keys). Runs of two formats never share a dataset. A change of a key's meaning or unit bumps it; keys
 /// only added (as the laser truth's drive share at rest was) do not, since no value read before
 /// changes.
 pub const LABELS_FORMAT: u64 = 4;

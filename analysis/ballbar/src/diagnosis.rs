@@ -567,7 +567,7 @@ fn describe(term: Term, plane: Plane) -> Option<(String, String, &'static str)> 
             format!(
                 "Angular play {} (turns about {} as it reverses)",
                 ax(i),
-                plane_normal(plane)
+                plane.normal()
             ),
             "µrad",
         ),
@@ -582,15 +582,6 @@ fn describe(term: Term, plane: Plane) -> Option<(String, String, &'static str)> 
         ),
         Term::RadialDrift | Term::PivotDrift(_) => return None,
     })
-}
-
-/// The axis normal to a plane.
-const fn plane_normal(plane: Plane) -> char {
-    match plane {
-        Plane::Xy => 'Z',
-        Plane::Zx => 'Y',
-        Plane::Yz => 'X',
-    }
 }
 
 /// The ISO 230-1 name of the squareness a plane's test measures.

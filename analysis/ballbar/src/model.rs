@@ -16,9 +16,9 @@
 //!
 //! A term enters only where the test can tell it from the others (see [`Terms::for_test`]):
 //! backlash needs a reversal of its axis inside the arc or both senses, lateral play a reversal
-//! in both senses, angular play that on an arc of at least 270°, servo mismatch both senses, drift full circles; on a half circle or less
-//! the terms that the axes' unfitted bows move most are fitted but not reported
-//! ([`Terms::unresolved`]).
+//! in both senses, angular play that on an arc of at least 270°, servo mismatch both senses,
+//! drift full circles; on a half circle or less the terms that the axes' unfitted bows move
+//! most are fitted but not reported ([`Terms::unresolved`]).
 
 use crate::samples::Samples;
 use crate::signatures::{self, Point};
@@ -255,6 +255,7 @@ impl Terms {
         // An axis that does not reverse inside the arc still travels one way in the CW run and
         // the other way in the CCW run: its lost motion is the same law, a shift of the run by
         // ±b/2 along the axis (sign v constant over the arc).
+        const NEEDS_270: &str = "needs an arc of at least 270 deg";
         const NEEDS_REVERSAL: &str =
             "needs a reversal of the axis inside the arc, or a CW and a CCW run";
         const NEEDS_REVERSAL_BOTH: &str =
@@ -270,11 +271,10 @@ impl Terms {
             // backlash by 0.05 µm and read 3 µrad of angular play that was not there).
             let (ok, why) = match (both && reverses(axis), sweep >= STRAIGHTNESS_SWEEP_DEG) {
                 (false, _) => (false, NEEDS_REVERSAL_BOTH),
-                (true, long) => (long, "needs an arc of at least 270 deg"),
+                (true, long) => (long, NEEDS_270),
             };
             add(Term::AngularPlay(axis), ok, why);
         }
-        const NEEDS_270: &str = "needs an arc of at least 270 deg";
         for axis in 0..2 {
             add(
                 Term::Straightness(axis),
@@ -586,20 +586,18 @@ mod tests {
     #[test]
     fn angular_play_needs_an_arc_of_270_degrees() {
         let run = |sense: Sense, sweep: f64| {
-            let n = 3600;
-            let s = sense.sign();
-            Trace {
-                label: "a".into(),
-                plane: Plane::Zx,
+            let none = crate::synthetic::Errors::default();
+            crate::synthetic::trace(
+                Plane::Zx,
                 sense,
-                radius_mm: 100.0,
-                feed_mm_min: 1000.0,
-                angle_deg: (0..n)
-                    .map(|i| -20.0 + s * sweep * i as f64 / (n - 1) as f64)
-                    .collect(),
-                deviation_um: vec![0.0; n],
-                time_s: None,
-            }
+                100.0,
+                1000.0,
+                -20.0,
+                sweep,
+                &none,
+                (0.0, 1.0),
+                1,
+            )
         };
         for (sweep, fitted) in [(360.0, true), (220.0, false)] {
             let (ccw, cw) = (run(Sense::Ccw, sweep), run(Sense::Cw, sweep));

@@ -42,6 +42,15 @@ impl Plane {
         }
     }
 
+    /// The letter of the axis normal to the plane.
+    pub const fn normal(self) -> char {
+        match self {
+            Plane::Xy => 'Z',
+            Plane::Zx => 'Y',
+            Plane::Yz => 'X',
+        }
+    }
+
     /// The plane named `s` (`XY`, `ZX`/`XZ`, `YZ`/`ZY`, any case).
     pub fn parse(s: &str) -> Option<Plane> {
         match s.to_ascii_uppercase().as_str() {

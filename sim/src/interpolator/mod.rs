@@ -641,10 +641,11 @@ mod tests {
     }
 
     /// Per block of `text` run from the origin, its fine-interpolated motion ticks and all its
-    /// motion ticks, after checking every setpoint against the path evaluated at its path state: position within
-    /// [`AXIS_HERMITE_TOLERANCE_M`], velocity and acceleration within Birkhoff and Priver's
-    /// bounds for the cubic Hermite's derivatives (`√3/216 h³` and `h²/12` times max|d⁴p/dt⁴|,
-    /// which the position's `h⁴/384` bounds), the same block and spindle.
+    /// motion ticks, after checking every setpoint against the path evaluated at its path
+    /// state: position within [`AXIS_HERMITE_TOLERANCE_M`], velocity and acceleration within
+    /// Birkhoff and Priver's bounds for the cubic Hermite's derivatives (`√3/216 h³` and
+    /// `h²/12` times max|d⁴p/dt⁴|, which the position's `h⁴/384` bounds), the same block and
+    /// spindle.
     fn compare(text: &str) -> Vec<(usize, usize)> {
         let program = parse(text, Vector3::zeros()).expect("the program parses");
         let ipo = Interpolator::new(&program, &config()).expect("the program plans");
@@ -704,7 +705,8 @@ mod tests {
     fn circles(r: f64, rise: f64, ccw: bool, feed: f64) -> String {
         let (g, back) = if ccw { ("G3", "G2") } else { ("G2", "G3") };
         format!(
-            "G90 G17 G21 F{feed}\nG1 X{r} Y0 Z0\n{g} X{r} Y0 I{} J0\n{back} X{r} Y0 Z{rise} I{} J0\nG1 X0 Y0 Z0\nM30\n",
+            "G90 G17 G21 F{feed}\nG1 X{r} Y0 Z0\n{g} X{r} Y0 I{} J0\n\
+             {back} X{r} Y0 Z{rise} I{} J0\nG1 X0 Y0 Z0\nM30\n",
             -r, -r
         )
     }
