@@ -7,7 +7,7 @@ use crate::traces::{self, CsvSetup};
 use serde_json::{Value, json};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
-use vmt_ballbar::{Diagnosis, Options, Trace, diagnose, kwon, report};
+use vmt_ballbar::{BIAS_DETAIL_PREFIX, Diagnosis, Finding, Options, Trace, diagnose, kwon, report};
 use vmt_sim::run::BallbarTrace;
 
 /// Diagnoses of every test in a file, with the run's ground truth when it has one.
@@ -192,21 +192,31 @@ pub fn text(d: &Diagnosed) -> String {
         s.push_str(&report::text(diag));
         if let Some(fig) = d.ground_truth.as_ref().and_then(|t| truth_figures(t, i)) {
             let _ = writeln!(s, "\nAgainst the run's ground truth");
-            let _ = writeln!(
+            let _ = write!(
                 s,
                 "  {:<26} {:>12} {:>12} {:>10}",
                 "figure", "truth", "diagnosed", "error"
             );
+            let biased = diag.findings.iter().any(|f| {
+                f.details
+                    .iter()
+                    .any(|(k, _)| k.starts_with(BIAS_DETAIL_PREFIX))
+            });
+            let _ = writeln!(s, "{}", if biased { "  left-out bias" } else { "" });
             for (key, v) in fig {
                 let (Some(t), Some(f)) = (v.as_f64(), diag.finding(key)) else {
                     continue;
                 };
-                let _ = writeln!(
+                let _ = write!(
                     s,
                     "  {key:<26} {t:>+12.4} {:>+12.4} {:>+10.4}",
                     f.value,
                     f.value - t
                 );
+                let _ = match left_out_bias(f, fig) {
+                    Some(b) if biased => writeln!(s, "  {b:>+15.4}"),
+                    _ => writeln!(s),
+                };
             }
         }
         s.push('\n');
@@ -215,6 +225,27 @@ pub fn text(d: &Diagnosed) -> String {
         s.push_str(&kwon::text(&k, kwon_truth(d).as_ref()));
     }
     s
+}
+
+/// The bias that the true values of the effects the test leaves out (bows, angular plays:
+/// their truth figures) put on finding `f` by the rates its `bias_per_<unit>_of_<key>`
+/// details state; `None` when it states none or an effect's truth is missing.
+fn left_out_bias(f: &Finding, truth: &serde_json::Map<String, Value>) -> Option<f64> {
+    let rates: Vec<(&str, f64)> = f
+        .details
+        .iter()
+        .filter_map(|(k, rate)| {
+            let (_, key) = k.strip_prefix(BIAS_DETAIL_PREFIX)?.split_once("_of_")?;
+            Some((key, *rate))
+        })
+        .collect();
+    if rates.is_empty() {
+        return None;
+    }
+    rates
+        .into_iter()
+        .map(|(key, rate)| Some(rate * truth.get(key)?.as_f64()?))
+        .sum()
 }
 
 /// Kwon's machine report computed from the run's truth figures, by the same formulas.
@@ -361,4 +392,39 @@ fn figures_text(d: &Diagnosis) -> String {
         let _ = writeln!(s, "{}: {:+.*} {}", f.key, digits, f.value, f.unit);
     }
     s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_left_out_bias_sums_each_stated_rate_times_its_truth() {
+        let f = Finding {
+            key: "squareness_zx".into(),
+            name: "Squareness ZX".into(),
+            value: 11.7,
+            unit: "µm/m",
+            ci95: 0.2,
+            contribution_um: 1.2,
+            threshold: 5.0,
+            present: true,
+            details: vec![
+                ("bias_per_um_of_straightness_z".into(), -6.0),
+                ("bias_per_urad_of_angular_play_x".into(), 0.5),
+                ("take_up_um".into(), 9.0),
+            ],
+        };
+        let truth = json!({"straightness_z": -1.0, "angular_play_x": 2.0, "take_up": 1.0});
+        let truth = truth.as_object().expect("an object");
+        assert_eq!(left_out_bias(&f, truth), Some(6.0 + 1.0));
+        let mut partial = truth.clone();
+        partial.remove("angular_play_x");
+        assert_eq!(left_out_bias(&f, &partial), None);
+        let plain = Finding {
+            details: vec![("take_up_um".into(), 9.0)],
+            ..f
+        };
+        assert_eq!(left_out_bias(&plain, truth), None);
+    }
 }

@@ -10,7 +10,7 @@
 
 use crate::features::{self, Residual};
 use crate::iso230_4::{self, Figures};
-use crate::model::{Fit, FitError, Term, Terms, reversal_angles};
+use crate::model::{self, Fit, FitError, Normal, Term, Terms, reversal_angles};
 use crate::samples::{self, Placement, Samples};
 use crate::signatures::{self, Point};
 use crate::take_up;
@@ -325,7 +325,8 @@ fn diagnose_once(
         at_limit,
     } = take_up::fit(plane, &terms.terms, &samples, test.reversals)?;
     let sample_refs: Vec<&Samples> = samples.iter().collect();
-    let mut findings = fitted_findings(&fit, &sample_refs, &terms.unresolved);
+    let left_out = left_out_effects(plane, &terms, &sample_refs)?;
+    let mut findings = fitted_findings(&fit, &sample_refs, &terms.unresolved, &left_out);
     let residuals: Vec<Residual> = traces
         .iter()
         .zip(&samples)
@@ -593,20 +594,67 @@ pub const fn squareness_iso(plane: Plane) -> &'static str {
     }
 }
 
+/// A machine error that a test leaves out of its fit (a bow or an angular play, on too short an
+/// arc or one direction) and what it would do to the fitted terms.
+struct LeftOut {
+    term: Term,
+    /// Peak-to-valley of one unit of its signature on the test, µm.
+    per_unit: f64,
+    /// How much it moves every fitted term per unit of it ([`Normal::alias`], in the order of
+    /// the fit's terms).
+    alias: Vec<f64>,
+}
+
+/// The bows (straightness) and angular plays that the test leaves out of its fit: unfitted,
+/// they are read as the fitted terms. Over a 220° arc of 100 mm in ZX, 1 µm of Z's bow
+/// moves the squareness by 6.0 µm/m and 1 µm of X's bow the scale mismatch by 11.9 ppm.
+fn left_out_effects(
+    plane: Plane,
+    terms: &Terms,
+    samples: &[&Samples],
+) -> Result<Vec<LeftOut>, FitError> {
+    let left: Vec<Term> = terms
+        .left_out
+        .iter()
+        .map(|(t, _)| *t)
+        .filter(|t| matches!(t, Term::Straightness(_) | Term::AngularPlay(_)))
+        .collect();
+    if left.is_empty() {
+        return Ok(Vec::new());
+    }
+    let normal = Normal::new(plane, &terms.terms, samples)?;
+    let per_unit = model::unit_contributions(plane, &left, samples);
+    Ok(left
+        .into_iter()
+        .zip(per_unit)
+        .map(|(term, per_unit)| LeftOut {
+            term,
+            per_unit,
+            alias: normal.alias(term, samples),
+        })
+        .collect())
+}
+
 /// The findings of the fitted terms, without those the test cannot resolve (`unresolved`,
-/// listed as not computed instead).
+/// listed as not computed instead). A finding that an effect of `left_out` moves by at least
+/// [`BIAS_MIN_SHARE`] of that effect's own signature states by how much, in its unit per unit
+/// of the effect, as the detail `bias_per_<unit>_of_<key>` (`bias_per_um_of_straightness_z`):
+/// a bias of the test, not in its confidence interval, that the effect measured otherwise
+/// corrects.
 fn fitted_findings(
     fit: &Fit,
     samples: &[&Samples],
     unresolved: &[(Term, &'static str)],
+    left_out: &[LeftOut],
 ) -> Vec<Finding> {
     let one_sense = fit.get(Term::ServoMismatch).is_none();
     let unit = fit.unit_contributions(samples);
     fit.terms
         .iter()
         .zip(unit)
-        .filter(|(term, _)| !unresolved.iter().any(|(t, _)| t == *term))
-        .filter_map(|(&term, per_unit)| {
+        .enumerate()
+        .filter(|(_, (term, _))| !unresolved.iter().any(|(t, _)| t == *term))
+        .filter_map(|(index, (&term, per_unit))| {
             let (key, mut name, unit) = describe(term, fit.plane)?;
             let (value, se) = fit.get(term)?;
             let contribution = per_unit * value.abs();
@@ -630,8 +678,33 @@ fn fitted_findings(
                 contribution_um: contribution,
                 threshold,
                 present,
-                details: Vec::new(),
+                details: biases(left_out, index, per_unit, fit.plane),
             })
+        })
+        .collect()
+}
+
+/// The prefix of the details of a finding that state the bias of an effect the test leaves out,
+/// per unit of the effect: `bias_per_<unit>_of_<key>`.
+pub const BIAS_DETAIL_PREFIX: &str = "bias_per_";
+
+/// The least share of a left-out effect's signature (peak to valley) that it must move a
+/// finding's signature by for the finding to state the bias.
+pub const BIAS_MIN_SHARE: f64 = 0.1;
+
+/// The `bias_per_<unit>_of_<key>` details of the fitted term at `index`, whose unit spans
+/// `per_unit` µm on the test (see [`fitted_findings`]).
+fn biases(left_out: &[LeftOut], index: usize, per_unit: f64, plane: Plane) -> Vec<(String, f64)> {
+    left_out
+        .iter()
+        .filter(|l| per_unit * l.alias[index].abs() >= BIAS_MIN_SHARE * l.per_unit)
+        .filter_map(|l| {
+            let (key, _, unit) = describe(l.term, plane)?;
+            let unit = unit.replace('µ', "u");
+            Some((
+                format!("{BIAS_DETAIL_PREFIX}{unit}_of_{key}"),
+                l.alias[index],
+            ))
         })
         .collect()
 }

@@ -2,13 +2,32 @@
 //! ranked by their contribution to the circular deviation, then what could not be determined.
 //! As plain text (terminal), Markdown and JSON.
 
-use crate::diagnosis::{Diagnosis, Finding, MIN_CONTRIBUTION_UM};
+use crate::diagnosis::{BIAS_DETAIL_PREFIX, Diagnosis, Finding, MIN_CONTRIBUTION_UM};
 use std::fmt::Write;
 
 /// The decision rule, printed with every report.
 pub const RULE: &str = "An error is reported present when its signature spans at least 0.5 µm \
 peak to valley on this test and its value is at least 3 standard errors from zero (local shapes: \
 at least 0.5 µm and above their noise floor). ± is the 95 % confidence interval.";
+
+/// What a `bias_per_<unit>_of_<effect>` detail means, printed when a finding states one.
+pub const BIAS_NOTE: &str = "bias_per_<unit>_of_<effect>: what one unit of an effect that \
+this test cannot fit (see above) adds to the value, as the least-squares fit reads it; not in \
+its ± interval. Measured otherwise (a full circle), the effect corrects the value.";
+
+/// [`RULE`], and [`BIAS_NOTE`] when a finding of `d` states a bias.
+fn rules(d: &Diagnosis) -> String {
+    let biased = d.findings.iter().any(|f| {
+        f.details
+            .iter()
+            .any(|(k, _)| k.starts_with(BIAS_DETAIL_PREFIX))
+    });
+    if biased {
+        format!("{RULE} {BIAS_NOTE}")
+    } else {
+        RULE.to_string()
+    }
+}
 
 fn figures_rows(d: &Diagnosis) -> Vec<(String, String)> {
     let mut rows = Vec::new();
@@ -133,8 +152,10 @@ pub fn text(d: &Diagnosis) -> String {
     }
     let _ = writeln!(
         s,
-        "\nResidual {:.3} µm RMS, noise {:.3} µm. * present. {RULE}",
-        d.residual_rms_um, d.noise_um
+        "\nResidual {:.3} µm RMS, noise {:.3} µm. * present. {}",
+        d.residual_rms_um,
+        d.noise_um,
+        rules(d)
     );
     s
 }
@@ -170,17 +191,19 @@ pub fn markdown(d: &Diagnosis) -> String {
     }
     let _ = writeln!(
         s,
-        "\nResidual {:.3} µm RMS, noise {:.3} µm. Threshold {MIN_CONTRIBUTION_UM} µm. {RULE}",
-        d.residual_rms_um, d.noise_um
+        "\nResidual {:.3} µm RMS, noise {:.3} µm. Threshold {MIN_CONTRIBUTION_UM} µm. {}",
+        d.residual_rms_um,
+        d.noise_um,
+        rules(d)
     );
     s
 }
 
-/// JSON (the [`Diagnosis`] with the decision rule).
+/// JSON (the [`Diagnosis`] with the decision rule, and [`BIAS_NOTE`] when it applies).
 pub fn json(d: &Diagnosis) -> serde_json::Value {
     let mut v = serde_json::to_value(d).unwrap_or(serde_json::Value::Null);
     if let Some(o) = v.as_object_mut() {
-        o.insert("decision_rule".into(), RULE.into());
+        o.insert("decision_rule".into(), rules(d).into());
     }
     v
 }

@@ -440,6 +440,82 @@ fn partial_arcs_give_what_they_define_and_say_what_they_cannot() {
     check(&d, "backlash_z", 2.5, 0.3, true);
 }
 
+/// A 220° arc in ZX cannot fit the axes' bows: unfitted, a bow is read as squareness, scale
+/// mismatch and eccentricity. The findings it moves state by how much per µm of bow, and with
+/// only bows injected each such figure is the full circle's (which fits the bows and states no
+/// rate) plus those rates times the bows.
+#[test]
+fn a_partial_arc_states_the_bias_of_the_bows_it_cannot_fit() {
+    let e = Errors {
+        straightness_um: [1.5, -2.0], // bows of Z and X
+        ..noisy()
+    };
+    // Symmetric about +Z (0° in ZX), as the simulator places it; the full circle from there.
+    let runs = |sweep: f64| {
+        let run = |sense, start, seed| {
+            common::trace(
+                Plane::Zx,
+                sense,
+                100.0,
+                1000.0,
+                start,
+                sweep,
+                &e,
+                (0.0, 1.0),
+                seed,
+            )
+        };
+        let from = -sweep / 2.0;
+        let traces = vec![run(Sense::Ccw, from, 5), run(Sense::Cw, -from, 6)];
+        let d = diagnose(&traces, &Options::default()).expect("diagnosis");
+        eprintln!("{}", vmt_ballbar::report::text(&d));
+        d
+    };
+    let (arc, full) = (runs(220.0), runs(360.0));
+    let bows = [("straightness_z", 1.5), ("straightness_x", -2.0)];
+    let bias = |key: &str| -> Option<f64> {
+        let f = arc.finding(key)?;
+        let parts: Vec<f64> = bows
+            .iter()
+            .filter_map(|(bow, truth)| {
+                let name = format!("{}um_of_{bow}", vmt_ballbar::BIAS_DETAIL_PREFIX);
+                let rate = f.details.iter().find(|(k, _)| *k == name)?.1;
+                Some(rate * truth)
+            })
+            .collect();
+        (!parts.is_empty()).then(|| parts.iter().sum())
+    };
+    for key in ["squareness_zx", "scale_mismatch_zx", "eccentricity_z"] {
+        let (f, whole) = (arc.finding(key).expect(key), full.finding(key).expect(key));
+        let bias = bias(key).unwrap_or_else(|| panic!("{key} states no bias: {f:?}"));
+        assert!(
+            (f.value - whole.value - bias).abs() <= f.ci95 + whole.ci95 + 0.02 * bias.abs(),
+            "{key}: {} on the arc, {} on the full circle, stated bias {bias}",
+            f.value,
+            whole.value
+        );
+    }
+    // Squareness and scale mismatch are reported present on the arc for the bias alone.
+    for key in ["squareness_zx", "scale_mismatch_zx"] {
+        let (f, whole) = (arc.finding(key).expect(key), full.finding(key).expect(key));
+        assert!(f.present && !whole.present, "{key}: {f:?}, {whole:?}");
+    }
+    // The bows move neither backlash nor servo mismatch enough to be stated.
+    for key in ["backlash_z", "backlash_x", "servo_mismatch_zx"] {
+        assert_eq!(bias(key), None, "{key}");
+    }
+    for f in &full.findings {
+        let stated = f.details.iter().map(|(k, _)| k);
+        assert!(
+            !stated
+                .into_iter()
+                .any(|k| k.starts_with(vmt_ballbar::BIAS_DETAIL_PREFIX)),
+            "{f:?}"
+        );
+    }
+    check(&full, "straightness_z", 1.5, 0.3, true);
+}
+
 /// A test of mismatched traces, a repeated direction or a trace with a NaN is refused with
 /// the offending trace, value and what is accepted.
 #[test]
