@@ -1435,6 +1435,7 @@ fn an_instrument_the_job_does_not_use_is_noted() {
         "iso230_2_x.toml",
         "milling_slot.toml",
         "dataset_xy.toml",
+        "dataset_zx.toml",
     ] {
         let text = std::fs::read_to_string(scenarios().join(name)).unwrap();
         let s = parse(&text, name, Some(&scenarios())).expect("loads");

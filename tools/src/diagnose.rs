@@ -230,7 +230,7 @@ pub fn text(d: &Diagnosed) -> String {
 /// The bias that the true values of the effects the test leaves out (bows, angular plays:
 /// their truth figures) put on finding `f` by the rates its `bias_per_<unit>_of_<key>`
 /// details state; `None` when it states none or an effect's truth is missing.
-fn left_out_bias(f: &Finding, truth: &serde_json::Map<String, Value>) -> Option<f64> {
+pub(crate) fn left_out_bias(f: &Finding, truth: &serde_json::Map<String, Value>) -> Option<f64> {
     let rates: Vec<(&str, f64)> = f
         .details
         .iter()
