@@ -102,7 +102,8 @@ struct Comparison {
 /// test reads the figure once they are known.
 #[derive(Clone, Debug, Serialize)]
 pub struct WithoutLeftOut {
-    /// Runs whose finding states such a bias (the others count with their error as it is).
+    /// Runs whose finding states such a bias, for effects whose truth the run gives (the others
+    /// count with their error as it is).
     pub runs_stating: usize,
     /// Mean error.
     pub bias: f64,

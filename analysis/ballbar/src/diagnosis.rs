@@ -594,8 +594,8 @@ pub const fn squareness_iso(plane: Plane) -> &'static str {
     }
 }
 
-/// A machine error that a test leaves out of its fit (a bow or an angular play, on too short an
-/// arc or one direction) and what it would do to the fitted terms.
+/// An effect that a test leaves out of its fit (a bow, an angular play or a drift of the pivot,
+/// on too short an arc or one direction) and what it would do to the fitted terms.
 struct LeftOut {
     term: Term,
     /// Peak-to-valley of one unit of its signature on the test, µm.
@@ -605,9 +605,11 @@ struct LeftOut {
     alias: Vec<f64>,
 }
 
-/// The bows (straightness) and angular plays that the test leaves out of its fit: unfitted,
-/// they are read as the fitted terms. Over a 220° arc of 100 mm in ZX, 1 µm of Z's bow
-/// moves the squareness by 6.0 µm/m and 1 µm of X's bow the scale mismatch by 11.9 ppm.
+/// The bows (straightness), angular plays and drifts that the test leaves out of its fit:
+/// unfitted, they are read as the fitted terms. Over a 220° arc of 100 mm in ZX, 1 µm of Z's
+/// bow moves the squareness by 6.0 µm/m and 1 µm of X's bow the scale mismatch by 11.9 ppm;
+/// run back and forth over the arc, the progress is the sense times the angle travelled, so
+/// 1 µm of drift over the test moves the lateral plays by about 0.5 µm.
 fn left_out_effects(
     plane: Plane,
     terms: &Terms,
@@ -617,7 +619,15 @@ fn left_out_effects(
         .left_out
         .iter()
         .map(|(t, _)| *t)
-        .filter(|t| matches!(t, Term::Straightness(_) | Term::AngularPlay(_)))
+        .filter(|t| {
+            matches!(
+                t,
+                Term::Straightness(_)
+                    | Term::AngularPlay(_)
+                    | Term::RadialDrift
+                    | Term::PivotDrift(_)
+            )
+        })
         .collect();
     if left.is_empty() {
         return Ok(Vec::new());
@@ -699,7 +709,7 @@ fn biases(left_out: &[LeftOut], index: usize, per_unit: f64, plane: Plane) -> Ve
         .iter()
         .filter(|l| per_unit * l.alias[index].abs() >= BIAS_MIN_SHARE * l.per_unit)
         .filter_map(|l| {
-            let (key, _, unit) = describe(l.term, plane)?;
+            let (key, unit) = effect_key(l.term, plane)?;
             let unit = unit.replace('µ', "u");
             Some((
                 format!("{BIAS_DETAIL_PREFIX}{unit}_of_{key}"),
@@ -707,6 +717,20 @@ fn biases(left_out: &[LeftOut], index: usize, per_unit: f64, plane: Plane) -> Ve
             ))
         })
         .collect()
+}
+
+/// The key and unit of an effect a test may leave out: a finding's, or for the drifts, which
+/// are no finding of their own, `radial_drift` and `pivot_drift_<axis>` (µm over the test).
+fn effect_key(term: Term, plane: Plane) -> Option<(String, &'static str)> {
+    let (p, q) = plane.axes();
+    match term {
+        Term::RadialDrift => Some(("radial_drift".into(), "µm")),
+        Term::PivotDrift(i) => {
+            let axis = if i == 0 { p } else { q };
+            Some((format!("pivot_drift_{}", axis.to_ascii_lowercase()), "µm"))
+        }
+        t => describe(t, plane).map(|(key, _, unit)| (key, unit)),
+    }
 }
 
 /// Closing error of each full trace (Kwon): the drift of the model between its first and last

@@ -12,8 +12,9 @@ at least 0.5 µm and above their noise floor). ± is the 95 % confidence interva
 
 /// What a `bias_per_<unit>_of_<effect>` detail means, printed when a finding states one.
 pub const BIAS_NOTE: &str = "bias_per_<unit>_of_<effect>: what one unit of an effect that \
-this test cannot fit (see above) adds to the value, as the least-squares fit reads it; not in \
-its ± interval. Measured otherwise (a full circle), the effect corrects the value.";
+this test cannot fit (see above; a drift of the pivot is over the whole test) adds to the \
+value, as the least-squares fit reads it; not in its ± interval. Measured otherwise (a full \
+circle), the effect corrects the value.";
 
 /// [`RULE`], and [`BIAS_NOTE`] when a finding of `d` states a bias.
 fn rules(d: &Diagnosis) -> String {

@@ -516,6 +516,61 @@ fn a_partial_arc_states_the_bias_of_the_bows_it_cannot_fit() {
     check(&full, "straightness_z", 1.5, 0.3, true);
 }
 
+/// Run back and forth over a 220° arc, the test's progress is the sense times the angle
+/// travelled, so a pivot drift with time reads as the sense-dependent terms (lateral play
+/// most): the findings it moves state by how much per µm of drift over the test, and with only
+/// a drift injected they read those rates times the drift.
+#[test]
+fn a_partial_arc_states_the_bias_of_a_pivot_drift() {
+    let e = Errors {
+        pivot_drift_um: [1.0, -0.8], // Z, X over the whole test
+        ..noisy()
+    };
+    let arc = |sense, start, progress, seed| {
+        common::trace(
+            Plane::Zx,
+            sense,
+            100.0,
+            1000.0,
+            start,
+            220.0,
+            &e,
+            progress,
+            seed,
+        )
+    };
+    let traces = vec![
+        arc(Sense::Ccw, -110.0, (0.0, 0.5), 7),
+        arc(Sense::Cw, 110.0, (0.5, 1.0), 8),
+    ];
+    let d = diagnose(&traces, &Options::default()).expect("diagnosis");
+    eprintln!("{}", vmt_ballbar::report::text(&d));
+    let drifts = [("pivot_drift_z", 1.0), ("pivot_drift_x", -0.8)];
+    let mut stated = 0;
+    for f in &d.findings {
+        let parts: Vec<f64> = drifts
+            .iter()
+            .filter_map(|(key, drift)| {
+                let name = format!("{}um_of_{key}", vmt_ballbar::BIAS_DETAIL_PREFIX);
+                Some(f.details.iter().find(|(k, _)| *k == name)?.1 * drift)
+            })
+            .collect();
+        if parts.is_empty() || f.unit != "µm" {
+            continue;
+        }
+        stated += 1;
+        let bias: f64 = parts.iter().sum();
+        assert!(
+            (f.value - bias).abs() <= f.ci95 + 0.05 * bias.abs() + 0.01,
+            "{}: diagnosed {} against the stated bias {bias}",
+            f.key,
+            f.value
+        );
+    }
+    assert!(d.finding("lateral_play_x").is_some());
+    assert!(stated >= 2, "{stated} findings state a drift's bias");
+}
+
 /// A test of mismatched traces, a repeated direction or a trace with a NaN is refused with
 /// the offending trace, value and what is accepted.
 #[test]
