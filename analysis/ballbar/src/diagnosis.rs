@@ -594,8 +594,9 @@ pub const fn squareness_iso(plane: Plane) -> &'static str {
     }
 }
 
-/// An effect that a test leaves out of its fit (a bow, an angular play or a drift of the pivot,
-/// on too short an arc or one direction) and what it would do to the fitted terms.
+/// An effect that a test leaves out of its fit (a bow, an angular play or a drift of the pivot
+/// on too short an arc; a servo mismatch or lateral play on one direction) and what it would
+/// do to the fitted terms.
 struct LeftOut {
     term: Term,
     /// Peak-to-valley of one unit of its signature on the test, µm.
@@ -605,30 +606,17 @@ struct LeftOut {
     alias: Vec<f64>,
 }
 
-/// The bows (straightness), angular plays and drifts that the test leaves out of its fit:
-/// unfitted, they are read as the fitted terms. Over a 220° arc of 100 mm in ZX, 1 µm of Z's
-/// bow moves the squareness by 6.0 µm/m and 1 µm of X's bow the scale mismatch by 11.9 ppm;
-/// run back and forth over the arc, the progress is the sense times the angle travelled, so
-/// 1 µm of drift over the test moves the lateral plays by about 0.5 µm.
+/// The effects that the test leaves out of its fit: unfitted, they are read as the fitted
+/// terms. Over a 220° arc of 100 mm in ZX, 1 µm of Z's bow moves the squareness by 6.0 µm/m
+/// and 1 µm of X's bow the scale mismatch by 11.9 ppm; run back and forth over the arc, the
+/// progress is the sense times the angle travelled, so 1 µm of drift over the test moves the
+/// lateral plays by about 0.5 µm; run one way only, a servo mismatch is read as squareness.
 fn left_out_effects(
     plane: Plane,
     terms: &Terms,
     samples: &[&Samples],
 ) -> Result<Vec<LeftOut>, FitError> {
-    let left: Vec<Term> = terms
-        .left_out
-        .iter()
-        .map(|(t, _)| *t)
-        .filter(|t| {
-            matches!(
-                t,
-                Term::Straightness(_)
-                    | Term::AngularPlay(_)
-                    | Term::RadialDrift
-                    | Term::PivotDrift(_)
-            )
-        })
-        .collect();
+    let left: Vec<Term> = terms.left_out.iter().map(|(t, _)| *t).collect();
     if left.is_empty() {
         return Ok(Vec::new());
     }
@@ -707,7 +695,9 @@ pub const BIAS_MIN_SHARE: f64 = 0.1;
 fn biases(left_out: &[LeftOut], index: usize, per_unit: f64, plane: Plane) -> Vec<(String, f64)> {
     left_out
         .iter()
-        .filter(|l| per_unit * l.alias[index].abs() >= BIAS_MIN_SHARE * l.per_unit)
+        .filter(|l| {
+            l.per_unit > 0.0 && per_unit * l.alias[index].abs() >= BIAS_MIN_SHARE * l.per_unit
+        })
         .filter_map(|l| {
             let (key, unit) = effect_key(l.term, plane)?;
             let unit = unit.replace('µ', "u");

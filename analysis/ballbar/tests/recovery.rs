@@ -571,6 +571,48 @@ fn a_partial_arc_states_the_bias_of_a_pivot_drift() {
     assert!(stated >= 2, "{stated} findings state a drift's bias");
 }
 
+/// Run one way only, a servo mismatch has squareness' shape: the squareness finding states
+/// it at `F/R` per ms (111 µm/m per ms at 1000 mm/min on 150 mm), and reads that much of it.
+#[test]
+fn one_direction_states_the_servo_mismatch_read_as_squareness() {
+    let e = Errors {
+        lag_ms: [30.3, 30.0],
+        ..noisy()
+    };
+    let ccw = common::trace(
+        Plane::Xy,
+        Sense::Ccw,
+        150.0,
+        1000.0,
+        0.0,
+        360.0,
+        &e,
+        (0.0, 1.0),
+        9,
+    );
+    let d = diagnose(&[ccw], &Options::default()).expect("diagnosis");
+    eprintln!("{}", vmt_ballbar::report::text(&d));
+    let f = d.finding("squareness_xy").expect("squareness");
+    let name = format!("{}ms_of_servo_mismatch_xy", vmt_ballbar::BIAS_DETAIL_PREFIX);
+    let rate = f
+        .details
+        .iter()
+        .find(|(k, _)| *k == name)
+        .expect("a stated bias")
+        .1;
+    let closed_form = 1000.0 / 60.0 / 150.0 * 1e3; // µm/m per ms
+    assert!(
+        (rate.abs() - closed_form).abs() < 1e-3 * closed_form,
+        "rate {rate}"
+    );
+    let bias = rate * 0.3;
+    assert!(
+        (f.value - bias).abs() <= f.ci95 + 0.02 * bias.abs(),
+        "diagnosed {} against the stated bias {bias}",
+        f.value
+    );
+}
+
 /// A test of mismatched traces, a repeated direction or a trace with a NaN is refused with
 /// the offending trace, value and what is accepted.
 #[test]
