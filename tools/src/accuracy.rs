@@ -21,7 +21,7 @@
 //! Goals: 95 % within tolerance and false positives under 2 %; straightness, angular play and
 //! the squareness of the vertical planes are reported but are no goal of the issue.
 //!
-//! A finding of a test that leaves an effect out of its fit (a bow on a partial arc) states its
+//! A finding of a test that leaves an effect out of its fit (a bow on a partial arc, say) states its
 //! bias per unit of that effect; the study also gives each such figure's errors with that bias
 //! taken off, from the effect's truth ([`WithoutLeftOut`]): what the test reads once the effect
 //! is known.
@@ -98,8 +98,8 @@ struct Comparison {
 }
 
 /// A figure's errors with the bias its findings state for the effects the test leaves out
-/// (bows, angular plays on a partial arc) taken off, from those effects' truth: how well the
-/// test reads the figure once they are known.
+/// (bows, angular plays, drifts on a partial arc...) taken off, from those effects' truth: how
+/// well the test reads the figure once they are known.
 #[derive(Clone, Debug, Serialize)]
 pub struct WithoutLeftOut {
     /// Runs whose finding states such a bias, for effects whose truth the run gives (the others
@@ -566,7 +566,7 @@ fn left_out_table(out: &mut String, s: &Study) {
     let _ = writeln!(
         out,
         "\nWith the bias each finding states for the effects its test leaves out (bows, angular \
-         plays) taken off, from their truth:\n"
+         plays, drifts, ...) taken off, where the truth gives them:\n"
     );
     let _ = writeln!(
         out,

@@ -7,7 +7,7 @@ use crate::traces::{self, CsvSetup};
 use serde_json::{Value, json};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
-use vmt_ballbar::{BIAS_DETAIL_PREFIX, Diagnosis, Finding, Options, Trace, diagnose, kwon, report};
+use vmt_ballbar::{Diagnosis, Finding, Options, Trace, diagnose, kwon, report};
 use vmt_sim::run::BallbarTrace;
 
 /// Diagnoses of every test in a file, with the run's ground truth when it has one.
@@ -197,12 +197,11 @@ pub fn text(d: &Diagnosed) -> String {
                 "  {:<26} {:>12} {:>12} {:>10}",
                 "figure", "truth", "diagnosed", "error"
             );
-            let biased = diag.findings.iter().any(|f| {
-                f.details
-                    .iter()
-                    .any(|(k, _)| k.starts_with(BIAS_DETAIL_PREFIX))
-            });
-            let _ = writeln!(s, "{}", if biased { "  left-out bias" } else { "" });
+            let biased = diag
+                .findings
+                .iter()
+                .any(|f| f.stated_biases().next().is_some());
+            let _ = writeln!(s, "{}", if biased { "    left-out bias" } else { "" });
             for (key, v) in fig {
                 let (Some(t), Some(f)) = (v.as_f64(), diag.finding(key)) else {
                     continue;
@@ -214,8 +213,8 @@ pub fn text(d: &Diagnosed) -> String {
                     f.value - t
                 );
                 let _ = match left_out_bias(f, fig) {
-                    Some(b) if biased => writeln!(s, "  {b:>+15.4}"),
-                    _ => writeln!(s),
+                    Some(b) => writeln!(s, " {b:>+16.4}"),
+                    None => writeln!(s),
                 };
             }
         }
@@ -231,14 +230,7 @@ pub fn text(d: &Diagnosed) -> String {
 /// their truth figures) put on finding `f` by the rates its `bias_per_<unit>_of_<key>`
 /// details state; `None` when it states none or an effect's truth is missing.
 pub(crate) fn left_out_bias(f: &Finding, truth: &serde_json::Map<String, Value>) -> Option<f64> {
-    let rates: Vec<(&str, f64)> = f
-        .details
-        .iter()
-        .filter_map(|(k, rate)| {
-            let (_, key) = k.strip_prefix(BIAS_DETAIL_PREFIX)?.split_once("_of_")?;
-            Some((key, *rate))
-        })
-        .collect();
+    let rates: Vec<(&str, f64)> = f.stated_biases().collect();
     if rates.is_empty() {
         return None;
     }

@@ -97,6 +97,17 @@ pub struct Finding {
     pub details: Vec<(String, f64)>,
 }
 
+impl Finding {
+    /// The biases this finding states for effects its test leaves out (its
+    /// `bias_per_<unit>_of_<key>` details): the effect's key and the bias per unit of it.
+    pub fn stated_biases(&self) -> impl Iterator<Item = (&str, f64)> + '_ {
+        self.details.iter().filter_map(|(k, rate)| {
+            let (_, key) = k.strip_prefix(BIAS_DETAIL_PREFIX)?.split_once("_of_")?;
+            Some((key, *rate))
+        })
+    }
+}
+
 /// An error the test cannot determine, and why.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct NotComputed {
@@ -323,9 +334,12 @@ fn diagnose_once(
         shifts,
         reach_um,
         at_limit,
+        normal,
     } = take_up::fit(plane, &terms.terms, &samples, test.reversals)?;
     let sample_refs: Vec<&Samples> = samples.iter().collect();
-    let left_out = left_out_effects(plane, &terms, &sample_refs)?;
+    let left_out = left_out_effects(&normal, &terms, &sample_refs);
+    // The aliases are in the order of `terms.terms`, which the fit keeps.
+    debug_assert_eq!(fit.terms, terms.terms);
     let mut findings = fitted_findings(&fit, &sample_refs, &terms.unresolved, &left_out);
     let residuals: Vec<Residual> = traces
         .iter()
@@ -352,6 +366,11 @@ fn diagnose_once(
     };
     if matches!(cyclic_pass, CyclicPass::Search) {
         findings.extend(cyclic.iter().map(|(_, f)| f.clone()));
+    }
+    for f in &mut findings {
+        // A finding's own numbers first, the biases of left-out effects after them.
+        f.details
+            .sort_by_key(|(k, _)| k.starts_with(BIAS_DETAIL_PREFIX));
     }
     findings.sort_by(|a, b| b.contribution_um.total_cmp(&a.contribution_um));
     let n: usize = residuals.iter().map(|r| r.r.len()).sum();
@@ -594,9 +613,9 @@ pub const fn squareness_iso(plane: Plane) -> &'static str {
     }
 }
 
-/// An effect that a test leaves out of its fit (a bow, an angular play or a drift of the pivot
-/// on too short an arc; a servo mismatch or lateral play on one direction) and what it would
-/// do to the fitted terms.
+/// An effect that a test leaves out of its fit (a bow, an angular play, a radial or pivot drift
+/// on too short an arc; a servo mismatch, lateral play or backlash on one direction) and what it
+/// would do to the fitted terms.
 struct LeftOut {
     term: Term,
     /// Peak-to-valley of one unit of its signature on the test, µm.
@@ -607,30 +626,22 @@ struct LeftOut {
 }
 
 /// The effects that the test leaves out of its fit: unfitted, they are read as the fitted
-/// terms. Over a 220° arc of 100 mm in ZX, 1 µm of Z's bow moves the squareness by 6.0 µm/m
-/// and 1 µm of X's bow the scale mismatch by 11.9 ppm; run back and forth over the arc, the
+/// terms. Over a 220° arc of 100 mm in ZX, 1 µm of Z's bow moves the squareness by −6.0 µm/m
+/// and 1 µm of X's bow the scale mismatch by +11.9 ppm; run back and forth over the arc, the
 /// progress is the sense times the angle travelled, so 1 µm of drift over the test moves the
-/// lateral plays by about 0.5 µm; run one way only, a servo mismatch is read as squareness.
-fn left_out_effects(
-    plane: Plane,
-    terms: &Terms,
-    samples: &[&Samples],
-) -> Result<Vec<LeftOut>, FitError> {
+/// lateral plays by up to about ±0.5 µm; run one way only, a servo mismatch is read as
+/// squareness.
+fn left_out_effects(normal: &Normal, terms: &Terms, samples: &[&Samples]) -> Vec<LeftOut> {
     let left: Vec<Term> = terms.left_out.iter().map(|(t, _)| *t).collect();
-    if left.is_empty() {
-        return Ok(Vec::new());
-    }
-    let normal = Normal::new(plane, &terms.terms, samples)?;
-    let per_unit = model::unit_contributions(plane, &left, samples);
-    Ok(left
-        .into_iter()
+    let per_unit = model::unit_contributions(normal.plane(), &left, samples);
+    left.into_iter()
         .zip(per_unit)
         .map(|(term, per_unit)| LeftOut {
             term,
             per_unit,
             alias: normal.alias(term, samples),
         })
-        .collect())
+        .collect()
 }
 
 /// The findings of the fitted terms, without those the test cannot resolve (`unresolved`,
@@ -676,10 +687,16 @@ fn fitted_findings(
                 contribution_um: contribution,
                 threshold,
                 present,
-                details: biases(left_out, index, per_unit, fit.plane),
+                details: biases(left_out, index, size_per_unit(term, per_unit), fit.plane),
             })
         })
         .collect()
+}
+
+/// The size (µm) of one unit of `term`'s signature on the test, for weighing a bias on it: its
+/// span `per_unit`, or 1 µm for the radius, whose signature is the same everywhere (no span).
+fn size_per_unit(term: Term, per_unit: f64) -> f64 {
+    if term == Term::Radius { 1.0 } else { per_unit }
 }
 
 /// The prefix of the details of a finding that state the bias of an effect the test leaves out,
@@ -814,7 +831,8 @@ fn local_findings(
                 .iter_mut()
                 .find(|f| f.key == format!("backlash_{l}"))
         {
-            b.details = sides;
+            // The per-side steps first; any stated bias of a left-out effect stays.
+            b.details.splice(0..0, sides);
         }
         if let Some((near, far, pp)) = features::stick_slip(residuals, axis) {
             let ratio = near / far.max(1e-9);

@@ -444,6 +444,11 @@ impl Normal {
         self.yy += w * (to * to - from * from);
     }
 
+    /// The test plane.
+    pub fn plane(&self) -> Plane {
+        self.plane
+    }
+
     /// How much each fitted term's estimate moves per unit of `other`, a term left out of the
     /// fit, in the order of the fit's terms: the regression's alias matrix
     /// `(AᵀWA)⁻¹AᵀW b`, with `b` the signature of one unit of `other` over the fitted groups of
@@ -613,10 +618,10 @@ mod tests {
         }
     }
 
-    /// Angular play is fitted on full circles run both ways, and left out of a 220° arc (the
-    /// usual vertical test), where its shape leans on the backlash's, with the reason.
     /// The alias of a term the fit holds is that term alone (one unit of itself, nothing of
-    /// the others); that of a term left out is the fit of its signature, to rounding.
+    /// the others); that of a term left out is the fit of its signature, to rounding. Both for
+    /// terms whose factor is the radius (squareness) or the feed (servo mismatch), and for the
+    /// drifts, which follow the test's progress.
     #[test]
     fn the_alias_of_a_term_is_the_fit_of_its_signature() {
         let run = |sense: Sense, start: f64| {
@@ -626,57 +631,68 @@ mod tests {
         };
         let traces = [run(Sense::Ccw, -110.0), run(Sense::Cw, 110.0)];
         let terms = Terms::for_test(&traces.iter().collect::<Vec<_>>());
+        // The CCW run the first half of the test, the CW run the second.
         let places: Vec<Placement> = traces
             .iter()
-            .map(|t| Placement::new(t, vec![0.0; t.angle_deg.len()]))
+            .zip([-0.5, 0.0])
+            .map(|(t, from)| {
+                let n = t.angle_deg.len();
+                let u = (0..n).map(|i| from + 0.5 * i as f64 / n as f64).collect();
+                Placement::new(t, u)
+            })
             .collect();
-        let normal_of = |bow: Option<Term>| {
+        let left_out = [
+            Term::Straightness(0),
+            Term::Straightness(1),
+            Term::PivotDrift(1),
+        ];
+        let held = [Term::Squareness, Term::ServoMismatch];
+        let fit_of = |effect: Option<Term>| {
             let samples: Vec<Samples> = traces
                 .iter()
                 .zip(&places)
                 .map(|(t, p)| {
-                    // With a bow of 1 µm as the deviation, the fit is the alias.
+                    // With one unit of the effect as the deviation, the fit is its alias.
                     let mut s = Samples::new(t, p, &t.deviation_um);
                     for (pt, y, _) in &mut s.groups {
-                        *y = bow.map_or(0.0, |b| b.basis(pt, Plane::Zx));
+                        *y = effect.map_or(0.0, |b| b.basis(pt, Plane::Zx));
                     }
                     s
                 })
                 .collect();
             let refs: Vec<&Samples> = samples.iter().collect();
             let normal = Normal::new(Plane::Zx, &terms.terms, &refs).expect("fits");
-            let alias = [
-                Term::Straightness(0),
-                Term::Straightness(1),
-                Term::Squareness,
-            ]
-            .map(|t| normal.alias(t, &refs));
-            (normal.solve(), alias)
+            let alias = |t: Term| normal.alias(t, &refs);
+            (
+                normal.solve(),
+                alias(effect.unwrap_or(held[0])),
+                held.map(alias),
+            )
         };
-        let (_, [_, _, squareness]) = normal_of(None);
-        let at = terms.terms.iter().position(|t| *t == Term::Squareness);
-        for (k, a) in squareness.iter().enumerate() {
-            let own = f64::from(u8::from(Some(k) == at));
-            assert!((a - own).abs() < 1e-9, "{k}: {a}");
+        let (_, _, own) = fit_of(None);
+        for (term, alias) in held.iter().zip(own) {
+            let at = terms.terms.iter().position(|t| t == term);
+            for (k, a) in alias.iter().enumerate() {
+                let expected = f64::from(u8::from(Some(k) == at));
+                assert!((a - expected).abs() < 1e-9, "{term:?} on {k}: {a}");
+            }
         }
-        for (i, bow) in [Term::Straightness(0), Term::Straightness(1)]
-            .into_iter()
-            .enumerate()
-        {
-            let (fit, alias) = normal_of(Some(bow));
-            for (v, a) in fit.values.iter().zip(&alias[i]) {
-                assert!(
-                    (v - a).abs() < 1e-9 * (1.0 + a.abs()),
-                    "{bow:?}: {v} against {a}"
-                );
+        for effect in left_out {
+            assert!(!terms.terms.contains(&effect), "{effect:?} is fitted");
+            let (fit, alias, _) = fit_of(Some(effect));
+            for (v, a) in fit.values.iter().zip(&alias) {
+                let close = (v - a).abs() < 1e-9 * (1.0 + a.abs());
+                assert!(close, "{effect:?}: {v} against {a}");
             }
             assert!(
-                alias[i].iter().any(|a| a.abs() > 0.1),
-                "{bow:?} aliases nothing"
+                alias.iter().any(|a| a.abs() > 0.1),
+                "{effect:?} aliases nothing"
             );
         }
     }
 
+    /// Angular play is fitted on full circles run both ways, and left out of a 220° arc (the
+    /// usual vertical test), where its shape leans on the backlash's, with the reason.
     #[test]
     fn angular_play_needs_an_arc_of_270_degrees() {
         let run = |sense: Sense, sweep: f64| {

@@ -2,7 +2,7 @@
 //! ranked by their contribution to the circular deviation, then what could not be determined.
 //! As plain text (terminal), Markdown and JSON.
 
-use crate::diagnosis::{BIAS_DETAIL_PREFIX, Diagnosis, Finding, MIN_CONTRIBUTION_UM};
+use crate::diagnosis::{Diagnosis, Finding, MIN_CONTRIBUTION_UM};
 use std::fmt::Write;
 
 /// The decision rule, printed with every report.
@@ -13,16 +13,15 @@ at least 0.5 µm and above their noise floor). ± is the 95 % confidence interva
 /// What a `bias_per_<unit>_of_<effect>` detail means, printed when a finding states one.
 pub const BIAS_NOTE: &str = "bias_per_<unit>_of_<effect>: what one unit of an effect that \
 this test cannot fit (see above; a drift of the pivot is over the whole test) adds to the \
-value, as the least-squares fit reads it; not in its ± interval. Measured otherwise (a full \
-circle), the effect corrects the value.";
+value, as the least-squares fit reads it; not in its ± interval. Measured by a test that fits \
+it (a full circle, both directions), the effect corrects the value.";
 
 /// [`RULE`], and [`BIAS_NOTE`] when a finding of `d` states a bias.
 fn rules(d: &Diagnosis) -> String {
-    let biased = d.findings.iter().any(|f| {
-        f.details
-            .iter()
-            .any(|(k, _)| k.starts_with(BIAS_DETAIL_PREFIX))
-    });
+    let biased = d
+        .findings
+        .iter()
+        .any(|f| f.stated_biases().next().is_some());
     if biased {
         format!("{RULE} {BIAS_NOTE}")
     } else {
@@ -212,6 +211,49 @@ pub fn json(d: &Diagnosis) -> serde_json::Value {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The note on stated biases comes with the reports whose findings state one, only.
+    #[test]
+    fn the_bias_note_comes_with_a_stated_bias() {
+        use crate::synthetic::{Errors, test, trace};
+        use crate::{Options, Plane, Sense, diagnose};
+        let e = Errors {
+            noise_um: 0.3,
+            ..Default::default()
+        };
+        let full = diagnose(&test(Plane::Xy, &e, 1), &Options::default()).expect("diagnosis");
+        let ccw = trace(
+            Plane::Xy,
+            Sense::Ccw,
+            150.0,
+            1000.0,
+            0.0,
+            360.0,
+            &e,
+            (0.0, 1.0),
+            2,
+        );
+        let one_way = diagnose(&[ccw], &Options::default()).expect("diagnosis");
+        for (d, stated) in [(full, false), (one_way, true)] {
+            assert_eq!(
+                d.findings
+                    .iter()
+                    .any(|f| f.stated_biases().next().is_some()),
+                stated
+            );
+            for report in [
+                text(&d),
+                markdown(&d),
+                json(&d)["decision_rule"].to_string(),
+            ] {
+                assert_eq!(
+                    report.contains("bias_per_<unit>_of_<effect>"),
+                    stated,
+                    "{report}"
+                );
+            }
+        }
+    }
 
     #[test]
     fn counts_print_as_whole_numbers_and_measurements_keep_their_decimals_even_when_whole() {

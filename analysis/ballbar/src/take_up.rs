@@ -74,6 +74,9 @@ pub struct TakeUp {
     /// Whether each axis' reach came out at the top of the search ([`K_MAX`] steps): the
     /// take-up may be longer than the model holds.
     pub at_limit: [bool; 2],
+    /// The normal equations of the fit (of the deviations as measured; the design, which
+    /// [`Normal::alias`] uses, is that of every fit of the search).
+    pub normal: Normal,
 }
 
 /// The fitted backlash of p and q, µm (0 for a term not in the model).
@@ -409,5 +412,6 @@ pub fn fit(
         shifts,
         reach_um: [0, 1].map(|a| searched[a].then_some(reach[a])),
         at_limit: [0, 1].map(|a| searched[a] && k[a] >= K_MAX * AT_LIMIT),
+        normal: prepared.normal,
     })
 }

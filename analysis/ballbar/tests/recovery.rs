@@ -485,7 +485,12 @@ fn a_partial_arc_states_the_bias_of_the_bows_it_cannot_fit() {
             .collect();
         (!parts.is_empty()).then(|| parts.iter().sum())
     };
-    for key in ["squareness_zx", "scale_mismatch_zx", "eccentricity_z"] {
+    for key in [
+        "squareness_zx",
+        "scale_mismatch_zx",
+        "eccentricity_z",
+        "radius_offset",
+    ] {
         let (f, whole) = (arc.finding(key).expect(key), full.finding(key).expect(key));
         let bias = bias(key).unwrap_or_else(|| panic!("{key} states no bias: {f:?}"));
         assert!(
@@ -567,8 +572,33 @@ fn a_partial_arc_states_the_bias_of_a_pivot_drift() {
             f.value
         );
     }
-    assert!(d.finding("lateral_play_x").is_some());
-    assert!(stated >= 2, "{stated} findings state a drift's bias");
+    let states = |key: &str, effect: &str| {
+        let f = d.finding(key).unwrap_or_else(|| panic!("no {key}"));
+        f.stated_biases().any(|(k, _)| k == effect)
+    };
+    assert!(
+        states("lateral_play_x", "pivot_drift_z"),
+        "{:?}",
+        d.finding("lateral_play_x")
+    );
+    assert!(
+        states("lateral_play_z", "pivot_drift_x"),
+        "{:?}",
+        d.finding("lateral_play_z")
+    );
+    // A backlash keeps its per-side details and states the drift's bias beside them.
+    let backlash = ["backlash_x", "backlash_z"].map(|k| d.finding(k).expect(k));
+    assert!(
+        backlash
+            .iter()
+            .any(|f| f.stated_biases().any(|(k, _)| k.contains("drift")))
+    );
+    assert!(
+        backlash
+            .iter()
+            .all(|f| f.details.iter().any(|(k, _)| k.ends_with("_end_um")))
+    );
+    assert!(stated >= 3, "{stated} findings state a drift's bias");
 }
 
 /// Run one way only, a servo mismatch has squareness' shape: the squareness finding states
