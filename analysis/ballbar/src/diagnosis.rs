@@ -633,6 +633,9 @@ struct LeftOut {
 /// squareness.
 fn left_out_effects(normal: &Normal, terms: &Terms, samples: &[&Samples]) -> Vec<LeftOut> {
     let left: Vec<Term> = terms.left_out.iter().map(|(t, _)| *t).collect();
+    if left.is_empty() {
+        return Vec::new();
+    }
     let per_unit = model::unit_contributions(normal.plane(), &left, samples);
     left.into_iter()
         .zip(per_unit)
