@@ -160,6 +160,9 @@ pub struct FigureStats {
     pub goal: bool,
     /// Whether the goals are met (within and false positives).
     pub met: bool,
+    /// Whether the test cannot give the figure: no run diagnosed with it, each saying why (a
+    /// partial arc's closing error). Its goals are then not missed but out of reach of the test.
+    pub undetermined: bool,
     /// The errors with the stated bias of the effects the test leaves out taken off; None when
     /// no run states one.
     pub without_left_out: Option<WithoutLeftOut>,
@@ -351,6 +354,9 @@ fn compare_run(path: &Path) -> Result<RunComparisons, (String, String)> {
         .collect())
 }
 
+/// What a run diagnosed without a finding is said to lack when its diagnosis gives no reason.
+const NO_REASON: &str = "the diagnosis has no such finding and does not say why";
+
 /// Why diagnosis `diag` has no finding `key`: what it says of the key (or of the key's kind,
 /// `closing_error` for `closing_error_cw`), if anything.
 fn why_not(diag: &vmt_ballbar::Diagnosis, key: &str) -> String {
@@ -362,10 +368,7 @@ fn why_not(diag: &vmt_ballbar::Diagnosis, key: &str) -> String {
                 .iter()
                 .find(|n| key.starts_with(&format!("{}_", n.key)))
         })
-        .map_or_else(
-            || "the diagnosis has no such finding and does not say why".to_string(),
-            |n| n.reason.clone(),
-        )
+        .map_or_else(|| NO_REASON.to_string(), |n| n.reason.clone())
 }
 
 fn stats(key: &str, unit: &str, cs: &[Compared]) -> FigureStats {
@@ -398,6 +401,8 @@ fn stats(key: &str, unit: &str, cs: &[Compared]) -> FigureStats {
         || key.starts_with("angular_play")
         || vertical_squareness);
     let not_diagnosed = not_diagnosed_runs.len();
+    let undetermined =
+        n == 0 && not_diagnosed > 0 && not_diagnosed_runs.iter().all(|r| r.reason != NO_REASON);
     let halves = done.iter().map(|c| 0.5 * c.threshold);
     let quiet_below = (n > 0).then(|| QuietBelow {
         min: halves.clone().fold(f64::INFINITY, f64::min),
@@ -415,6 +420,7 @@ fn stats(key: &str, unit: &str, cs: &[Compared]) -> FigureStats {
         bias: mean(&errors),
         rms: mean(&squares).sqrt(),
         without_left_out: without_left_out(key, &done),
+        undetermined,
         p95_abs: p95,
         worst: ranked.first().map_or(f64::NAN, |r| r.0),
         worst_id: ranked.first().map(|r| r.1.id.clone()).unwrap_or_default(),
@@ -513,6 +519,7 @@ pub fn markdown(s: &Study) -> String {
             .map_or("–".into(), |r| format!("{:.1} %", 100.0 * r));
         let verdict = match (f.goal, f.met, f.too_few_runs) {
             (false, ..) => "no goal",
+            _ if f.undetermined => "not determined by the test",
             (true, false, _) => "MISSED",
             (true, true, true) => "met on too few runs to tell",
             (true, true, false) => "met",
@@ -539,12 +546,11 @@ pub fn markdown(s: &Study) -> String {
     }
     left_out_table(&mut out, s);
     for f in s.figures.iter().filter(|f| f.goal && !f.met) {
-        let _ = writeln!(
-            out,
-            "\n{} misses its goals: {}",
-            f.key,
-            misses(f).join("; ")
-        );
+        let verb = match f.undetermined {
+            true => "is not determined by the test",
+            false => "misses its goals",
+        };
+        let _ = writeln!(out, "\n{} {verb}: {}", f.key, misses(f).join("; "));
     }
     for (id, why) in &s.failed {
         let _ = writeln!(out, "\nrun {id} not diagnosed: {why}");
@@ -661,7 +667,9 @@ finding's threshold, the bound given in brackets in the figure's unit, where a f
 false-positive rate is taken over, not false positives), the false-positive rate (the share of \
 the quiet runs reported present; – without quiet runs) and whether the goals (95 % within \
 tolerance, false positives under 2 %) are met: they are stated for 500 runs or more, and on \
-fewer a figure that meets them is \"met on too few runs to tell\". – marks a figure no run was diagnosed with. \
+fewer a figure that meets them is \"met on too few runs to tell\"; a figure that no run was diagnosed \
+with, each saying why (a partial arc's closing error), is \"not determined by the test\". – marks a \
+figure no run was diagnosed with. \
 Where the test leaves effects out of its fit (the bows on a partial arc), a second table gives the \
 errors with the bias each finding states for them taken off, from their truth.";
 
@@ -865,9 +873,11 @@ mod tests {
             failed: vec![],
         };
         let md = markdown(&s);
+        // Every run says why (the test cannot give it): not determined, not missed.
         assert!(
             md.contains(
-                "| backlash_y |  | 0 | 2 | – | – | – | – | max(0.3 µm, 5 %) | – | 0 | – | MISSED |"
+                "| backlash_y |  | 0 | 2 | – | – | – | – | max(0.3 µm, 5 %) | – | 0 | – | not \
+                 determined by the test |"
             ),
             "{md}"
         );
@@ -875,13 +885,28 @@ mod tests {
             md.contains("| quiet runs (\\|truth\\| below) | FP rate |"),
             "{md}"
         );
-        // The miss says why: the runs not diagnosed, and the reason.
         assert!(
             md.contains(
-                "backlash_y misses its goals: 2 runs not diagnosed (000000, 000001): a partial \
-                 arc has no closing error"
+                "backlash_y is not determined by the test: 2 runs not diagnosed (000000, 000001): \
+                 a partial arc has no closing error"
             ),
             "{md}"
+        );
+        // Runs diagnosed without the finding and without a reason: a miss.
+        let silent = NotDiagnosed {
+            id: "000002".into(),
+            reason: NO_REASON.into(),
+        };
+        let f = stats("backlash_y", "", &[Err(not_diagnosed(0)), Err(silent)]);
+        assert!(!f.undetermined && f.goal && !f.met);
+        let md = markdown(&Study {
+            runs: 2,
+            warnings: vec![],
+            figures: vec![f],
+            failed: vec![],
+        });
+        assert!(
+            md.contains("| – | 0 | – | MISSED |") && md.contains("backlash_y misses its goals")
         );
         let js = serde_json::to_value(&s).unwrap();
         assert!(js["figures"][0]["bias"].is_null(), "{js}");
