@@ -642,7 +642,7 @@ fn left_out_effects(normal: &Normal, terms: &Terms, samples: &[&Samples]) -> Vec
         .map(|(term, per_unit)| LeftOut {
             term,
             per_unit,
-            alias: normal.alias(term, samples),
+            alias: normal.alias(term),
         })
         .collect()
 }

@@ -24,6 +24,7 @@ use crate::samples::Samples;
 use crate::signatures::{self, Point};
 use crate::trace::{Plane, Trace};
 use nalgebra::{DMatrix, DVector};
+use std::sync::Arc;
 use thiserror::Error;
 
 /// One unknown of the model.
@@ -373,6 +374,26 @@ pub struct Normal {
     groups: usize,
     /// Per trace: each term's shape function and factor.
     maps: Vec<Vec<(usize, f64)>>,
+    /// Per trace: the sums of the shape functions' products, which the terms' normal equations
+    /// were made from (shared by the clones of a search; see [`Normal::alias`]).
+    grams: Arc<Vec<Gram>>,
+}
+
+/// The weighted sums `Σ w fᵢ fⱼ` of the products of the [`SHAPES`] shape functions over the
+/// fitted groups of one trace (upper triangle, `i ≤ j`), with the trace's set-up that turns
+/// shapes into terms.
+#[derive(Debug)]
+struct Gram {
+    sum: [[f64; SHAPES]; SHAPES],
+    radius_um: f64,
+    feed_um_per_ms: f64,
+}
+
+impl Gram {
+    /// `Σ w fₐ f_b` for shapes `a` and `b` in either order.
+    fn get(&self, a: usize, b: usize) -> f64 {
+        self.sum[a.min(b)][a.max(b)]
+    }
 }
 
 impl Normal {
@@ -392,6 +413,7 @@ impl Normal {
         let mut aty = DVector::<f64>::zeros(n);
         let mut yy = 0.0;
         let mut maps: Vec<Vec<(usize, f64)>> = Vec::new();
+        let mut grams = Vec::new();
         for s in traces {
             let map: Vec<(usize, f64)> = terms
                 .iter()
@@ -411,14 +433,19 @@ impl Normal {
                     }
                 }
             }
+            let gram = Gram {
+                sum,
+                radius_um: s.radius_um,
+                feed_um_per_ms: s.feed_um_per_ms,
+            };
             for (i, (si, ki)) in map.iter().enumerate() {
                 aty[i] += ki * sum_y[*si];
                 for (j, (sj, kj)) in map.iter().enumerate() {
-                    let (a, b) = if si <= sj { (*si, *sj) } else { (*sj, *si) };
-                    ata[(i, j)] += ki * kj * sum[a][b];
+                    ata[(i, j)] += ki * kj * gram.get(*si, *sj);
                 }
             }
             maps.push(map);
+            grams.push(gram);
         }
         let chol = ata.cholesky().ok_or(FitError::Singular)?;
         let inv = chol.inverse();
@@ -431,6 +458,7 @@ impl Normal {
             yy,
             groups: m,
             maps,
+            grams: Arc::new(grams),
         })
     }
 
@@ -452,22 +480,15 @@ impl Normal {
     /// How much each fitted term's estimate moves per unit of `other`, a term left out of the
     /// fit, in the order of the fit's terms: the regression's alias matrix
     /// `(AᵀWA)⁻¹AᵀW b`, with `b` the signature of one unit of `other` over the fitted groups of
-    /// `traces` (the traces of [`Normal::new`]). An effect the test cannot fit biases the
-    /// reported terms by exactly this much per unit of it, whatever the noise.
-    pub fn alias(&self, other: Term, traces: &[&Samples]) -> Vec<f64> {
+    /// the traces (`AᵀW b` from the sums the normal equations were made from). An effect the
+    /// test cannot fit biases the reported terms by exactly this much per unit of it, whatever
+    /// the noise.
+    pub fn alias(&self, other: Term) -> Vec<f64> {
         let mut atb = DVector::<f64>::zeros(self.terms.len());
-        for (s, map) in traces.iter().zip(&self.maps) {
-            let (sb, kb) = other.shape(self.plane, s.radius_um, s.feed_um_per_ms);
-            let mut sum = [0.0; SHAPES];
-            for (pt, _, w) in s.fit_groups() {
-                let f = shapes(pt);
-                let wb = *w as f64 * kb * f[sb];
-                for (acc, fi) in sum.iter_mut().zip(f) {
-                    *acc += wb * fi;
-                }
-            }
+        for (gram, map) in self.grams.iter().zip(&self.maps) {
+            let (sb, kb) = other.shape(self.plane, gram.radius_um, gram.feed_um_per_ms);
             for (i, (si, ki)) in map.iter().enumerate() {
-                atb[i] += ki * sum[*si];
+                atb[i] += ki * kb * gram.get(*si, sb);
             }
         }
         self.chol.solve(&atb).iter().copied().collect()
@@ -662,7 +683,7 @@ mod tests {
                 .collect();
             let refs: Vec<&Samples> = samples.iter().collect();
             let normal = Normal::new(Plane::Zx, &terms.terms, &refs).expect("fits");
-            let alias = |t: Term| normal.alias(t, &refs);
+            let alias = |t: Term| normal.alias(t);
             (
                 normal.solve(),
                 alias(effect.unwrap_or(held[0])),
