@@ -25,6 +25,15 @@ fn scenario(dir: &Path, edit: Option<(&str, &str)>) -> PathBuf {
     path
 }
 
+/// The statistics of figure `key` in an `accuracy.json` report.
+fn figure<'a>(report: &'a Value, key: &str) -> &'a Value {
+    let figures = report["figures"].as_array().expect("a list of figures");
+    figures
+        .iter()
+        .find(|f| f["key"] == key)
+        .unwrap_or_else(|| panic!("no figure {key}"))
+}
+
 /// Runs `vmt dataset --seed seed` on `threads` threads.
 fn dataset_run(scenario: &Path, out: &Path, count: u32, seed: u64, threads: usize) -> Output {
     Command::new("timeout")
@@ -219,13 +228,7 @@ fn accuracy_on_a_partial_arc_takes_off_the_stated_bias_of_the_bows() {
     let o = vmt(&["accuracy", out.to_str().unwrap()]);
     assert!(o.status.success(), "{}", stderr(&o));
     let report: Value = serde_json::from_slice(&bytes(&out, "accuracy.json")).unwrap();
-    let figures = report["figures"].as_array().unwrap();
-    let fig = |k: &str| {
-        figures
-            .iter()
-            .find(|f| f["key"] == k)
-            .unwrap_or_else(|| panic!("{k}"))
-    };
+    let fig = |k: &str| figure(&report, k);
     // Tolerances: 1 µm/m; 0.3 µm over R = 100 mm, 3 ppm.
     for (key, tolerance) in [("squareness_zx", 1.0), ("scale_mismatch_zx", 3.0)] {
         let f = fig(key);
@@ -261,13 +264,7 @@ fn accuracy_compares_the_diagnosis_with_the_truth() {
     assert!(printed.contains("| backlash_x | µm | 3 |"), "{printed}");
     let report: Value = serde_json::from_slice(&bytes(&out, "accuracy.json")).unwrap();
     assert!(out.join("accuracy.md").is_file());
-    let figures = report["figures"].as_array().unwrap();
-    let fig = |k: &str| {
-        figures
-            .iter()
-            .find(|f| f["key"] == k)
-            .unwrap_or_else(|| panic!("{k}"))
-    };
+    let fig = |k: &str| figure(&report, k);
     let b = fig("backlash_x");
     let labels: Value = serde_json::from_slice(&bytes(&out, "runs/000000/labels.json")).unwrap();
     let truth = labels["ground_truth"]["ballbar"]["tests"][0]["figures"]["backlash_x"]
