@@ -30,7 +30,7 @@ use crate::nc::program::{ArcDirection, Plane, Program, Spindle};
 use crate::plant::{Fidelity, MultibodyPlant, Plant, PlantError, ReducedPlant, layout};
 use crate::replay::Replay;
 use crate::run::{BallbarTrace, Channel, LogBlock, LogSink, MachineSummary, Run, Stream};
-use crate::truth::TruthInputs;
+use crate::truth::{TestDrift, TruthInputs};
 use nalgebra::Vector3;
 use std::ops::Range;
 use thiserror::Error;
@@ -375,10 +375,15 @@ impl JobRun<'_> {
         // Link and joint matrices of the current thermal state, rebuilt only when it changes.
         let mut evaluator = machine.volumetric.evaluator(&heat.deformation);
         let mut replay = replayable.then(|| Replay::new(heat.deformation, recorder.traces.len()));
-        // The thermal state at the middle of each circular test, for the truth's figures.
-        let midpoints = test_midpoints(job, &interpolator.block_times());
-        let mut at_midpoint = vec![heat.deformation; midpoints.len()];
-        let mut next_midpoint = 0;
+        // The thermal state at the start, middle and end of each circular test's data: the
+        // middle for the truth's figures, the ends for the drift over the test.
+        let spans = test_spans(job, &interpolator.block_times());
+        let moments: Vec<f64> = spans
+            .iter()
+            .flat_map(|&(t0, t1)| [t0, 0.5 * (t0 + t1), t1])
+            .collect();
+        let mut at_moment = vec![heat.deformation; moments.len()];
+        let mut next_moment = 0;
         let mut trackers =
             Axis::ALL.map(|a| DirectionTracker::new(start[a.index()], Direction::Forward, 0.05e-6));
         let mut cursor = Cursor::default();
@@ -408,9 +413,9 @@ impl JobRun<'_> {
                     r.thermal_state(heat.deformation);
                 }
             }
-            while next_midpoint < midpoints.len() && sp.time_s >= midpoints[next_midpoint] {
-                at_midpoint[next_midpoint] = heat.deformation;
-                next_midpoint += 1;
+            while next_moment < moments.len() && sp.time_s >= moments[next_moment] {
+                at_moment[next_moment] = heat.deformation;
+                next_moment += 1;
             }
             let state = AxisState {
                 position: q,
@@ -433,15 +438,30 @@ impl JobRun<'_> {
             recorder.send(sink, 0)?;
         }
         recorder.end_closing(&evaluator);
-        let at_tests: Vec<VolumetricEvaluator> = at_midpoint
+        // A test ending on the last tick is at the state the run ends in.
+        for d in &mut at_moment[next_moment..] {
+            *d = heat.deformation;
+        }
+        let chain = |d: &vmt_model::thermal_deformation::ThermalDeformation| {
+            machine.volumetric.evaluator(d)
+        };
+        let at_tests: Vec<VolumetricEvaluator> =
+            at_moment.chunks(3).map(|m| chain(&m[1])).collect();
+        let drifts: Vec<TestDrift> = spans
             .iter()
-            .map(|d| machine.volumetric.evaluator(d))
+            .zip(at_moment.chunks(3))
+            .map(|(&(t0, t1), m)| TestDrift {
+                span_s: t1 - t0,
+                start: chain(&m[0]),
+                end: chain(&m[2]),
+            })
             .collect();
         let truth = TruthInputs {
             machine,
             axes,
             job,
             at_tests: &at_tests,
+            drifts: &drifts,
         };
         Ok((recorder.finish(&truth, settings, scenario_toml)?, replay))
     }
@@ -549,9 +569,9 @@ fn directions(trackers: &mut [DirectionTracker; 3], q: &Vector3<f64>) -> [Direct
     direction
 }
 
-/// The time at the middle of each circular test's data arcs, s (tests in job order, which is
-/// their order in time).
-fn test_midpoints(job: &Job, block_times: &[(usize, f64, f64)]) -> Vec<f64> {
+/// The start and end of each circular test's data arcs, s (tests in job order, which is their
+/// order in time; `(0, 0)` for a test without data).
+fn test_spans(job: &Job, block_times: &[(usize, f64, f64)]) -> Vec<(f64, f64)> {
     job.ballbar
         .iter()
         .map(|b| {
@@ -562,7 +582,7 @@ fn test_midpoints(job: &Job, block_times: &[(usize, f64, f64)]) -> Vec<f64> {
                     (f64::INFINITY, f64::NEG_INFINITY),
                     |(lo, hi), (_, t0, t1)| (lo.min(*t0), hi.max(*t1)),
                 );
-            if lo <= hi { 0.5 * (lo + hi) } else { 0.0 }
+            if lo <= hi { (lo, hi) } else { (0.0, 0.0) }
         })
         .collect()
 }

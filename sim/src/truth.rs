@@ -25,6 +25,20 @@ pub struct TruthInputs<'a> {
     pub job: &'a Job,
     /// The error chain in the middle of each circular test of the job, in job order.
     pub at_tests: &'a [VolumetricEvaluator<'a>],
+    /// The error chain at the start and end of each circular test's data, in job order (a test
+    /// without one has no `drift` in the truth).
+    pub drifts: &'a [TestDrift<'a>],
+}
+
+/// The machine as a circular test's data starts and as it ends: what it drifted by over the
+/// test (see [`test_drift`]).
+pub struct TestDrift<'a> {
+    /// From the start of the test's first data arc to the end of its last, s.
+    pub span_s: f64,
+    /// The error chain at the start.
+    pub start: VolumetricEvaluator<'a>,
+    /// The error chain at the end.
+    pub end: VolumetricEvaluator<'a>,
 }
 
 /// The truth of a run of `job` on `machine` with drives `axes`, as JSON.
@@ -49,7 +63,9 @@ pub struct TruthInputs<'a> {
 ///
 /// `drives.<axis>.backlash_seen_um` is taken at the job's test feed ([`Job::test_feed_m_s`]);
 /// each circular test of `ballbar.tests` has its own at its feed, and a `figures` object with
-/// every figure a ball-bar diagnosis reports, under the diagnosis' keys (see [`test_figures`]).
+/// every figure a ball-bar diagnosis reports, under the diagnosis' keys (see [`test_figures`]),
+/// and a `drift` object with what the machine and the pivot drifted by over the test, which a
+/// diagnosis fits but reports only as closing errors (see [`test_drift`]).
 /// A positioning test's
 /// `laser` section holds the noise-free deviations (what a perfect laser would read), the error
 /// chain's share, the drive's share at rest (the reversal a laser reads at standstill), and the
@@ -102,8 +118,12 @@ pub fn ground_truth(
             .ballbar
             .iter()
             .zip(inputs.at_tests)
-            .map(|(t, chain)| {
+            .enumerate()
+            .map(|(i, (t, chain))| {
                 let mut v = ballbar_test(t, axes, &loads);
+                if let Some(d) = inputs.drifts.get(i) {
+                    v["drift"] = Value::Object(test_drift(inputs, t, d));
+                }
                 let mut figures = test_figures(inputs, t, chain);
                 for (d, _) in &t.data {
                     let dir = match d {
@@ -383,11 +403,7 @@ pub fn test_figures(
     let (ep, eq) = (unit(pa), unit(qa));
     let r_um = b.radius_m * 1e6;
     let (centre, radius) = b.tool_circle();
-    let mut base = [Direction::Forward; 3];
-    let third = Axis::ALL.into_iter().find(|a| *a != pa && *a != qa);
-    if let Some(t) = third {
-        base[t.index()] = out_of_plane_direction(inputs.job, b, t);
-    }
+    let base = base_directions(inputs.job, b);
     let field = |th: f64| mean_error(inputs, chain, b, th, base);
     let n = 720;
     let (mut a, mut bb) = ([0.0; 4], [0.0; 4]);
@@ -466,6 +482,62 @@ pub fn test_figures(
         );
     }
     m
+}
+
+/// The drift of circular test `b` over its data, as the drift terms of a ball-bar diagnosis
+/// read it (keys `radial_drift` and `pivot_drift_<axis>`, µm over the test; see `vmt-ballbar`'s
+/// signatures: `Δr = g s − (d_p cos θ + d_q sin θ) s` with the progress s from −½ to ½).
+///
+/// The change of the bar's reading over the test at each angle, `δr(θ) = (δ_end(θ) −
+/// δ_start(θ) − Δc)·u(θ)`, from the tool-point error fields `δ` of the chain at the start and
+/// the end of the data (the machine's thermal drift, averaged over the plane axes' approach
+/// directions as in [`test_figures`]) and the pivot's creep `Δc` over the span, is expanded
+/// over the full circle: `g` is its mean, `d_p = −A_1`, `d_q = −B_1`. A warm-up is not
+/// linear in time; these are the changes from the first reading to the last, which is what
+/// the fit's linear terms and a closing error measure.
+pub fn test_drift(
+    inputs: &TruthInputs,
+    b: &BallbarSetup,
+    d: &TestDrift,
+) -> serde_json::Map<String, Value> {
+    let (pa, qa) = b.plane.axes();
+    let (centre, radius) = b.tool_circle();
+    let base = base_directions(inputs.job, b);
+    let creep = b.spec.setup_drift_m_per_s * d.span_s;
+    let n = 720;
+    let (mut g, mut a1, mut b1) = (0.0, 0.0, 0.0);
+    for i in 0..n {
+        let th = TAU * i as f64 / n as f64;
+        let tool = centre + (unit(pa) * th.cos() + unit(qa) * th.sin()) * radius;
+        let u = (tool - b.center).normalize();
+        let change = mean_error(inputs, &d.end, b, th, base)
+            - mean_error(inputs, &d.start, b, th, base)
+            - creep;
+        let dr = change.dot(&u) * 1e6;
+        g += dr / n as f64;
+        a1 += 2.0 / n as f64 * dr * th.cos();
+        b1 += 2.0 / n as f64 * dr * th.sin();
+    }
+    let mut m = serde_json::Map::new();
+    m.insert("radial_drift".into(), json!(g));
+    for (axis, v) in [(pa, -a1), (qa, -b1)] {
+        m.insert(
+            format!("pivot_drift_{}", axis.to_string().to_lowercase()),
+            json!(v),
+        );
+    }
+    m
+}
+
+/// The direction state of each axis through test `b`: forward for the plane axes (the field
+/// is averaged over theirs), the third axis as its last move before the test left it.
+fn base_directions(job: &Job, b: &BallbarSetup) -> [Direction; 3] {
+    let (pa, qa) = b.plane.axes();
+    let mut base = [Direction::Forward; 3];
+    if let Some(t) = Axis::ALL.into_iter().find(|a| *a != pa && *a != qa) {
+        base[t.index()] = out_of_plane_direction(job, b, t);
+    }
+    base
 }
 
 fn unit(a: Axis) -> Vector3<f64> {

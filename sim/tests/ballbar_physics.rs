@@ -13,7 +13,7 @@ use vmt_sim::nc::{ArcDirection, CircularTest, Plane, parse};
 use vmt_sim::plant::{Fidelity, MultibodyPlant, Plant, layout};
 use vmt_sim::run::{BallbarTrace, Run};
 use vmt_sim::simulate::{AxisDynamics, BallbarSetup, Job, SimError, SimSettings, simulate};
-use vmt_sim::truth::{TruthInputs, test_figures};
+use vmt_sim::truth::{TestDrift, TruthInputs, test_drift, test_figures};
 
 fn machine() -> Machine {
     let mut m = vmt_scenario::builtin().unwrap().machine;
@@ -95,8 +95,67 @@ fn circle_figures(axes: &[AxisDynamics; 3], test: &CircularTest) -> serde_json::
         axes,
         job: &job,
         at_tests: std::slice::from_ref(&chain),
+        drifts: &[],
     };
     test_figures(&inputs, &job.ballbar[0], &chain)
+}
+
+/// The truth's drift over a test is what the diagnosis' drift terms read
+/// (`Δr = g s − (d_p cos θ + d_q sin θ) s`): the pivot's creep over the span is a pivot drift
+/// of that size, and a thermal translation `t` of the tool against the work one of `−t` (the
+/// bar reads the tool moving by `t` as the pivot moving by `−t`); neither changes the radius.
+#[test]
+fn the_drift_over_a_test_is_the_pivots_creep_less_the_tools_thermal_translation() {
+    let m = machine();
+    let axes = [0.0; 3].map(|b| common::axis(300.0, b, 33.0));
+    let spec = BallbarSpec {
+        setup_drift_m_per_s: Vector3::new(1e-8, -2e-8, 5e-9),
+        ..BallbarSpec::default()
+    };
+    let job = circle_job(&circle_test(1000.0), spec);
+    let cold = m.volumetric.evaluator(&ThermalDeformation::default());
+    let mut warm_state = ThermalDeformation::default();
+    warm_state.links[1].translation = Vector3::new(1.5e-6, -0.5e-6, 2e-6);
+    let warm = m.volumetric.evaluator(&warm_state);
+    let centre = vmt_model::kinematics::AxisState {
+        position: job.ballbar[0].center - m.volumetric.kinematics.tool_offset,
+        direction: [vmt_model::Direction::Forward; 3],
+    };
+    let t = (warm.volumetric_error(&centre) - cold.volumetric_error(&centre)) * 1e6;
+    assert!(
+        t.x.abs() > 0.4 && t.y.abs() > 0.4,
+        "the link moves the tool: {t}"
+    );
+    let drift = |start, end| {
+        let d = TestDrift {
+            span_s: 60.0,
+            start,
+            end,
+        };
+        let inputs = TruthInputs {
+            machine: &m,
+            axes: &axes,
+            job: &job,
+            at_tests: &[],
+            drifts: &[],
+        };
+        let v = Value::Object(test_drift(&inputs, &job.ballbar[0], &d));
+        ["radial_drift", "pivot_drift_x", "pivot_drift_y"].map(|k| v[k].as_f64().unwrap())
+    };
+    let zero = ThermalDeformation::default();
+    let evaluator = |d| m.volumetric.evaluator(d);
+    // Creep only: 60 s at (10, −20, 5) nm/s; the bar lies in XY and does not see Z.
+    let creep = drift(evaluator(&zero), evaluator(&zero));
+    for (got, want) in creep.iter().zip([0.0, 0.6, -1.2]) {
+        assert!((got - want).abs() < 1e-9, "{creep:?}");
+    }
+    let both = drift(evaluator(&zero), evaluator(&warm_state));
+    for (got, want) in both.iter().zip([0.0, 0.6 - t.x, -1.2 - t.y]) {
+        assert!(
+            (got - want).abs() < 1e-9,
+            "{both:?} with the tool moved by {t}"
+        );
+    }
 }
 
 /// Without a Stribeck peak (static = Coulomb friction) a moving axis stands a constant
@@ -409,6 +468,7 @@ fn injected_squareness_is_written_in_urad() {
         axes: &exec.axes,
         job: &exec.job,
         at_tests: &[],
+        drifts: &[],
     };
     let truth = vmt_sim::truth::ground_truth(&inputs, &[], None);
     let values = |key: &str| -> Vec<f64> {

@@ -27,7 +27,7 @@
 //! is known.
 
 use crate::dataset::{complete_runs, read_identity, read_run_labels};
-use crate::diagnose::{diagnose_file, truth_figures};
+use crate::diagnose::{diagnose_file, truth_effects, truth_figures};
 use crate::error::CliError;
 use rayon::prelude::*;
 use serde::Serialize;
@@ -325,6 +325,7 @@ fn compare_run(path: &Path) -> Result<RunComparisons, (String, String)> {
         .as_ref()
         .ok_or_else(|| fail("no ground truth".into()))?;
     let figures = truth_figures(truth, 0).ok_or_else(|| fail("no truth figures".into()))?;
+    let effects = truth_effects(truth, 0).unwrap_or_default();
     let (_, diag) = d
         .tests
         .first()
@@ -343,7 +344,7 @@ fn compare_run(path: &Path) -> Result<RunComparisons, (String, String)> {
                     present: f.present,
                     threshold: f.threshold,
                     radius_mm: diag.radius_mm,
-                    left_out_bias: crate::diagnose::left_out_bias(f, figures),
+                    left_out_bias: crate::diagnose::left_out_bias(f, &effects),
                 })
                 .ok_or_else(|| NotDiagnosed {
                     id: id.clone(),

@@ -10,7 +10,8 @@
 //!   continues with the runs still missing. A run folder missing one of its files (deleted
 //!   by hand) is not complete: it is simulated again and replaced.
 //! - `manifest.csv`, `manifest.parquet`: one row per complete run, sorted by id: `id`, `seed`,
-//!   every parameter, every ground-truth figure of the first circular test as `truth.<key>`.
+//!   every parameter, every ground-truth figure of the first circular test and its drift
+//!   (`radial_drift`, `pivot_drift_<axis>`, µm over the test) as `truth.<key>_<unit>`.
 //! - `dataset.json`: the dataset's identity, written before the first run: `seed`, `scenario`
 //!   (the file as given), `scenario_fnv1a64` (a hash of its text), `count` (the runs last asked
 //!   for) and `labels_format` ([`LABELS_FORMAT`]). An invocation into a folder made with another
@@ -49,7 +50,9 @@ pub const FAILED_DIR: &str = "failed-runs";
 const IDS_LISTED: usize = 5;
 /// The identity file of a dataset folder.
 pub const IDENTITY_FILE: &str = "dataset.json";
-/// The version of what `labels.json` holds: 4 since the truth states each axis' angular play
+/// The version of what `labels.json` holds: 5 since the truth states the drift over each
+/// circular test, which the manifest lists (format 4 had none), 4 since the truth states each
+/// axis' angular play
 /// (format 3 had none, and a dataset of both would lack it in some runs), 3 since the truth's
 /// backlash and servo mismatch figures are the drives' lost motion and lag along the circle
 /// (format 2 counted the guideways' viscous friction at the test feed as lost motion), 2 since
@@ -57,7 +60,7 @@ pub const IDENTITY_FILE: &str = "dataset.json";
 /// rad under the same keys). Runs of two formats never share a dataset. A change of a key's meaning or unit bumps it; keys
 /// only added (as the laser truth's drive share at rest was) do not, since no value read before
 /// changes.
-pub const LABELS_FORMAT: u64 = 4;
+pub const LABELS_FORMAT: u64 = 5;
 
 /// What `vmt dataset` is asked for.
 pub struct Request<'a> {
@@ -756,11 +759,8 @@ fn manifest(dir: &Path) -> Result<Manifest, CliError> {
         .iter()
         .map(|p| read_run_labels(p))
         .collect::<Result<Vec<_>, _>>()?;
-    let figures = |l: &Value| {
-        crate::diagnose::truth_figures(&l["ground_truth"], 0)
-            .cloned()
-            .unwrap_or_default()
-    };
+    let figures =
+        |l: &Value| crate::diagnose::truth_effects(&l["ground_truth"], 0).unwrap_or_default();
     let mut names = BTreeSet::new();
     let mut truths = BTreeSet::new();
     for l in &labels {
@@ -783,10 +783,14 @@ fn manifest(dir: &Path) -> Result<Manifest, CliError> {
             .map(|n| format!("parameters.{n}"))
             .or_else(|| {
                 let f = figures(l);
-                truths
-                    .iter()
-                    .find(|k| !f.contains_key(*k))
-                    .map(|k| format!("ground_truth.ballbar.tests[0].figures.{k}"))
+                truths.iter().find(|k| !f.contains_key(*k)).map(|k| {
+                    let section = if k.contains("drift") {
+                        "drift"
+                    } else {
+                        "figures"
+                    };
+                    format!("ground_truth.ballbar.tests[0].{section}.{k}")
+                })
             });
         if let Some(key) = lacks {
             return Err(CliError::input(

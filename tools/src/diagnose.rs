@@ -185,12 +185,31 @@ pub fn truth_figures(truth: &Value, i: usize) -> Option<&serde_json::Map<String,
     truth["ballbar"]["tests"][i]["figures"].as_object()
 }
 
+/// The drift of test `i` of a run over its data (`radial_drift`, `pivot_drift_<axis>`, µm), as
+/// the simulator wrote it: no finding reports it, but a partial arc's findings state their
+/// bias per µm of it.
+pub fn truth_drift(truth: &Value, i: usize) -> Option<&serde_json::Map<String, Value>> {
+    truth["ballbar"]["tests"][i]["drift"].as_object()
+}
+
+/// The true values of every effect that a finding of test `i` may state a bias per unit of:
+/// the test's truth figures and its drift.
+pub fn truth_effects(truth: &Value, i: usize) -> Option<serde_json::Map<String, Value>> {
+    let mut effects = truth_figures(truth, i)?.clone();
+    if let Some(drift) = truth_drift(truth, i) {
+        effects.extend(drift.iter().map(|(k, v)| (k.clone(), v.clone())));
+    }
+    Some(effects)
+}
+
 /// The report as text: each test's diagnosis and, for a simulated run, the truth beside it.
 pub fn text(d: &Diagnosed) -> String {
     let mut s = String::new();
     for (i, (_, diag)) in d.tests.iter().enumerate() {
         s.push_str(&report::text(diag));
-        if let Some(fig) = d.ground_truth.as_ref().and_then(|t| truth_figures(t, i)) {
+        if let Some(truth) = &d.ground_truth
+            && let (Some(fig), Some(effects)) = (truth_figures(truth, i), truth_effects(truth, i))
+        {
             let _ = writeln!(s, "\nAgainst the run's ground truth");
             let _ = write!(
                 s,
@@ -212,7 +231,7 @@ pub fn text(d: &Diagnosed) -> String {
                     f.value,
                     f.value - t
                 );
-                let _ = match left_out_bias(f, fig) {
+                let _ = match left_out_bias(f, &effects) {
                     Some(b) => writeln!(s, " {b:>+16.4}"),
                     None => writeln!(s),
                 };
@@ -226,17 +245,17 @@ pub fn text(d: &Diagnosed) -> String {
     s
 }
 
-/// The bias that the true values of the effects the test leaves out (bows, angular plays:
-/// their truth figures) put on finding `f` by the rates its `bias_per_<unit>_of_<key>`
+/// The bias that the true values of the effects the test leaves out (bows, angular plays,
+/// drifts: [`truth_effects`]) put on finding `f` by the rates its `bias_per_<unit>_of_<key>`
 /// details state; `None` when it states none or an effect's truth is missing.
-pub(crate) fn left_out_bias(f: &Finding, truth: &serde_json::Map<String, Value>) -> Option<f64> {
+pub(crate) fn left_out_bias(f: &Finding, effects: &serde_json::Map<String, Value>) -> Option<f64> {
     let rates: Vec<(&str, f64)> = f.stated_biases().collect();
     if rates.is_empty() {
         return None;
     }
     rates
         .into_iter()
-        .map(|(key, rate)| Some(rate * truth.get(key)?.as_f64()?))
+        .map(|(key, rate)| Some(rate * effects.get(key)?.as_f64()?))
         .sum()
 }
 
@@ -276,8 +295,13 @@ pub fn json(d: &Diagnosed) -> Value {
         .enumerate()
         .map(|(i, (_, diag))| {
             let mut v = report::json(diag);
-            if let Some(f) = d.ground_truth.as_ref().and_then(|t| truth_figures(t, i)) {
-                v["ground_truth"] = Value::Object(f.clone());
+            if let Some(t) = &d.ground_truth {
+                if let Some(f) = truth_figures(t, i) {
+                    v["ground_truth"] = Value::Object(f.clone());
+                }
+                if let Some(drift) = truth_drift(t, i) {
+                    v["ground_truth_drift"] = Value::Object(drift.clone());
+                }
             }
             v
         })
