@@ -26,7 +26,8 @@ pub struct TruthInputs<'a> {
     /// The error chain in the middle of each circular test of the job, in job order.
     pub at_tests: &'a [VolumetricEvaluator<'a>],
     /// The error chain at the start and end of each circular test's data, in job order (a test
-    /// without one has no `drift` in the truth).
+    /// beyond the end of the slice has no `drift` in the truth; `simulate` gives every test
+    /// one, a test without data a zero span).
     pub drifts: &'a [TestDrift<'a>],
 }
 
@@ -65,7 +66,8 @@ pub struct TestDrift<'a> {
 /// each circular test of `ballbar.tests` has its own at its feed, and a `figures` object with
 /// every figure a ball-bar diagnosis reports, under the diagnosis' keys (see [`test_figures`]),
 /// and a `drift` object with what the machine and the pivot drifted by over the test, which a
-/// diagnosis fits but reports only as closing errors (see [`test_drift`]).
+/// diagnosis of full circles run both ways fits and reports as closing errors, and any other
+/// test leaves out and states the bias of (see [`test_drift`]).
 /// A positioning test's
 /// `laser` section holds the noise-free deviations (what a perfect laser would read), the error
 /// chain's share, the drive's share at rest (the reversal a laser reads at standstill), and the
@@ -387,7 +389,8 @@ fn amplitude_gain(d: &AxisDynamics, omega: f64) -> f64 {
 /// eccentricity, with `d` the drives' static deflection under their constant load (a hanging
 /// Z head sits `m g / k` plus half its gap lower than its encoder says). Backlash and lateral
 /// play of an axis: the change of `δ` along and across the axis when it reverses (backward minus
-/// forward), averaged over the data arcs as the signatures weigh it (see `reversal_change`),
+/// forward), at the circle's centre of lines fitted over the data arcs as the signatures
+/// weigh them (see `reversal_change`),
 /// the growth of those changes across and along the axis its angular play (µrad: a table's
 /// yaw backlash turns it about the plane's normal); the backlash adds the drive's lost motion
 /// along the circle (`drive_share`: the gap and the screw's stretch under the guideway
@@ -830,6 +833,11 @@ impl Line {
         self.aty[0] / self.ata[(0, 0)]
     }
 
+    /// The line's value at `x = 0`, `c₀`; the weighted mean without spread in `x`.
+    fn at_zero(&self) -> f64 {
+        self.ata.lu().solve(&self.aty).map_or(self.mean(), |v| v[0])
+    }
+
     /// The slope `g`; 0 without spread in `x`.
     fn slope(&self) -> f64 {
         self.ata.lu().solve(&self.aty).map_or(0.0, |v| v[1])
@@ -837,18 +845,22 @@ impl Line {
 }
 
 /// The change of the tool-point error when `axis` reverses (backward minus forward), along it
-/// and along `other`, averaged over the data arcs `arcs` (start angle, signed sweep, rad) and
-/// the directions of `other`, the third axis in its direction of `base`. Each point weighs as
-/// the signature's least squares weigh it: the change along `axis` (the backlash, `± cos θ`
-/// from the axis) by the square of the axis' share of the radius, the change along `other`
-/// (the lateral play, `± |sin θ|`) by the square of `other`'s share. On a full circle a change
-/// that is linear in the position averages to its value at the two reversal points; on a half
-/// circle over the top the Z backlash weighs most at the top, Z's lateral play at the arc's
-/// ends. The angular play is the slope of the across change along the axis plus that of the
-/// along change across it, each a weighted least-squares line with the same weights: both
-/// read `σ (εR/2) |sin θ| cos θ` on the bar (for p), so a carriage turning about the plane's
-/// normal shows only where the two differ (a turn about the circle's centre moves nothing
-/// radially).
+/// and along `other`, over the data arcs `arcs` (start angle, signed sweep, rad) and the
+/// directions of `other`, the third axis in its direction of `base`: each change is a
+/// weighted least-squares line in the position from the circle's centre (across the axis for
+/// the change along it, along the axis for the change across it), and the backlash and lateral
+/// play are the lines' values at the centre, the angular play the sum of their slopes. Each
+/// point weighs as the signature's least squares weigh it: the change along `axis` (the
+/// backlash, `± cos θ` from the axis) by the square of the axis' share of the radius, the
+/// change along `other` (the lateral play, `± |sin θ|`) by the square of `other`'s share. Both
+/// slopes read `σ (εR/2) |sin θ| cos θ` on the bar (for p), so a carriage turning about the
+/// plane's normal shows only where the two differ (a turn about the circle's centre moves
+/// nothing radially). These are the diagnosis' parameters: its lateral play is the change at
+/// the centre and its angular play the growth from there. On a full circle the weights are
+/// symmetric about the centre and the values at it are the weighted means; on a half circle
+/// over the top, which cannot fit the angular play, a line's mean lies a slope times the
+/// weighted mean position away (0.42 R for Z's lateral play in YZ), and the diagnosis reads the
+/// value at the centre plus the angular play's bias that it states.
 fn reversal_change(
     inputs: &TruthInputs,
     chain: &VolumetricEvaluator,
@@ -885,8 +897,8 @@ fn reversal_change(
         }
     }
     ReversalChange {
-        along_um: along_line.mean() * 1e6,
-        across_um: across_line.mean() * 1e6,
+        along_um: along_line.at_zero() * 1e6,
+        across_um: across_line.at_zero() * 1e6,
         angular_urad: (across_line.slope() + along_line.slope()) * 1e6,
     }
 }

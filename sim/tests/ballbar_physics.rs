@@ -62,7 +62,7 @@ fn circle_test(feed_mm_min: f64) -> CircularTest {
     CircularTest::iso230_4(Plane::Xy, center, 0.15, feed_mm_min / 60_000.0)
 }
 
-/// The job of `test` (in XY), with the ball bar `spec`.
+/// The job of `test`, with the ball bar `spec`.
 fn circle_job(test: &CircularTest, spec: BallbarSpec) -> Job {
     let center = test.center;
     let start = test.start_point();
@@ -74,8 +74,8 @@ fn circle_job(test: &CircularTest, spec: BallbarSpec) -> Job {
             name: None,
             spec,
             center,
-            radius_m: 0.15,
-            plane: Plane::Xy,
+            radius_m: test.radius_m,
+            plane: test.plane,
             feed_m_s: test.feed_m_s,
             data,
             circle: None,
@@ -100,10 +100,64 @@ fn circle_figures(axes: &[AxisDynamics; 3], test: &CircularTest) -> serde_json::
     test_figures(&inputs, &job.ballbar[0], &chain)
 }
 
+/// A YZ squareness that changes by 3 µrad when Z reverses (the built-in EA0Z, 6 µrad forward
+/// and 9 backward) turns Z's across change as it reverses: the truth gives the lateral play
+/// at the circle's centre and the angular play as its growth from there, the parameters the
+/// diagnosis fits, so the half circle over the top, which sees only z above the centre, has
+/// the full circle's truth (a weighted mean over its arc had put its lateral play 0.42 R times
+/// the angular play away: 0.19 µm on 150 mm).
+#[test]
+fn the_truths_lateral_play_is_the_change_at_the_centre_whatever_the_arc() {
+    let mut m = machine();
+    m.volumetric.errors.set_squareness(
+        vmt_model::geometric::SquarenessError::A0Z,
+        vmt_model::geometric::SquarenessValue {
+            values: [[6e-6, 9e-6], [6e-6, 9e-6]],
+        },
+    );
+    let axes = [0.0; 3].map(|b| common::axis(300.0, b, 33.0));
+    let centre = Vector3::new(0.25, 0.2, 0.25);
+    let full = CircularTest::iso230_4(Plane::Yz, centre, 0.15, 1000.0 / 60_000.0);
+    let half = CircularTest {
+        arc_deg: 180.0,
+        start_deg: 0.0,
+        ..full.clone()
+    };
+    let figures = |test: &CircularTest| {
+        let job = circle_job(test, BallbarSpec::default());
+        let chain = m.volumetric.evaluator(&ThermalDeformation::default());
+        let inputs = TruthInputs {
+            machine: &m,
+            axes: &axes,
+            job: &job,
+            at_tests: std::slice::from_ref(&chain),
+            drifts: &[],
+        };
+        test_figures(&inputs, &job.ballbar[0], &chain)
+    };
+    let (f, h) = (figures(&full), figures(&half));
+    let get = |m: &serde_json::Map<String, Value>, k: &str| m[k].as_f64().unwrap();
+    // Z's line turns about X by the change: an angular play of 3 µrad in size.
+    assert!(
+        (get(&f, "angular_play_z").abs() - 3.0).abs() < 1e-6,
+        "{f:?}"
+    );
+    assert!(get(&f, "lateral_play_z").abs() > 0.3, "{f:?}");
+    for key in ["lateral_play_z", "angular_play_z"] {
+        assert!(
+            (get(&h, key) - get(&f, key)).abs() < 1e-6,
+            "{key}: half circle {}, full circle {}",
+            get(&h, key),
+            get(&f, key)
+        );
+    }
+}
+
 /// The truth's drift over a test is what the diagnosis' drift terms read
 /// (`Δr = g s − (d_p cos θ + d_q sin θ) s`): the pivot's creep over the span is a pivot drift
 /// of that size, and a thermal translation `t` of the tool against the work one of `−t` (the
 /// bar reads the tool moving by `t` as the pivot moving by `−t`); neither changes the radius.
+/// Scales that grow about the circle's centre change it by their strain times R.
 #[test]
 fn the_drift_over_a_test_is_the_pivots_creep_less_the_tools_thermal_translation() {
     let m = machine();
@@ -155,6 +209,28 @@ fn the_drift_over_a_test_is_the_pivots_creep_less_the_tools_thermal_translation(
             (got - want).abs() < 1e-9,
             "{both:?} with the tool moved by {t}"
         );
+    }
+    // X and Y scales growing by 10 µm/m from the circle's centre: the radius grows by 1.5 µm
+    // and the centre stays.
+    let mut grown = ThermalDeformation::default();
+    for (i, c) in [(0, centre.position.x), (1, centre.position.y)] {
+        grown.joints[i].strain = 10e-6;
+        grown.joints[i].reference_m = c;
+    }
+    let at_zero_deg = vmt_model::kinematics::AxisState {
+        position: centre.position + Vector3::new(0.15, 0.0, 0.0),
+        ..centre
+    };
+    let grows = m
+        .volumetric
+        .evaluator(&grown)
+        .volumetric_error(&at_zero_deg)
+        .x
+        * 1e6;
+    assert!((grows.abs() - 1.5).abs() < 1e-6, "{grows}");
+    let radial = drift(evaluator(&zero), evaluator(&grown));
+    for (got, want) in radial.iter().zip([grows, 0.6, -1.2]) {
+        assert!((got - want).abs() < 1e-6, "{radial:?}");
     }
 }
 

@@ -51,15 +51,18 @@ const IDS_LISTED: usize = 5;
 /// The identity file of a dataset folder.
 pub const IDENTITY_FILE: &str = "dataset.json";
 /// The version of what `labels.json` holds: 5 since the truth states the drift over each
-/// circular test, which the manifest lists (format 4 had none), 4 since the truth states each
+/// circular test, which the manifest lists (format 4 had none), and gives each axis' backlash
+/// and lateral play at the circle's centre (format 4 gave their mean over the arc, which on a
+/// partial arc differs by the angular play's growth), 4 since the truth states each
 /// axis' angular play
 /// (format 3 had none, and a dataset of both would lack it in some runs), 3 since the truth's
 /// backlash and servo mismatch figures are the drives' lost motion and lag along the circle
 /// (format 2 counted the guideways' viscous friction at the test feed as lost motion), 2 since
 /// the injected squareness is in µrad (format 1, without the key in `dataset.json`, wrote it in
-/// rad under the same keys). Runs of two formats never share a dataset. A change of a key's meaning or unit bumps it; keys
-/// only added (as the laser truth's drive share at rest was) do not, since no value read before
-/// changes.
+/// rad under the same keys). Runs of two formats never share a dataset. A change of a key's meaning or unit bumps it, and so
+/// does a key added where the manifest lists it (every run must have its columns); keys only
+/// added elsewhere (as the laser truth's drive share at rest was) do not, since no value read
+/// before changes.
 pub const LABELS_FORMAT: u64 = 5;
 
 /// What `vmt dataset` is asked for.
@@ -921,10 +924,15 @@ fn missing_number(v: &Value) -> Option<String> {
                 .into(),
         );
     };
+    let drift = crate::diagnose::truth_drift(truth, 0).into_iter().flatten();
     figures
         .iter()
-        .find(|(_, f)| !f.is_number())
-        .map(|(k, f)| format!("`ground_truth.ballbar.tests[0].figures.{k}` is {f}, not a number"))
+        .map(|kv| ("figures", kv))
+        .chain(drift.map(|kv| ("drift", kv)))
+        .find(|(_, (_, f))| !f.is_number())
+        .map(|(section, (k, f))| {
+            format!("`ground_truth.ballbar.tests[0].{section}.{k}` is {f}, not a number")
+        })
 }
 
 /// Rebuilds `manifest.csv` and `manifest.parquet` from the labels; returns the number of rows.

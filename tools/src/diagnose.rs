@@ -186,8 +186,8 @@ pub fn truth_figures(truth: &Value, i: usize) -> Option<&serde_json::Map<String,
 }
 
 /// The drift of test `i` of a run over its data (`radial_drift`, `pivot_drift_<axis>`, µm), as
-/// the simulator wrote it: no finding reports it, but a partial arc's findings state their
-/// bias per µm of it.
+/// the simulator wrote it: no finding reports it, but the findings of a partial arc or of a
+/// circle run one way state their bias per µm of it.
 pub fn truth_drift(truth: &Value, i: usize) -> Option<&serde_json::Map<String, Value>> {
     truth["ballbar"]["tests"][i]["drift"].as_object()
 }

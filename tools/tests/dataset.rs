@@ -89,6 +89,9 @@ fn same_seed_gives_identical_files_with_one_and_two_threads_and_resumes() {
         "scale_x",
         "truth.backlash_x_um",
         "truth.servo_mismatch_xy_ms",
+        "truth.pivot_drift_x_um",
+        "truth.pivot_drift_y_um",
+        "truth.radial_drift_um",
     ] {
         assert!(header.contains(column), "{column} not in {header}");
     }
@@ -186,6 +189,7 @@ print(json.dumps({"columns": t.column_names, "types": [str(f.type) for f in t.sc
         ("unit.truth.scale_mismatch_xy_ppm", "ppm"),
         ("unit.truth.servo_mismatch_xy_ms", "ms"),
         ("unit.truth.squareness_xy_um_per_m", "µm/m"),
+        ("unit.truth.pivot_drift_x_um", "µm"),
     ] {
         assert_eq!(meta[key], value, "{key} in {meta}");
     }
@@ -386,21 +390,33 @@ fn a_corrupt_label_is_an_error_naming_its_file() {
             "{e}"
         );
     }
-    // One truth figure deleted: the manifest would have an empty cell where the others have
-    // a number.
+    // One truth figure or drift deleted: the manifest would have an empty cell where the
+    // others have a number.
+    for (section, key) in [("figures", "backlash_x"), ("drift", "pivot_drift_x")] {
+        let mut v: Value = serde_json::from_str(&good).unwrap();
+        v["ground_truth"]["ballbar"]["tests"][0][section]
+            .as_object_mut()
+            .unwrap()
+            .remove(key);
+        std::fs::write(&labels, v.to_string()).unwrap();
+        let o = dataset_run(&s, &out, 2, 7, 1);
+        let e = stderr(&o);
+        let said = format!(
+            "`ground_truth.ballbar.tests[0].{section}.{key}` is missing (other runs have it)"
+        );
+        assert!(
+            !o.status.success() && e.contains(&file) && e.contains(&said),
+            "{e}"
+        );
+    }
+    // A drift that is not a number.
     let mut v: Value = serde_json::from_str(&good).unwrap();
-    v["ground_truth"]["ballbar"]["tests"][0]["figures"]
-        .as_object_mut()
-        .unwrap()
-        .remove("backlash_x");
+    v["ground_truth"]["ballbar"]["tests"][0]["drift"]["radial_drift"] = Value::Null;
     std::fs::write(&labels, v.to_string()).unwrap();
-    let o = dataset_run(&s, &out, 2, 7, 1);
-    let e = stderr(&o);
-    let said = "`ground_truth.ballbar.tests[0].figures.backlash_x` is missing (other runs have it)";
-    assert!(
-        !o.status.success() && e.contains(&file) && e.contains(said),
-        "{e}"
-    );
+    refused(&[
+        &file,
+        "`ground_truth.ballbar.tests[0].drift.radial_drift` is null, not a number",
+    ]);
     // Another run's label.
     let other = good.replacen("\"000001\"", "\"000000\"", 1);
     std::fs::write(&labels, other).unwrap();

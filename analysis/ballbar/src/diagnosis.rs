@@ -614,8 +614,8 @@ pub const fn squareness_iso(plane: Plane) -> &'static str {
 }
 
 /// An effect that a test leaves out of its fit (a bow, an angular play, a radial or pivot drift
-/// on too short an arc; a servo mismatch, lateral play or backlash on one direction) and what it
-/// would do to the fitted terms.
+/// on too short an arc; a servo mismatch, lateral play, backlash or drift on one direction) and
+/// what it would do to the fitted terms.
 struct LeftOut {
     term: Term,
     /// Peak-to-valley of one unit of its signature on the test, µm.
@@ -630,7 +630,7 @@ struct LeftOut {
 /// and 1 µm of X's bow the scale mismatch by +11.9 ppm; run back and forth over the arc, the
 /// progress is the sense times the angle travelled, so 1 µm of drift over the test moves the
 /// lateral plays by up to about ±0.5 µm; run one way only, a servo mismatch is read as
-/// squareness.
+/// squareness, and a drift (whose progress then follows the angle) as the circle's shapes.
 fn left_out_effects(normal: &Normal, terms: &Terms, samples: &[&Samples]) -> Vec<LeftOut> {
     let left: Vec<Term> = terms.left_out.iter().map(|(t, _)| *t).collect();
     if left.is_empty() {
