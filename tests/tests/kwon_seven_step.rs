@@ -53,16 +53,34 @@ fn truth_report(run: &Run) -> MachineReport {
     )
 }
 
-/// Every failure of `key` of `step` against its truth, beyond `tol`.
+/// The bias that finding `f` of `step` states for the effects its test leaves out (the bows,
+/// angular plays and drift of a half circle), from their truth: the step's figures and drift.
+fn stated_bias(run: &Run, step: usize, f: &Finding) -> f64 {
+    let test = &run.ground_truth["ballbar"]["tests"][step - 1];
+    f.stated_biases()
+        .map(|(effect, rate)| {
+            let truth = test["figures"][effect]
+                .as_f64()
+                .or(test["drift"][effect].as_f64());
+            rate * truth.unwrap_or_else(|| panic!("step {step}: no truth of {effect}"))
+        })
+        .sum()
+}
+
+/// Every failure of `key` of `step` against its truth plus the bias it states, beyond `tol`.
 fn check(run: &Run, d: &[Diagnosis], step: usize, key: &str, tol: f64, out: &mut Vec<String>) {
     let truth = truth_figures(run, step)[key].as_f64().expect("a number");
-    match d[step - 1].finding(key) {
-        Some(f) if (f.value - truth).abs() <= tol => {}
-        Some(f) => out.push(format!(
-            "step {step} {key}: {:+.3} against {truth:+.3} (tolerance {tol})",
+    let Some(f) = d[step - 1].finding(key) else {
+        out.push(format!("step {step} {key}: not diagnosed"));
+        return;
+    };
+    let expected = truth + stated_bias(run, step, f);
+    if (f.value - expected).abs() > tol {
+        out.push(format!(
+            "step {step} {key}: {:+.3} against {truth:+.3} plus its stated bias, {expected:+.3} \
+             (tolerance {tol})",
             f.value
-        )),
-        None => out.push(format!("step {step} {key}: not diagnosed")),
+        ));
     }
 }
 
@@ -72,7 +90,9 @@ fn check(run: &Run, d: &[Diagnosis], step: usize, key: &str, tol: f64, out: &mut
 /// for the XY steps (EA0Z differs by direction: steps 3 and 5 follow a descent), on the
 /// gravity-loaded Z nut (no gap crossed at the top of the half circles), on eccentricities
 /// taken at the start of a test against a truth in its middle, on cyclic errors found in the
-/// start transient, and on the half circles' X lost motion read as servo mismatch.
+/// start transient, and on the half circles' X lost motion read as servo mismatch. On the half
+/// circles a finding reads its truth plus the bias it states for what the arc leaves out (step
+/// 7's lateral play of Z: −0.24 µm, mostly Z's angular play of −3 µrad).
 #[test]
 fn seven_steps_agree_with_the_truth() {
     let (run, d) = shared();
@@ -99,7 +119,7 @@ fn seven_steps_agree_with_the_truth() {
     }
     for (step, across) in [(6, "eccentricity_x"), (7, "eccentricity_y")] {
         check(run, d, step, "backlash_z", 0.15, &mut failures);
-        check(run, d, step, "lateral_play_z", 0.15, &mut failures);
+        check(run, d, step, "lateral_play_z", 0.05, &mut failures);
         // The pivot offset across the half circle moves by 0.17 µm per µm of the axes' bows.
         check(run, d, step, across, 0.5, &mut failures);
     }
