@@ -977,3 +977,71 @@ fn one_direction_leaves_the_drift_out_and_states_its_bias() {
     }
     assert!(stated >= 2, "{stated} findings state the drift's bias");
 }
+
+/// What a test leaves out of its fit (a drift run one way, the bows on a 220° arc) is a smooth
+/// residual, which the cyclic-error search must not read as a cyclic error: it is searched with
+/// those shapes taken out. A real one is still found, with its pitch and amplitude.
+#[test]
+fn a_test_that_leaves_effects_out_finds_a_cyclic_error_and_no_phantom() {
+    let one_way = |e: &Errors| {
+        let ccw = common::trace(
+            Plane::Xy,
+            Sense::Ccw,
+            100.0,
+            2000.0,
+            0.0,
+            360.0,
+            e,
+            (-0.5, 0.5),
+            11,
+        );
+        diagnose(&[ccw], &Options::default()).expect("diagnosis")
+    };
+    let arc = |e: &Errors| {
+        let run = |sense, start, seed| {
+            common::trace(
+                Plane::Zx,
+                sense,
+                100.0,
+                1000.0,
+                start,
+                220.0,
+                e,
+                (0.0, 1.0),
+                seed,
+            )
+        };
+        let traces = vec![run(Sense::Ccw, -110.0, 5), run(Sense::Cw, 110.0, 6)];
+        diagnose(&traces, &Options::default()).expect("diagnosis")
+    };
+    let drift = Errors {
+        pivot_drift_um: [2.0, -1.5],
+        ..noisy()
+    };
+    let bows = Errors {
+        straightness_um: [3.0, -3.0],
+        ..noisy()
+    };
+    for (name, d) in [("one way", one_way(&drift)), ("220° arc", arc(&bows))] {
+        for f in d.findings.iter().filter(|f| f.key.starts_with("cyclic")) {
+            assert!(!f.present && f.value < 0.1, "{name}: {f:?}");
+        }
+    }
+    let cyclic = Some((0, 10.0, 0.8));
+    let with_drift = Errors { cyclic, ..drift };
+    let with_bows = Errors { cyclic, ..bows };
+    for (name, d, key) in [
+        ("one way", one_way(&with_drift), "cyclic_x"),
+        ("220° arc", arc(&with_bows), "cyclic_z"),
+    ] {
+        let f = d.finding(key).expect("a cyclic finding");
+        let pitch = f
+            .details
+            .iter()
+            .find(|(k, _)| k == "pitch_mm")
+            .expect("a pitch")
+            .1;
+        assert!(f.present && (f.value - 0.8).abs() < 0.08, "{name}: {f:?}");
+        assert!((pitch - 10.0).abs() < 0.1, "{name}: pitch {pitch}");
+    }
+}
