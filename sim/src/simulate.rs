@@ -383,6 +383,10 @@ impl JobRun<'_> {
             .flat_map(|&(t0, t1)| [t0, 0.5 * (t0 + t1), t1])
             .collect();
         let mut at_moment = vec![heat.deformation; moments.len()];
+        // And where the carriages stand from their commands then (an axis standing through a
+        // test creeps as its friction relaxes: a drift of the tool along it).
+        let mut drive_at_moment = vec![Vector3::zeros(); moments.len()];
+        let mut drive_error = Vector3::zeros();
         let mut next_moment = 0;
         let mut trackers =
             Axis::ALL.map(|a| DirectionTracker::new(start[a.index()], Direction::Forward, 0.05e-6));
@@ -413,8 +417,10 @@ impl JobRun<'_> {
                     r.thermal_state(heat.deformation);
                 }
             }
+            drive_error = q - (sp.position - tcp);
             while next_moment < moments.len() && sp.time_s >= moments[next_moment] {
                 at_moment[next_moment] = heat.deformation;
+                drive_at_moment[next_moment] = drive_error;
                 next_moment += 1;
             }
             let state = AxisState {
@@ -439,8 +445,11 @@ impl JobRun<'_> {
         }
         recorder.end_closing(&evaluator);
         // A test ending on the last tick is at the state the run ends in.
-        for d in &mut at_moment[next_moment..] {
-            *d = heat.deformation;
+        for (d, e) in at_moment[next_moment..]
+            .iter_mut()
+            .zip(&mut drive_at_moment[next_moment..])
+        {
+            (*d, *e) = (heat.deformation, drive_error);
         }
         let chain = |d: &vmt_model::thermal_deformation::ThermalDeformation| {
             machine.volumetric.evaluator(d)
@@ -449,11 +458,12 @@ impl JobRun<'_> {
             at_moment.chunks(3).map(|m| chain(&m[1])).collect();
         let drifts: Vec<TestDrift> = spans
             .iter()
-            .zip(at_moment.chunks(3))
-            .map(|(&(t0, t1), m)| TestDrift {
+            .zip(at_moment.chunks(3).zip(drive_at_moment.chunks(3)))
+            .map(|(&(t0, t1), (m, e))| TestDrift {
                 span_s: t1 - t0,
                 start: chain(&m[0]),
                 end: chain(&m[2]),
+                drive_creep_m: e[2] - e[0],
             })
             .collect();
         let truth = TruthInputs {
@@ -997,6 +1007,8 @@ struct Recorder {
     ballbar: Vec<Ballbar>,
     /// Test (index in `ballbar`) and program blocks of each trace's data arc.
     data: Vec<(usize, Range<usize>)>,
+    /// The normal of each test's plane.
+    normals: Vec<Vector3<f64>>,
     traces: Vec<BallbarTrace>,
     /// Per trace, the drift of its start point (see [`Closing`]).
     closing: Vec<Option<Closing>>,
@@ -1006,12 +1018,17 @@ struct Recorder {
 }
 
 /// What a trace's closing error is made of: the tool point at the commanded start of the trace
-/// then and at its end (thermal drift of the machine), the pivot's creep, along the bar.
+/// then and at its end (thermal drift of the machine), the creep of the axis standing along the
+/// plane's normal (its carriage's position less its command, at the first and last reading),
+/// the pivot's creep, along the bar.
 #[derive(Clone, Copy, Debug)]
 struct Closing {
     commanded: AxisState,
     tool_start: Vector3<f64>,
     tool_end: Vector3<f64>,
+    drive_start: Vector3<f64>,
+    drive_end: Vector3<f64>,
+    normal: Vector3<f64>,
     pivot_start: Vector3<f64>,
     pivot_end: Vector3<f64>,
     unit: Vector3<f64>,
@@ -1020,7 +1037,9 @@ struct Closing {
 impl Closing {
     /// Closing error: change of the bar length at the start point over the trace, µm.
     fn error_um(&self) -> f64 {
-        ((self.tool_end - self.tool_start) - (self.pivot_end - self.pivot_start)).dot(&self.unit)
+        let standing = self.normal * self.normal.dot(&(self.drive_end - self.drive_start));
+        ((self.tool_end - self.tool_start) + standing - (self.pivot_end - self.pivot_start))
+            .dot(&self.unit)
             * 1e6
     }
 }
@@ -1077,6 +1096,7 @@ impl Recorder {
             sent: vec![0; traces.len()],
             ballbar,
             data,
+            normals: job.ballbar.iter().map(|b| b.plane.normal()).collect(),
             closing: vec![None; traces.len()],
             active: None,
             traces,
@@ -1159,18 +1179,22 @@ impl Recorder {
             let (reading, angle) = bar.read(&tool, sp.time_s);
             check_range(bar, &self.traces[j], sp.time_s, reading, angle)?;
             let pivot = bar.pivot(sp.time_s);
+            let commanded = AxisState {
+                position: sp.position - machine.volumetric.kinematics.tool_offset,
+                direction: state.direction,
+            };
+            let drive = state.position - commanded.position;
             match &mut self.closing[j] {
-                Some(c) => c.pivot_end = pivot,
+                Some(c) => (c.pivot_end, c.drive_end) = (pivot, drive),
                 slot @ None => {
-                    let commanded = AxisState {
-                        position: sp.position - machine.volumetric.kinematics.tool_offset,
-                        direction: state.direction,
-                    };
                     let start = evaluator.tool_point(&commanded);
                     *slot = Some(Closing {
                         commanded,
                         tool_start: start,
                         tool_end: start,
+                        drive_start: drive,
+                        drive_end: drive,
+                        normal: self.normals[self.data[j].0],
                         pivot_start: pivot,
                         pivot_end: pivot,
                         unit: (tool - pivot).normalize(),

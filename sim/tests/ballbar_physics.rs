@@ -100,6 +100,84 @@ fn circle_figures(axes: &[AxisDynamics; 3], test: &CircularTest) -> serde_json::
     test_figures(&inputs, &job.ballbar[0], &chain)
 }
 
+/// A bar inclined 58° up from its pivot reads the hanging Z head, which stands through an XY
+/// test, sinking as its friction relaxes: the truth's drift and closing errors count that
+/// creep of the standing axis (its carriage less its command) times the bar's Z share, from
+/// the servo log's positions at the first and last reading.
+#[test]
+fn an_inclined_bar_reads_the_standing_axis_creep_in_the_truths_drift() {
+    let scenario = vmt_scenario::builtin().unwrap();
+    let exec = scenario.execution.unwrap();
+    let m = machine();
+    let test = CircularTest::iso230_4(
+        Plane::Xy,
+        Vector3::new(0.25, 0.2, 0.2),
+        0.05,
+        2000.0 / 60_000.0,
+    );
+    let mut job = circle_job(&test, BallbarSpec::default());
+    let lift = 0.08;
+    let b = &mut job.ballbar[0];
+    b.circle = Some((test.center, test.radius_m));
+    b.center = test.center - Vector3::new(0.0, 0.0, lift);
+    b.radius_m = test.radius_m.hypot(lift);
+    let u_z = lift / b.radius_m;
+    let settings = SimSettings {
+        fidelity: Fidelity::Reduced,
+        plant_substeps: 1,
+        log_rate_hz: 1000.0,
+        seed: 7,
+    };
+    let run = simulate(
+        &m,
+        &exec.axes,
+        &exec.controller,
+        &job,
+        &settings,
+        "",
+        &mut |_| {},
+    )
+    .expect("the job runs");
+    let servo = &run.streams[0];
+    let channel = |name: &str| {
+        &servo
+            .channels
+            .iter()
+            .find(|c| c.name == name)
+            .expect(name)
+            .values
+    };
+    let (command, position) = (channel("command_z"), channel("position_z"));
+    // The Z carriage's standing error (m) at time t.
+    let error_at = |t: f64| {
+        let i = servo.times_s.partition_point(|x| *x < t - 1e-9);
+        position[i] - command[i]
+    };
+    let traces = &run.ballbar;
+    let creep = |t0: f64, t1: f64| (error_at(t1) - error_at(t0)) * 1e6 * u_z;
+    let (first, last) = (traces[0].times_s[0], *traces[1].times_s.last().unwrap());
+    let test_creep = creep(first, last);
+    assert!(
+        test_creep.abs() > 0.02,
+        "the head creeps: {test_creep} µm on the bar"
+    );
+    let truth = &run.ground_truth["ballbar"]["tests"][0];
+    let radial = truth["drift"]["radial_drift"].as_f64().unwrap();
+    assert!(
+        (radial - test_creep).abs() < 0.05 * test_creep.abs() + 0.002,
+        "radial drift {radial} against the creep {test_creep}"
+    );
+    for t in traces {
+        let key = format!("closing_error_{}", t.direction);
+        let closing = truth["figures"][&key].as_f64().unwrap();
+        let want = creep(t.times_s[0], *t.times_s.last().unwrap());
+        assert!(
+            (closing - want).abs() < 0.05 * want.abs() + 0.002,
+            "{key} {closing} against the creep {want}"
+        );
+    }
+}
+
 /// A YZ squareness that changes by 3 µrad when Z reverses (the built-in EA0Z, 6 µrad forward
 /// and 9 backward) turns Z's across change as it reverses: the truth gives the lateral play
 /// at the circle's centre and the angular play as its growth from there, the parameters the
@@ -185,6 +263,7 @@ fn the_drift_over_a_test_is_the_pivots_creep_less_the_tools_thermal_translation(
             span_s: 60.0,
             start,
             end,
+            drive_creep_m: Vector3::zeros(),
         };
         let inputs = TruthInputs {
             machine: &m,
