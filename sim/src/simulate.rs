@@ -386,7 +386,6 @@ impl JobRun<'_> {
         // And where the carriages stand from their commands then (an axis standing through a
         // test creeps as its friction relaxes: a drift of the tool along it).
         let mut drive_at_moment = vec![Vector3::zeros(); moments.len()];
-        let mut drive_error = Vector3::zeros();
         let mut next_moment = 0;
         let mut trackers =
             Axis::ALL.map(|a| DirectionTracker::new(start[a.index()], Direction::Forward, 0.05e-6));
@@ -417,10 +416,9 @@ impl JobRun<'_> {
                     r.thermal_state(heat.deformation);
                 }
             }
-            drive_error = q - (sp.position - tcp);
             while next_moment < moments.len() && sp.time_s >= moments[next_moment] {
                 at_moment[next_moment] = heat.deformation;
-                drive_at_moment[next_moment] = drive_error;
+                drive_at_moment[next_moment] = q - (sp.position - tcp);
                 next_moment += 1;
             }
             let state = AxisState {
@@ -444,7 +442,12 @@ impl JobRun<'_> {
             recorder.send(sink, 0)?;
         }
         recorder.end_closing(&evaluator);
-        // A test ending on the last tick is at the state the run ends in.
+        // A test ending on the last tick is at the state the run ends in (the settling wait
+        // holds the last setpoint).
+        let carriages = plant.carriages();
+        let drive_error = last.map_or(Vector3::zeros(), |sp| {
+            Vector3::from_fn(|i, _| carriages[i].position_m) - (sp.position - tcp)
+        });
         for (d, e) in at_moment[next_moment..]
             .iter_mut()
             .zip(&mut drive_at_moment[next_moment..])
