@@ -259,8 +259,13 @@ fn simulated_run(dir: &Path) -> PathBuf {
     let cut = text.find("[job]").unwrap();
     let job = "[job]\nkind = \"ballbar\"\nplane = \"XY\"\ncenter_mm = [250.0, 200.0, 200.0]\n\
                radius_mm = 50.0\nfeed_mm_min = 3000.0\narc_deg = 360.0\ndirections = [\"cw\", \"ccw\"]\n";
+    run_scenario(dir, &format!("{}{job}", &text[..cut]))
+}
+
+/// The scenario `text`, run by `vmt run` into `dir/run`; that folder.
+fn run_scenario(dir: &Path, text: &str) -> PathBuf {
     let s = dir.join("s.toml");
-    std::fs::write(&s, format!("{}{job}", &text[..cut])).unwrap();
+    std::fs::write(&s, text).unwrap();
     let out = dir.join("run");
     let o = vmt(&[
         "run",
@@ -445,17 +450,7 @@ fn a_simulated_run_in_one_direction_reads_its_truth_plus_the_stated_bias() {
         text.contains("directions = [\"ccw\"]"),
         "the job's directions"
     );
-    let s = dir.path().join("ccw.toml");
-    std::fs::write(&s, text).unwrap();
-    let out = dir.path().join("run");
-    let o = vmt(&[
-        "run",
-        s.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-        "--quiet",
-    ]);
-    assert!(o.status.success(), "{}", stderr(&o));
+    let out = run_scenario(dir.path(), &text);
     let o = vmt(&["diagnose", out.join("run.mcap").to_str().unwrap(), "--json"]);
     assert!(o.status.success(), "{}", stderr(&o));
     let report: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();

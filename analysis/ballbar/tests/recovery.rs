@@ -11,6 +11,44 @@ fn run(plane: Plane, e: &Errors) -> Diagnosis {
     d
 }
 
+/// An arc of `sweep` degrees in ZX, symmetric about +Z (0°) as the simulator places it, run
+/// CCW then CW at 100 mm and 1000 mm/min.
+fn zx_arc(e: &Errors, sweep: f64) -> Vec<Trace> {
+    let run = |sense, start, seed| {
+        common::trace(
+            Plane::Zx,
+            sense,
+            100.0,
+            1000.0,
+            start,
+            sweep,
+            e,
+            (0.0, 1.0),
+            seed,
+        )
+    };
+    vec![
+        run(Sense::Ccw, -sweep / 2.0, 5),
+        run(Sense::Cw, sweep / 2.0, 6),
+    ]
+}
+
+/// The diagnosis of a full XY circle of `radius_mm` run CCW only from 0°, the whole test.
+fn ccw_only(e: &Errors, radius_mm: f64, feed_mm_min: f64, seed: u64) -> Diagnosis {
+    let ccw = common::trace(
+        Plane::Xy,
+        Sense::Ccw,
+        radius_mm,
+        feed_mm_min,
+        0.0,
+        360.0,
+        e,
+        (-0.5, 0.5),
+        seed,
+    );
+    diagnose(&[ccw], &Options::default()).expect("diagnosis")
+}
+
 fn noisy() -> Errors {
     Errors {
         noise_um: 0.3,
@@ -452,22 +490,7 @@ fn a_partial_arc_states_the_bias_of_the_bows_it_cannot_fit() {
     };
     // Symmetric about +Z (0° in ZX), as the simulator places it; the full circle from there.
     let runs = |sweep: f64| {
-        let run = |sense, start, seed| {
-            common::trace(
-                Plane::Zx,
-                sense,
-                100.0,
-                1000.0,
-                start,
-                sweep,
-                &e,
-                (0.0, 1.0),
-                seed,
-            )
-        };
-        let from = -sweep / 2.0;
-        let traces = vec![run(Sense::Ccw, from, 5), run(Sense::Cw, -from, 6)];
-        let d = diagnose(&traces, &Options::default()).expect("diagnosis");
+        let d = diagnose(&zx_arc(&e, sweep), &Options::default()).expect("diagnosis");
         eprintln!("{}", vmt_ballbar::report::text(&d));
         d
     };
@@ -904,20 +927,7 @@ fn one_direction_leaves_the_drift_out_and_states_its_bias() {
         lag_ms: [30.0, 30.0],
         ..noisy()
     };
-    let one_way = |e: &Errors| {
-        let ccw = common::trace(
-            Plane::Xy,
-            Sense::Ccw,
-            150.0,
-            1000.0,
-            0.0,
-            360.0,
-            e,
-            (-0.5, 0.5),
-            9,
-        );
-        diagnose(&[ccw], &Options::default()).expect("diagnosis")
-    };
+    let one_way = |e: &Errors| ccw_only(e, 150.0, 1000.0, 9);
     let d = one_way(&base);
     eprintln!("{}", vmt_ballbar::report::text(&d));
     let closing = d.not_computed.iter().find(|n| n.key == "closing_error");
@@ -983,37 +993,8 @@ fn one_direction_leaves_the_drift_out_and_states_its_bias() {
 /// those shapes taken out. A real one is still found, with its pitch and amplitude.
 #[test]
 fn a_test_that_leaves_effects_out_finds_a_cyclic_error_and_no_phantom() {
-    let one_way = |e: &Errors| {
-        let ccw = common::trace(
-            Plane::Xy,
-            Sense::Ccw,
-            100.0,
-            2000.0,
-            0.0,
-            360.0,
-            e,
-            (-0.5, 0.5),
-            11,
-        );
-        diagnose(&[ccw], &Options::default()).expect("diagnosis")
-    };
-    let arc = |e: &Errors| {
-        let run = |sense, start, seed| {
-            common::trace(
-                Plane::Zx,
-                sense,
-                100.0,
-                1000.0,
-                start,
-                220.0,
-                e,
-                (0.0, 1.0),
-                seed,
-            )
-        };
-        let traces = vec![run(Sense::Ccw, -110.0, 5), run(Sense::Cw, 110.0, 6)];
-        diagnose(&traces, &Options::default()).expect("diagnosis")
-    };
+    let one_way = |e: &Errors| ccw_only(e, 100.0, 2000.0, 11);
+    let arc = |e: &Errors| diagnose(&zx_arc(e, 220.0), &Options::default()).expect("diagnosis");
     let drift = Errors {
         pivot_drift_um: [2.0, -1.5],
         ..noisy()
