@@ -56,15 +56,16 @@ fn truth_report(run: &Run) -> MachineReport {
 /// The bias that finding `f` of `step` states for the effects its test leaves out (the bows,
 /// angular plays and drift of a half circle), from their truth: the step's figures and drift.
 fn stated_bias(run: &Run, step: usize, f: &Finding) -> f64 {
+    if f.stated_biases().next().is_none() {
+        return 0.0;
+    }
     let test = &run.ground_truth["ballbar"]["tests"][step - 1];
-    f.stated_biases()
-        .map(|(effect, rate)| {
-            let truth = test["figures"][effect]
-                .as_f64()
-                .or(test["drift"][effect].as_f64());
-            rate * truth.unwrap_or_else(|| panic!("step {step}: no truth of {effect}"))
-        })
-        .sum()
+    f.left_out_bias(|effect| {
+        test["figures"][effect]
+            .as_f64()
+            .or(test["drift"][effect].as_f64())
+    })
+    .unwrap_or_else(|| panic!("step {step}: {} lacks the truth of an effect", f.key))
 }
 
 /// Every failure of `key` of `step` against its truth plus the bias it states, beyond `tol`.

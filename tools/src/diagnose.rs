@@ -245,18 +245,10 @@ pub fn text(d: &Diagnosed) -> String {
     s
 }
 
-/// The bias that the true values of the effects the test leaves out (bows, angular plays,
-/// drifts: [`truth_effects`]) put on finding `f` by the rates its `bias_per_<unit>_of_<key>`
-/// details state; `None` when it states none or an effect's truth is missing.
+/// [`Finding::left_out_bias`] from a run's truth of the effects the test leaves out (bows,
+/// angular plays, drifts: [`truth_effects`]).
 pub(crate) fn left_out_bias(f: &Finding, effects: &serde_json::Map<String, Value>) -> Option<f64> {
-    let rates: Vec<(&str, f64)> = f.stated_biases().collect();
-    if rates.is_empty() {
-        return None;
-    }
-    rates
-        .into_iter()
-        .map(|(key, rate)| Some(rate * effects.get(key)?.as_f64()?))
-        .sum()
+    f.left_out_bias(|key| effects.get(key)?.as_f64())
 }
 
 /// Kwon's machine report computed from the run's truth figures, by the same formulas.

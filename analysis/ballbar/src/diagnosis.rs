@@ -106,6 +106,20 @@ impl Finding {
             Some((key, *rate))
         })
     }
+
+    /// The bias that the true values of the effects its test leaves out, as `truth` gives
+    /// them by key, put on this finding by the rates it states; `None` when it states none or
+    /// `truth` lacks one of the effects.
+    pub fn left_out_bias(&self, truth: impl Fn(&str) -> Option<f64>) -> Option<f64> {
+        let rates: Vec<(&str, f64)> = self.stated_biases().collect();
+        if rates.is_empty() {
+            return None;
+        }
+        rates
+            .into_iter()
+            .map(|(key, rate)| Some(rate * truth(key)?))
+            .sum()
+    }
 }
 
 /// An error the test cannot determine, and why.
