@@ -90,6 +90,8 @@ struct Comparison {
     truth: f64,
     value: f64,
     present: bool,
+    /// The finding's 95 % confidence half-width.
+    ci95: f64,
     threshold: f64,
     radius_mm: f64,
     /// The bias the finding states for the effects its test leaves out, from their truth
@@ -115,6 +117,8 @@ pub struct WithoutLeftOut {
     pub worst: f64,
     /// Share of runs within tolerance.
     pub within: f64,
+    /// Share of runs whose error, so corrected, is within the finding's 95 % confidence interval.
+    pub ci_coverage: f64,
 }
 
 /// The statistics of one figure over the dataset.
@@ -146,6 +150,11 @@ pub struct FigureStats {
     pub within: f64,
     /// The tolerance, in words.
     pub tolerance: String,
+    /// Share of runs whose error is within the finding's stated 95 % confidence interval
+    /// (±`ci95`): near 0.95 when the confidence is honest, lower when the finding has biases or
+    /// misfit that its interval does not hold (a stated left-out bias is outside it by design);
+    /// NaN (JSON null) when n = 0.
+    pub ci_coverage: f64,
     /// Quiet runs: those whose |truth| is below half the threshold, so that the finding
     /// reported present is a false positive (the runs the false-positive rate is taken over,
     /// not the false positives).
@@ -156,6 +165,11 @@ pub struct FigureStats {
     /// False-positive rate: the share of the quiet runs reported present (None without quiet
     /// runs).
     pub fp_rate: Option<f64>,
+    /// Clear runs: those whose |truth| is at least twice the threshold, which a diagnosis
+    /// should report present.
+    pub clear_runs: usize,
+    /// Detection rate: the share of the clear runs reported present (None without clear runs).
+    pub detection_rate: Option<f64>,
     /// Whether the issue sets a goal for this figure.
     pub goal: bool,
     /// Whether the goals are met (within and false positives).
@@ -342,6 +356,7 @@ fn compare_run(path: &Path) -> Result<RunComparisons, (String, String)> {
                     truth,
                     value: f.value,
                     present: f.present,
+                    ci95: f.ci95,
                     threshold: f.threshold,
                     radius_mm: diag.radius_mm,
                     left_out_bias: crate::diagnose::left_out_bias(f, &effects),
@@ -396,6 +411,12 @@ fn stats(key: &str, unit: &str, cs: &[Compared]) -> FigureStats {
         .collect();
     let fp_rate = (!quiet.is_empty())
         .then(|| quiet.iter().filter(|c| c.present).count() as f64 / quiet.len() as f64);
+    let clear: Vec<&&Comparison> = done
+        .iter()
+        .filter(|c| c.truth.abs() >= 2.0 * c.threshold)
+        .collect();
+    let detection_rate = (!clear.is_empty())
+        .then(|| clear.iter().filter(|c| c.present).count() as f64 / clear.len() as f64);
     // The issue's squareness goal is XY's; the vertical planes' is reported without one.
     let vertical_squareness = key.starts_with("squareness") && key != "squareness_xy";
     let goal = !(key.starts_with("straightness")
@@ -435,10 +456,13 @@ fn stats(key: &str, unit: &str, cs: &[Compared]) -> FigureStats {
             })
             .collect(),
         within,
+        ci_coverage: ci_coverage(&done, &errors),
         tolerance: tolerance(key, 0.0, 100.0).1.to_string(),
         quiet_runs: quiet.len(),
         quiet_below,
         fp_rate,
+        clear_runs: clear.len(),
+        detection_rate,
         goal,
         met,
         too_few_runs: n < GOAL_MIN_RUNS,
@@ -470,6 +494,15 @@ fn within_of(key: &str, done: &[&Comparison], errors: &[f64]) -> f64 {
     mean(&ok.collect::<Vec<f64>>())
 }
 
+/// The share of the runs `done`, with the errors `errors`, within their finding's 95 % CI.
+fn ci_coverage(done: &[&Comparison], errors: &[f64]) -> f64 {
+    let inside = done
+        .iter()
+        .zip(errors)
+        .map(|(c, e)| f64::from(u8::from(e.abs() <= c.ci95)));
+    mean(&inside.collect::<Vec<f64>>())
+}
+
 /// The errors of `done` with their stated left-out bias taken off, when a run states one.
 fn without_left_out(key: &str, done: &[&Comparison]) -> Option<WithoutLeftOut> {
     let runs_stating = done.iter().filter(|c| c.left_out_bias.is_some()).count();
@@ -490,6 +523,7 @@ fn without_left_out(key: &str, done: &[&Comparison]) -> Option<WithoutLeftOut> {
         p95_abs: p95_of(&abs),
         worst: abs.last().copied().unwrap_or(f64::NAN),
         within: within_of(key, done, &errors),
+        ci_coverage: ci_coverage(done, &errors),
     })
 }
 
@@ -508,11 +542,11 @@ pub fn markdown(s: &Study) -> String {
     }
     let _ = writeln!(
         out,
-        "| figure | unit | n | not diagnosed | bias | RMS | p95 \\|err\\| | worst (run) | tolerance | within | quiet runs (\\|truth\\| below) | FP rate | goals |"
+        "| figure | unit | n | not diagnosed | bias | RMS | p95 \\|err\\| | worst (run) | tolerance | within | in 95 % CI | quiet runs (\\|truth\\| below) | FP rate | detected | goals |"
     );
     let _ = writeln!(
         out,
-        "|---|---|---:|---:|---:|---:|---:|---:|---|---:|---:|---:|---|"
+        "|---|---|---:|---:|---:|---:|---:|---:|---|---:|---:|---:|---:|---:|---|"
     );
     for f in &s.figures {
         let fp = f
@@ -529,7 +563,7 @@ pub fn markdown(s: &Study) -> String {
         let num = |x: f64, text: String| if x.is_finite() { text } else { "–".into() };
         let _ = writeln!(
             out,
-            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
+            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
             f.key,
             f.unit,
             f.n,
@@ -540,8 +574,10 @@ pub fn markdown(s: &Study) -> String {
             num(f.worst, format!("{:.3} ({})", f.worst, f.worst_id)),
             f.tolerance,
             num(f.within, format!("{:.1} %", 100.0 * f.within)),
+            num(f.ci_coverage, format!("{:.1} %", 100.0 * f.ci_coverage)),
             quiet(f),
             fp,
+            detected(f),
             verdict
         );
     }
@@ -577,13 +613,13 @@ fn left_out_table(out: &mut String, s: &Study) {
     );
     let _ = writeln!(
         out,
-        "| figure | unit | runs stating a bias | bias | RMS | p95 \\|err\\| | worst | within |"
+        "| figure | unit | runs stating a bias | bias | RMS | p95 \\|err\\| | worst | within | in 95 % CI |"
     );
-    let _ = writeln!(out, "|---|---|---:|---:|---:|---:|---:|---:|");
+    let _ = writeln!(out, "|---|---|---:|---:|---:|---:|---:|---:|---:|");
     for (f, w) in rows {
         let _ = writeln!(
             out,
-            "| {} | {} | {} | {:+.3} | {:.3} | {:.3} | {:.3} | {:.1} % |",
+            "| {} | {} | {} | {:+.3} | {:.3} | {:.3} | {:.3} | {:.1} % | {:.1} % |",
             f.key,
             f.unit,
             w.runs_stating,
@@ -591,9 +627,17 @@ fn left_out_table(out: &mut String, s: &Study) {
             w.rms,
             w.p95_abs,
             w.worst,
-            100.0 * w.within
+            100.0 * w.within,
+            100.0 * w.ci_coverage
         );
     }
+}
+
+/// The detection cell: the share of the clear runs reported present, and their number.
+fn detected(f: &FigureStats) -> String {
+    f.detection_rate.map_or("–".into(), |r| {
+        format!("{:.1} % of {}", 100.0 * r, f.clear_runs)
+    })
 }
 
 /// The quiet runs' cell: their number and the bound of |truth| they are below.
@@ -663,10 +707,13 @@ const HEADER: &str = "Every run's first circular test is diagnosed and each find
 with the run's ground truth. Per figure: n (runs diagnosed with it), not diagnosed (runs diagnosed without the \
 figure's finding; why is said below the table when the figure misses its goals), bias (mean of diagnosed − \
 truth), RMS, the 95th percentile of |error| (nearest rank), the worst |error| and its run, the \
-tolerance and the share of runs within it, quiet runs (runs whose |truth| is below half the \
+tolerance and the share of runs within it, the share whose error is within the finding's own \
+95 % confidence interval (about 95 % when the stated confidence is honest), quiet runs (runs whose |truth| is below half the \
 finding's threshold, the bound given in brackets in the figure's unit, where a finding reported present is a false positive: the runs the \
 false-positive rate is taken over, not false positives), the false-positive rate (the share of \
-the quiet runs reported present; – without quiet runs) and whether the goals (95 % within \
+the quiet runs reported present; – without quiet runs), the detection rate (the share of the \
+runs whose |truth| is at least twice the threshold that are reported present, and how many such \
+runs there are) and whether the goals (95 % within \
 tolerance, false positives under 2 %) are met: they are stated for 500 runs or more, and on \
 fewer a figure that meets them is \"met on too few runs to tell\"; a figure that no run was diagnosed \
 with, each saying why (a partial arc's closing error), is \"not determined by the test\". – marks a \
@@ -728,6 +775,7 @@ mod tests {
             truth,
             value,
             present,
+            ci95: 0.105,
             threshold: 1.0,
             radius_mm: 100.0,
             left_out_bias: None,
@@ -736,7 +784,7 @@ mod tests {
 
     /// 17 runs with 2 µm of truth and errors 0.01 to 0.17 µm, three quiet runs (0.1 µm of
     /// truth, threshold 1 µm) with errors +0.5 (reported present), -0.2 and +0.05, and one run
-    /// not diagnosed.
+    /// not diagnosed; every finding states ±0.105 µm (95 %).
     fn comparisons() -> Vec<Compared> {
         let mut cs: Vec<Compared> = (0..17)
             .map(|i| c(i, 2.0, 2.0 + 0.01 * (i + 1) as f64, true))
@@ -771,6 +819,8 @@ mod tests {
         assert_eq!(worst, ["000017", "000018", "000016", "000015", "000014"]);
         // Tolerance 0.3 µm: only the quiet run with +0.5 is outside.
         assert!((f.within - 0.95).abs() < 1e-12, "within {}", f.within);
+        // Within ±0.105: the errors 0.01 to 0.10 and the quiet run's +0.05, 11 of 20.
+        assert!((f.ci_coverage - 0.55).abs() < 1e-12, "{}", f.ci_coverage);
         assert_eq!(f.quiet_runs, 3);
         // Quiet: |truth| below half the 1 µm threshold, stated with the figure.
         assert_eq!(f.quiet_below, Some(QuietBelow { min: 0.5, max: 0.5 }));
@@ -786,7 +836,10 @@ mod tests {
             warnings: Vec::new(),
         });
         assert!(md.contains("| backlash_x | µm | 20 | 1 |"), "{md}");
-        assert!(md.contains("| 3 (< 0.500) | 33.3 % | MISSED |"), "{md}");
+        assert!(
+            md.contains("| 95.0 % | 55.0 % | 3 (< 0.500) | 33.3 % | 100.0 % of 17 | MISSED |"),
+            "{md}"
+        );
         assert!(
             md.contains("1 runs not diagnosed (000020): a partial arc has no closing error")
                 && md.contains("false positives in 33.3 % of the quiet runs (goal under 2 %)")
@@ -794,6 +847,8 @@ mod tests {
             "{md}"
         );
         assert_eq!(f.fp_rate, Some(1.0 / 3.0));
+        // The 17 runs with 2 µm of truth (twice the threshold) are clear, all reported.
+        assert_eq!((f.clear_runs, f.detection_rate), (17, Some(1.0)));
         // A run not diagnosed misses the goals even with 95 % within and ...
         assert!(f.goal && !f.met);
         // ... and so does one false positive in three quiet runs.
@@ -836,6 +891,11 @@ mod tests {
         assert!((w.rms - 0.65).abs() < 1e-12, "{w:?}");
         assert!((w.worst - 1.2).abs() < 1e-12 && (w.p95_abs - 1.2).abs() < 1e-12);
         assert!((w.within - 0.75).abs() < 1e-12, "{w:?}");
+        // Within ±0.105 once corrected: the two runs whose whole error was the stated bias.
+        assert!(
+            (w.ci_coverage - 0.5).abs() < 1e-12 && f.ci_coverage == 0.0,
+            "{w:?}"
+        );
         let md = markdown(&Study {
             runs: 4,
             figures: vec![f],
@@ -843,7 +903,9 @@ mod tests {
             warnings: Vec::new(),
         });
         assert!(
-            md.contains("| squareness_zx | µm/m | 3 | +0.175 | 0.650 | 1.200 | 1.200 | 75.0 % |"),
+            md.contains(
+                "| squareness_zx | µm/m | 3 | +0.175 | 0.650 | 1.200 | 1.200 | 75.0 % | 50.0 % |"
+            ),
             "{md}"
         );
         let plain = stats("squareness_xy", "µm/m", &comparisons());
@@ -867,6 +929,7 @@ mod tests {
             "{text}"
         );
         assert!(f.bias.is_nan() && f.rms.is_nan() && f.p95_abs.is_nan() && f.within.is_nan());
+        assert!(f.ci_coverage.is_nan());
         let s = Study {
             runs: 2,
             warnings: vec![],
@@ -877,8 +940,8 @@ mod tests {
         // Every run says why (the test cannot give it): not determined, not missed.
         assert!(
             md.contains(
-                "| backlash_y |  | 0 | 2 | – | – | – | – | max(0.3 µm, 5 %) | – | 0 | – | not \
-                 determined by the test |"
+                "| backlash_y |  | 0 | 2 | – | – | – | – | max(0.3 µm, 5 %) | – | – | 0 | – | – \
+                 | not determined by the test |"
             ),
             "{md}"
         );
@@ -907,7 +970,7 @@ mod tests {
             failed: vec![],
         });
         assert!(
-            md.contains("| – | 0 | – | MISSED |") && md.contains("backlash_y misses its goals")
+            md.contains("| – | 0 | – | – | MISSED |") && md.contains("backlash_y misses its goals")
         );
         let js = serde_json::to_value(&s).unwrap();
         assert!(js["figures"][0]["bias"].is_null(), "{js}");

@@ -288,6 +288,27 @@ pub fn settled(t: &Trace) -> Trace {
     s
 }
 
+/// Per trace, the fitted groups' points, mean residuals (µm) and sizes, in sample order: what
+/// [`Normal::robust_std_errors`] weighs the fit's misfit from.
+fn fitted_group_residuals(
+    samples: &[Samples],
+    residuals: &[Residual],
+) -> Vec<Vec<(Point, f64, usize)>> {
+    samples
+        .iter()
+        .zip(residuals)
+        .map(|(s, r)| {
+            s.groups
+                .iter()
+                .zip(&s.fitted)
+                .zip(r.r.chunks(s.group_size))
+                .filter(|((_, fitted), _)| **fitted)
+                .map(|(((pt, _, w), _), chunk)| (*pt, chunk.iter().sum::<f64>() / *w as f64, *w))
+                .collect()
+        })
+        .collect()
+}
+
 /// Leaves the reversal spikes of trace `t` out of the fit of `s`: the groups holding a sample
 /// from an axis' reversal to [`features::SPIKE_ZONE_DEG`] of travel after it. A spike follows
 /// its reversal in either sense, so the difference of the CW and CCW runs holds it as a short
@@ -354,13 +375,17 @@ fn diagnose_once(
     let left_out = left_out_effects(&normal, &terms, &sample_refs);
     // The aliases are in the order of `terms.terms`, which the fit keeps.
     debug_assert_eq!(fit.terms, terms.terms);
-    let mut findings = fitted_findings(&fit, &sample_refs, &terms.unresolved, &left_out);
     let residuals: Vec<Residual> = traces
         .iter()
         .zip(&samples)
         .zip(test.reversals.iter().zip(&shifts))
         .map(|((t, s), (rev, shifts))| residual(t, s, rev, shifts, &fit))
         .collect();
+    let fit = Fit {
+        std_errors: normal.robust_std_errors(&fit, &fitted_group_residuals(&samples, &residuals)),
+        ..fit
+    };
+    let mut findings = fitted_findings(&fit, &sample_refs, &terms.unresolved, &left_out);
     let noise = features::median(
         &residuals
             .iter()
