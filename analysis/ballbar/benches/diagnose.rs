@@ -26,7 +26,9 @@
 //! The confidence intervals robust to a correlated residual (`Normal::robust_std_errors`, batch
 //! means of the groups' scores) take 1.9 % of a diagnosis (perf, 25 November 2026: the blocks'
 //! Gram matrix by one matrix product); 3.3–3.5 ms per diagnosis that morning, against 3.65 ms
-//! for the build before on the same machine an hour earlier (the wall clock swings by 10 %).
+//! for the build before on the same machine an hour earlier (the wall clock swings by 10 %,
+//! 3.9–4.1 ms half an hour later). The cyclic errors' intervals (the amplitude's error at its
+//! pitch by batch means, `features::robust_cyclic_error`) take 2.5 % more, most of it in `sincos`.
 //!
 //! What is left for 1000/s (about 10–13 M): every full-rate pass costs 10–30 instructions per
 //! sample on plain x86-64 (SSE2), and about ten remain (trig, residual, ISO sums, bounds and

@@ -1157,19 +1157,24 @@ impl CyclicGroups {
     /// The residuals with the radial deviation of `cyclic` taken out (`sign` −1) or put
     /// back (+1).
     fn with(&self, cyclic: &[features::Cyclic], sign: f64) -> Vec<f64> {
-        self.points
-            .iter()
-            .zip(&self.r)
-            .map(|(pt, r)| {
-                let radius_mm = pt.radius_um * 1e-3;
-                r + sign
-                    * cyclic
-                        .iter()
-                        .map(|c| c.radial_um(pt.cos, pt.sin, radius_mm))
-                        .sum::<f64>()
-            })
-            .collect()
+        with_cyclic(&self.points, &self.r, cyclic, sign)
     }
+}
+
+/// The residuals `r` at `points` with `sign` times the radial deviation of `cyclic` added.
+fn with_cyclic(points: &[Point], r: &[f64], cyclic: &[features::Cyclic], sign: f64) -> Vec<f64> {
+    points
+        .iter()
+        .zip(r)
+        .map(|(pt, r)| {
+            let radius_mm = pt.radius_um * 1e-3;
+            r + sign
+                * cyclic
+                    .iter()
+                    .map(|c| c.radial_um(pt.cos, pt.sin, radius_mm))
+                    .sum::<f64>()
+        })
+        .collect()
 }
 
 /// The cyclic error of each axis, searched in the fit's groups of the residuals.
@@ -1180,9 +1185,15 @@ impl CyclicGroups {
 /// searched, and when both are present the first is searched again with the second taken out.
 fn cyclic_findings(fit: &Fit, g: &CyclicGroups) -> Vec<(features::Cyclic, Finding)> {
     let sigma = fit.sample_sigma_um;
-    let search = |axis: usize, taken_out: Option<features::Cyclic>| match taken_out {
-        None => features::cyclic(&g.points, &g.r, &g.w, axis, sigma),
-        Some(c) => features::cyclic(&g.points, &g.with(&[c], -1.0), &g.w, axis, sigma),
+    let search = |axis: usize, taken_out: Option<features::Cyclic>| {
+        let r = match taken_out {
+            None => std::borrow::Cow::Borrowed(&g.r),
+            Some(c) => std::borrow::Cow::Owned(g.with(&[c], -1.0)),
+        };
+        features::cyclic(&g.points, &r, &g.w, axis, sigma).map(|c| features::Cyclic {
+            std_error_um: features::robust_cyclic_error(&g.points, &r, &g.w, &c),
+            ..c
+        })
     };
     let mut found = [search(0, None), search(1, None)];
     let significance = |c: &Option<features::Cyclic>| {
@@ -1213,8 +1224,21 @@ fn refined_cyclic(
     taken_out: &[features::Cyclic],
 ) -> Vec<(features::Cyclic, Finding)> {
     let r = g.with(taken_out, 1.0);
-    features::refit_cyclic(&g.points, &r, &g.w, taken_out, fit.sample_sigma_um)
-        .into_iter()
+    let refined = features::refit_cyclic(&g.points, &r, &g.w, taken_out, fit.sample_sigma_um);
+    let robust = |k: usize| {
+        // Each error's own residual: the traces less the others refined.
+        let others: Vec<features::Cyclic> = (0..refined.len())
+            .filter(|j| *j != k)
+            .map(|j| refined[j])
+            .collect();
+        let own = with_cyclic(&g.points, &r, &others, -1.0);
+        features::robust_cyclic_error(&g.points, &own, &g.w, &refined[k])
+    };
+    (0..refined.len())
+        .map(|k| features::Cyclic {
+            std_error_um: robust(k),
+            ..refined[k]
+        })
         .map(|c| (c, cyclic_finding(&c, fit.plane)))
         .collect()
 }
@@ -1237,7 +1261,7 @@ fn cyclic_finding(c: &features::Cyclic, plane: Plane) -> Finding {
         name: format!("Cyclic error {letter}"),
         value: c.amplitude_um,
         unit: "µm",
-        ci95: 1.96 * c.std_error_um,
+        ci95: c.ci95_um(),
         contribution_um: 2.0 * c.amplitude_um,
         threshold: cyclic_threshold(c),
         present: cyclic_present(c),

@@ -534,7 +534,11 @@ impl Normal {
         for (groups, map) in residuals.iter().zip(&self.maps) {
             // The blocks' scores in shape space, one column each; their Gram matrix Z Zᵀ maps
             // to the terms' as the normal equations do.
-            let (len, shortfall) = block_length(groups, n);
+            let z: Vec<f64> = groups
+                .iter()
+                .map(|(_, r, w)| (*w as f64).sqrt() * r)
+                .collect();
+            let (len, shortfall) = block_length(&z, n);
             let blocks_here = groups.len().div_ceil(len);
             let mut z = DMatrix::<f64>::zeros(SHAPES, blocks_here);
             for (mut column, block) in z.column_iter_mut().zip(groups.chunks(len)) {
@@ -614,17 +618,13 @@ impl Fit {
     }
 }
 
-/// The block length of [`Normal::robust_std_errors`] for one trace's fitted groups (point,
-/// mean residual, size) in a fit of `terms` terms: Andrews' AR(1) plug-in bandwidth for the
-/// Bartlett kernel from the lag-one autocorrelation ρ of `√w r̄`, between 1 and `m/(2·terms)`;
-/// and the share of the long-run variance that blocks of that length hold for an AR(1)
-/// residual, `1 − 2ρ(1 − ρ^B)/(B(1 − ρ²))` (1 for white noise), which the estimate is divided
-/// by.
-fn block_length(groups: &[(Point, f64, usize)], terms: usize) -> (usize, f64) {
-    let z: Vec<f64> = groups
-        .iter()
-        .map(|(_, r, w)| (*w as f64).sqrt() * r)
-        .collect();
+/// The block length of a batch-means (long-run) variance of the scores of a fit of `terms`
+/// terms ([`Normal::robust_std_errors`]) over m groups whose weighted residuals `√w r̄` are
+/// `z`, in order: Andrews' AR(1) plug-in bandwidth for the Bartlett kernel from the lag-one
+/// autocorrelation ρ of `z`, between 1 and `m/(2·terms)`; and the share of the long-run
+/// variance that blocks of that length hold for an AR(1) residual,
+/// `1 − 2ρ(1 − ρ^B)/(B(1 − ρ²))` (1 for white noise), which the estimate is divided by.
+pub(crate) fn block_length(z: &[f64], terms: usize) -> (usize, f64) {
     let var: f64 = z.iter().map(|v| v * v).sum();
     let lag: f64 = z.windows(2).map(|p| p[0] * p[1]).sum();
     let m = z.len();
