@@ -1078,17 +1078,25 @@ fn spike_finding(
     Some((finding, largest))
 }
 
+/// The strongest line of the residuals' spectra above 5 Hz. It is a vibration when it spans
+/// the smallest contribution reported and stands ten times above the spectrum, both as a whole
+/// and about its own frequency: a transient (the feed-in's, ringing at the position loop's
+/// few hertz) raises the spectrum about its frequency as broadly as the line, where a
+/// sustained vibration stands alone. Its interval is that of the largest of the bins searched
+/// ([`features::Vibration::ci95_um`]).
 fn vibration_finding(residuals: &[Residual], noise: f64) -> Option<Finding> {
-    let (hz, amp, median, i) = features::vibration(residuals, 5.0)?;
-    let n = residuals[i].r.len();
+    let v = features::vibration(residuals, 5.0)?;
+    let (hz, amp) = (v.hz, v.amplitude_um);
+    let n = residuals[v.residual].r.len();
     let se = noise * (2.0 / n as f64).sqrt();
-    let present = 2.0 * amp >= MIN_CONTRIBUTION_UM && amp >= 10.0 * median.max(se);
+    let floor = v.median_um.max(v.local_median_um).max(se);
+    let present = 2.0 * amp >= MIN_CONTRIBUTION_UM && amp >= 10.0 * floor;
     Some(Finding {
         key: "servo_vibration".into(),
         name: "High servo gain vibration".into(),
         value: amp,
         unit: "µm",
-        ci95: 1.96 * se,
+        ci95: v.ci95_um().max(1.96 * se),
         contribution_um: 2.0 * amp,
         threshold: MIN_CONTRIBUTION_UM / 2.0,
         present,

@@ -462,17 +462,57 @@ thread_local! {
     });
 }
 
-/// The strongest line above `min_hz` in the spectra of the residuals: (frequency Hz, amplitude
-/// µm, median amplitude of that residual's spectrum µm, index of the residual). The last of
-/// equally strong lines; the median only of the spectrum that holds it.
-pub fn vibration(residuals: &[Residual], min_hz: f64) -> Option<(f64, f64, f64, usize)> {
+/// The strongest line of the residuals' spectra ([`vibration`]) and the noise about it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Vibration {
+    /// Frequency, Hz.
+    pub hz: f64,
+    /// Amplitude, µm.
+    pub amplitude_um: f64,
+    /// Median amplitude of the spectrum searched, µm.
+    pub median_um: f64,
+    /// Median amplitude of the bins within [`LOCAL_BINS`] of the line (the line's own three
+    /// left out), µm: the noise at its frequency, which a residual correlated in time raises
+    /// at the low frequencies.
+    pub local_median_um: f64,
+    /// Bins searched, over every residual's spectrum.
+    pub bins: usize,
+    /// The factor the amplitude was corrected by for the line's place between bins (1 to
+    /// π/2; see [`vibration`]).
+    pub scallop: f64,
+    /// Index of the residual that holds it.
+    pub residual: usize,
+}
+
+/// Bins each side of a line whose median is the noise at its frequency.
+pub const LOCAL_BINS: usize = 32;
+
+impl Vibration {
+    /// The half-width of the amplitude's 95 % interval, µm: the bound that noise alone keeps
+    /// the largest of the [`Vibration::bins`] amplitudes under in 95 % of tests, times the
+    /// line's own correction for its place between bins. The amplitude of a noise bin is
+    /// Rayleigh-distributed, with σ the local median over `√(2 ln 2)`, so
+    /// `x = σ √(−2 ln(1 − 0.95^{1/K}))` for K bins, as for a cyclic error's pitches
+    /// ([`Cyclic::ci95_um`]).
+    pub fn ci95_um(&self) -> f64 {
+        let sigma = self.local_median_um / (2.0 * std::f64::consts::LN_2).sqrt();
+        let k = self.bins.max(1) as f64;
+        self.scallop * sigma * (-2.0 * (1.0 - 0.95f64.powf(1.0 / k)).ln()).sqrt()
+    }
+}
+
+/// The strongest line above `min_hz` in the spectra of the residuals, the last of equally
+/// strong lines; the medians only of the spectrum that holds it.
+pub fn vibration(residuals: &[Residual], min_hz: f64) -> Option<Vibration> {
     FFT.with(|cell| {
         let cache = &mut *cell.borrow_mut();
         let mut best: Option<(Line, usize)> = None;
+        let mut bins = 0;
         for (i, res) in residuals.iter().enumerate() {
             let Some(line) = strongest_line(&res.r, res.dt_ms, min_hz, cache) else {
                 continue;
             };
+            bins += line.bins.len();
             if best
                 .as_ref()
                 .is_none_or(|(b, _)| line.amplitude >= b.amplitude)
@@ -482,18 +522,36 @@ pub fn vibration(residuals: &[Residual], min_hz: f64) -> Option<(f64, f64, f64, 
             }
         }
         let (line, i) = best?;
-        let median = line.amplitude_of(median(&cache.best[line.bins.clone()]));
-        Some((line.hz, line.amplitude, median, i))
+        let spectrum = &cache.best;
+        let median_um = line.amplitude_of(median(&spectrum[line.bins.clone()]));
+        let near = line.peak.saturating_sub(LOCAL_BINS).max(line.bins.start)
+            ..(line.peak + LOCAL_BINS + 1).min(line.bins.end);
+        let local: Vec<f64> = near
+            .filter(|j| j.abs_diff(line.peak) > 1)
+            .map(|j| spectrum[j])
+            .collect();
+        Some(Vibration {
+            hz: line.hz,
+            amplitude_um: line.amplitude,
+            median_um,
+            local_median_um: line.amplitude_of(median(&local)),
+            bins,
+            scallop: line.scallop,
+            residual: i,
+        })
     })
 }
 
-/// A line of a spectrum of `n` points: frequency, amplitude and the bins searched.
+/// A line of a spectrum of `n` points: frequency, amplitude, its bin, the bins searched and
+/// the correction of its amplitude for its place between bins.
 #[derive(Clone, Debug)]
 struct Line {
     hz: f64,
     amplitude: f64,
     n: usize,
+    peak: usize,
     bins: std::ops::Range<usize>,
+    scallop: f64,
 }
 
 impl Line {
@@ -563,7 +621,9 @@ fn strongest_line(residual: &[f64], dt_ms: f64, min_hz: f64, cache: &mut FftCach
         hz: (k as f64 + side * delta) * df,
         amplitude: 0.0,
         n,
+        peak: k,
         bins: first..last,
+        scallop: 1.0,
     };
     let scallop = if delta > 1e-9 {
         std::f64::consts::PI * delta / (std::f64::consts::PI * delta).sin()
@@ -572,6 +632,7 @@ fn strongest_line(residual: &[f64], dt_ms: f64, min_hz: f64, cache: &mut FftCach
     };
     Some(Line {
         amplitude: line.amplitude_of(p) * scallop,
+        scallop,
         ..line
     })
 }
