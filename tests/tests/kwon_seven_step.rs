@@ -128,12 +128,17 @@ fn seven_steps_agree_with_the_truth() {
     check(run, d, 6, "servo_mismatch_zx", 0.02, &mut failures);
     check(run, d, 7, "backlash_y", 0.15, &mut failures);
     check(run, d, 7, "servo_mismatch_yz", 0.02, &mut failures);
-    // No screw here has a periodic lead error, and the Stribeck curves give no stick-slip at
-    // 500 mm/min: nothing may be reported as either (the start transient at the feed-in's axis
-    // reversal read as stick-slip of 5-33 µm before it was left out of the windows).
+    // No screw here has a periodic lead error, the Stribeck curves give no stick-slip at
+    // 500 mm/min and no gain is high enough to vibrate: nothing may be reported as any of these
+    // (the start transient at the feed-in's axis reversal read as stick-slip of 5-33 µm before
+    // it was left out of the windows; step 5's feed-in ringing, 1.25 µm at 5 Hz, read as a
+    // vibration before a line had to stand above the spectrum about its own frequency).
     for (i, diag) in d.iter().enumerate() {
-        let spurious =
-            |f: &&Finding| f.key.starts_with("cyclic") || f.key.starts_with("stick_slip");
+        let spurious = |f: &&Finding| {
+            f.key.starts_with("cyclic")
+                || f.key.starts_with("stick_slip")
+                || f.key == "servo_vibration"
+        };
         for f in diag.findings.iter().filter(spurious) {
             if f.present {
                 failures.push(format!("step {}: {} present: {f:?}", i + 1, f.key));
