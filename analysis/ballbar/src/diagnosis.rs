@@ -1078,16 +1078,17 @@ fn spike_finding(
     Some((finding, largest))
 }
 
-/// The strongest line of the residuals' spectra above 5 Hz. It is a vibration when it spans
-/// the smallest contribution reported and stands ten times above the spectrum, both as a whole
-/// and about its own frequency: a transient (the feed-in's, ringing at the position loop's
-/// few hertz) raises the spectrum about its frequency as broadly as the line, where a
-/// sustained vibration stands alone. Its interval is that of the largest of the bins searched
-/// ([`features::Vibration::ci95_um`]).
+/// The strongest line of the residuals' spectra above 5 Hz, past their start transients (a
+/// feed-in's ringing, [`features::transient_end`]). It is a vibration when it spans the
+/// smallest contribution reported and stands ten times above the spectrum, both as a whole and
+/// about its own frequency: a transient raises the spectrum about its frequency as broadly as
+/// the line, where a sustained vibration stands alone. Its interval is that of the largest of
+/// the bins searched ([`features::Vibration::ci95_um`]).
 fn vibration_finding(residuals: &[Residual], noise: f64) -> Option<Finding> {
     let v = features::vibration(residuals, 5.0)?;
     let (hz, amp) = (v.hz, v.amplitude_um);
-    let n = residuals[v.residual].r.len();
+    let res = &residuals[v.residual];
+    let n = res.r.len() - v.start;
     let se = noise * (2.0 / n as f64).sqrt();
     let floor = v.median_um.max(v.local_median_um).max(se);
     let present = 2.0 * amp >= MIN_CONTRIBUTION_UM && amp >= 10.0 * floor;
@@ -1100,7 +1101,10 @@ fn vibration_finding(residuals: &[Residual], noise: f64) -> Option<Finding> {
         contribution_um: 2.0 * amp,
         threshold: MIN_CONTRIBUTION_UM / 2.0,
         present,
-        details: vec![("frequency_hz".into(), hz)],
+        details: vec![
+            ("frequency_hz".into(), hz),
+            ("spectrum_from_s".into(), v.start as f64 * res.dt_ms * 1e-3),
+        ],
     })
 }
 

@@ -482,10 +482,36 @@ pub struct Vibration {
     pub scallop: f64,
     /// Index of the residual that holds it.
     pub residual: usize,
+    /// The first sample of that residual the spectrum was taken from: the end of its start
+    /// transient ([`transient_end`]).
+    pub start: usize,
 }
 
 /// Bins each side of a line whose median is the noise at its frequency.
 pub const LOCAL_BINS: usize = 32;
+
+/// Length of the blocks whose mean squares tell a run's start transient from the rest, ms.
+pub const TRANSIENT_BLOCK_MS: f64 = 100.0;
+
+/// The first sample of `r` (sampled every `dt_ms`) past its start transient: the start of the
+/// first block of [`TRANSIENT_BLOCK_MS`] whose mean square is at most four times the median
+/// block's (its RMS at most twice the run's typical one), at most half the run.
+///
+/// A run that starts with the servo loops ringing down from a feed-in (Kwon's programs have no
+/// overshoot: the carriages start lagging by F/Kv at the corner, 174 µm at 4000 mm/min, and
+/// ring at the position loop's few hertz, decaying over a second or two) would otherwise put a
+/// line into the spectrum as strong as a vibration's, and hide a real one at another frequency;
+/// a sustained vibration raises every block alike and leaves the start where it is.
+pub fn transient_end(r: &[f64], dt_ms: f64) -> usize {
+    let b = ((TRANSIENT_BLOCK_MS / dt_ms).round() as usize).max(1);
+    let blocks: Vec<f64> = r.chunks(b).map(|c| sum_sq(c) / c.len() as f64).collect();
+    let typical = median(&blocks);
+    let first = blocks
+        .iter()
+        .position(|&ms| ms <= 4.0 * typical)
+        .unwrap_or(0);
+    (first * b).min(r.len() / 2)
+}
 
 impl Vibration {
     /// The half-width of the amplitude's 95 % interval, µm: the bound that noise alone keeps
@@ -508,27 +534,29 @@ fn largest_rayleigh_bound(sigma: f64, k: usize) -> f64 {
     sigma * (-2.0 * (1.0 - 0.95f64.powf(1.0 / k)).ln()).sqrt()
 }
 
-/// The strongest line above `min_hz` in the spectra of the residuals, the last of equally
-/// strong lines; the medians only of the spectrum that holds it.
+/// The strongest line above `min_hz` in the spectra of the residuals past their start
+/// transients ([`transient_end`]), the last of equally strong lines; the medians only of the
+/// spectrum that holds it.
 pub fn vibration(residuals: &[Residual], min_hz: f64) -> Option<Vibration> {
     FFT.with(|cell| {
         let cache = &mut *cell.borrow_mut();
-        let mut best: Option<(Line, usize)> = None;
+        let mut best: Option<(Line, usize, usize)> = None;
         let mut bins = 0;
         for (i, res) in residuals.iter().enumerate() {
-            let Some(line) = strongest_line(&res.r, res.dt_ms, min_hz, cache) else {
+            let start = transient_end(&res.r, res.dt_ms);
+            let Some(line) = strongest_line(&res.r[start..], res.dt_ms, min_hz, cache) else {
                 continue;
             };
             bins += line.bins.len();
             if best
                 .as_ref()
-                .is_none_or(|(b, _)| line.amplitude >= b.amplitude)
+                .is_none_or(|(b, _, _)| line.amplitude >= b.amplitude)
             {
                 std::mem::swap(&mut cache.power, &mut cache.best);
-                best = Some((line, i));
+                best = Some((line, i, start));
             }
         }
-        let (line, i) = best?;
+        let (line, i, start) = best?;
         let spectrum = &cache.best;
         let median_um = line.amplitude_of(median(&spectrum[line.bins.clone()]));
         let near = line.peak.saturating_sub(LOCAL_BINS).max(line.bins.start)
@@ -545,6 +573,7 @@ pub fn vibration(residuals: &[Residual], min_hz: f64) -> Option<Vibration> {
             bins,
             scallop: line.scallop,
             residual: i,
+            start,
         })
     })
 }
@@ -1006,12 +1035,14 @@ fn smooth_length_up(n: usize) -> usize {
 mod tests {
     use super::*;
 
-    #[test]
-    fn noise_sigma_of_white_noise_ignores_a_slow_trend() {
-        // A deterministic pseudo-random sequence (LCG) with σ = 0.3, on a large slow sine.
-        let mut x = 12345u64;
-        let r: Vec<f64> = (0..20000)
-            .map(|i| {
+    use proptest::prelude::*;
+
+    /// `n` samples of a deterministic pseudo-random sequence of σ `sigma`: sums of twelve
+    /// uniforms from an LCG seeded with `seed`, nearly Gaussian.
+    fn noise(seed: u64, n: usize, sigma: f64) -> Vec<f64> {
+        let mut x = seed;
+        (0..n)
+            .map(|_| {
                 let mut g = 0.0;
                 for _ in 0..12 {
                     x = x
@@ -1019,11 +1050,64 @@ mod tests {
                         .wrapping_add(1442695040888963407);
                     g += (x >> 11) as f64 / (1u64 << 53) as f64;
                 }
-                0.3 * (g - 6.0) + 5.0 * (i as f64 * 1e-3).sin()
+                sigma * (g - 6.0)
             })
+            .collect()
+    }
+
+    #[test]
+    fn noise_sigma_of_white_noise_ignores_a_slow_trend() {
+        // σ = 0.3 on a large slow sine.
+        let r: Vec<f64> = noise(12345, 20000, 0.3)
+            .iter()
+            .enumerate()
+            .map(|(i, n)| n + 5.0 * (i as f64 * 1e-3).sin())
             .collect();
         let s = noise_sigma(&r);
         assert!((s - 0.3).abs() < 0.015, "{s}");
+    }
+
+    /// A ringing `A e^(−t/τ) cos ωt` on noise of σ ends where its blocks' mean square, about
+    /// `σ² + 0.73 A² e^(−2t/τ)/2` over 100 ms at τ = 0.3 s, falls to `4σ²`: at
+    /// `t = (τ/2) ln(0.73 A²/6σ²)`, 1.55 s for 150 µm on 0.3 µm, rounded up to its block.
+    #[test]
+    fn the_start_transient_ends_where_a_ringing_falls_to_twice_the_noise() {
+        let (a, tau, sigma) = (150.0, 0.3, 0.3);
+        let r: Vec<f64> = noise(7, 56_548, sigma)
+            .iter()
+            .enumerate()
+            .map(|(i, n)| {
+                let t = i as f64 * 1e-3;
+                n + a * (-t / tau).exp() * (std::f64::consts::TAU * 5.5 * t).cos()
+            })
+            .collect();
+        let expected = 0.5 * tau * (0.73 * a * a / (6.0 * sigma * sigma)).ln();
+        let end = transient_end(&r, 1.0) as f64 * 1e-3;
+        assert!(
+            (expected..expected + 0.1 + 1e-9).contains(&end),
+            "{end} s against {expected} s"
+        );
+    }
+
+    proptest! {
+        /// A run without a transient, a sustained line of any amplitude and frequency from 5 Hz
+        /// on over noise, keeps its start: a 100 ms block holds at least half a period, so its
+        /// mean square is within a factor 1.6 of any other's.
+        #[test]
+        fn a_stationary_run_keeps_its_start(
+            amplitude in 0.0..5.0f64, hz in 5.0..450.0f64, phase in 0.0..6.3f64,
+            sigma in 0.05..1.0f64, seed in any::<u64>(),
+        ) {
+            let r: Vec<f64> = noise(seed, 20_000, sigma)
+                .iter()
+                .enumerate()
+                .map(|(i, n)| {
+                    let t = i as f64 * 1e-3;
+                    n + amplitude * (std::f64::consts::TAU * hz * t + phase).cos()
+                })
+                .collect();
+            prop_assert_eq!(transient_end(&r, 1.0), 0);
+        }
     }
 
     /// A tone between bins keeps its amplitude and frequency (no scalloping loss), for every
