@@ -490,6 +490,26 @@ pub struct Vibration {
 /// Bins each side of a line whose median is the noise at its frequency.
 pub const LOCAL_BINS: usize = 32;
 
+impl Vibration {
+    /// The half-width of the amplitude's 95 % interval, µm: the bound that noise alone keeps
+    /// the largest of the [`Vibration::bins`] amplitudes under in 95 % of tests, as for a
+    /// cyclic error's pitches ([`Cyclic::ci95_um`]), times the line's own correction for its
+    /// place between bins. The amplitude of a noise bin is Rayleigh-distributed, with σ the
+    /// local median over `√(2 ln 2)`.
+    pub fn ci95_um(&self) -> f64 {
+        let sigma = self.local_median_um / (2.0 * std::f64::consts::LN_2).sqrt();
+        self.scallop * largest_rayleigh_bound(sigma, self.bins)
+    }
+}
+
+/// The bound (µm) that the largest of `k` independent Rayleigh amplitudes of scale `sigma`
+/// (µm) stays under in 95 % of tests: `P(max ≤ x) = (1 − e^{−x²/2σ²})^K`, so
+/// `x = σ √(−2 ln(1 − 0.95^{1/K}))`; 2.45 σ for one (K = 1), 3.9 σ for the largest of 100.
+fn largest_rayleigh_bound(sigma: f64, k: usize) -> f64 {
+    let k = k.max(1) as f64;
+    sigma * (-2.0 * (1.0 - 0.95f64.powf(1.0 / k)).ln()).sqrt()
+}
+
 /// Length of the blocks whose mean squares tell a run's start transient from the rest, ms.
 pub const TRANSIENT_BLOCK_MS: f64 = 100.0;
 
@@ -511,27 +531,6 @@ pub fn transient_end(r: &[f64], dt_ms: f64) -> usize {
         .position(|&ms| ms <= 4.0 * typical)
         .unwrap_or(0);
     (first * b).min(r.len() / 2)
-}
-
-impl Vibration {
-    /// The half-width of the amplitude's 95 % interval, µm: the bound that noise alone keeps
-    /// the largest of the [`Vibration::bins`] amplitudes under in 95 % of tests, times the
-    /// line's own correction for its place between bins. The amplitude of a noise bin is
-    /// Rayleigh-distributed, with σ the local median over `√(2 ln 2)`, so
-    /// `x = σ √(−2 ln(1 − 0.95^{1/K}))` for K bins, as for a cyclic error's pitches
-    /// ([`Cyclic::ci95_um`]).
-    pub fn ci95_um(&self) -> f64 {
-        let sigma = self.local_median_um / (2.0 * std::f64::consts::LN_2).sqrt();
-        self.scallop * largest_rayleigh_bound(sigma, self.bins)
-    }
-}
-
-/// The bound (µm) that the largest of `k` independent Rayleigh amplitudes of scale `sigma`
-/// (µm) stays under in 95 % of tests: `P(max ≤ x) = (1 − e^{−x²/2σ²})^K`, so
-/// `x = σ √(−2 ln(1 − 0.95^{1/K}))`; 2.45 σ for one (K = 1), 3.9 σ for the largest of 100.
-fn largest_rayleigh_bound(sigma: f64, k: usize) -> f64 {
-    let k = k.max(1) as f64;
-    sigma * (-2.0 * (1.0 - 0.95f64.powf(1.0 / k)).ln()).sqrt()
 }
 
 /// The strongest line above `min_hz` in the spectra of the residuals past their start
