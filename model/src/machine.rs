@@ -3,6 +3,7 @@
 use crate::axis::Axis;
 use crate::kinematics::{AxisState, VolumetricModel};
 use crate::thermal::ThermalNetwork;
+use crate::thermal::screw::ScrewThermalParams;
 use crate::thermal_deformation::{DeformationError, ThermalDeformation, ThermalDeformationModel};
 use nalgebra::Vector3;
 
@@ -32,6 +33,9 @@ pub struct ThermalMachine {
     pub network: ThermalNetwork,
     /// Linear sensitivities of the chain's links and joints to node temperatures.
     pub deformation: ThermalDeformationModel,
+    /// The screws of X, Y, Z whose temperature along their length a job simulates (their
+    /// growth replaces the lumped expansion of the axis there), if any.
+    pub screws: [Option<ScrewThermalParams>; 3],
 }
 
 /// A three-axis machining centre as the simulator sees it.

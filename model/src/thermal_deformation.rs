@@ -6,7 +6,9 @@
 //! - structural links `S(T) = [[R(ε_s(T)), (a, b, c) + (Δa, Δb, Δc)(T)], [0, 1]]`: thermal
 //!   translations Δa, Δb, Δc (m) and thermal angular errors ε_s (rad) of the bed, column, table...
 //! - joints `J(q, T)`: linear expansion of the axis scale `P_i(T)·(q - q_ref)` along the axis, and
-//!   thermal angular errors ε_j(T) (rad) of the carriage.
+//!   thermal angular errors ε_j(T) (rad) of the carriage; where a job simulates the screw's
+//!   temperature along its length (`thermal::screw`), its growth `e(q)` in place of the linear
+//!   expansion.
 //!
 //! Every term is modelled as linear in the temperature rises of the thermal network's nodes over
 //! the reference temperature (20 °C, ISO 1): `Δ = Σ_k s_k (T_k - 20 °C)`, with sensitivities
@@ -15,6 +17,7 @@
 //! standard assumption of thermal error models for the small temperature rises of machine tools
 //! (a few K); the deformations are applied through exact rotations in the chain.
 
+use crate::thermal::screw::ScrewGrowth;
 use nalgebra::Vector3;
 use thiserror::Error;
 
@@ -87,6 +90,9 @@ pub struct JointDeformation {
     pub reference_m: f64,
     /// ε_j, rad.
     pub rotation: Vector3<f64>,
+    /// The growth of the axis' screw from its temperature field, added to the travel (a
+    /// simulated job's distributed screw, `thermal::screw`, in place of the strain), if any.
+    pub screw: Option<ScrewGrowth>,
 }
 
 /// The deformation of the whole machine at one thermal state.

@@ -453,12 +453,18 @@ fn machine(m: &MachineToml, base_dir: Option<&Path>) -> Result<Machine> {
         let k = link_index(&link_names, name, &path)?;
         kinematics.link_pivots[k] = vector_mm(pivot, &path)?;
     }
-    let errors = match &m.errors {
+    let mut errors = match &m.errors {
         Some(e) => geometric(e, &axes, &root.key("errors"), base_dir)?,
         None => GeometricErrors::zero(),
     };
+    for (axis, a) in Axis::ALL.into_iter().zip([&m.axes.x, &m.axes.y, &m.axes.z]) {
+        if let Some(g) = &a.guideway {
+            let p = root.key("axes").key(&axis.to_string().to_lowercase()).key("guideway");
+            errors.guideways[axis.index()] = Some(crate::effects::guideway(g, axis, &p)?);
+        }
+    }
     let thermal = match &m.thermal {
-        Some(t) => Some(thermal(t, &link_names, &root.key("thermal"))?),
+        Some(t) => Some(thermal(t, &link_names, &axes, &root.key("thermal"))?),
         None => None,
     };
     Ok(Machine {
@@ -904,7 +910,12 @@ fn axis_named(name: &str, path: &KeyPath) -> std::result::Result<Axis, Invalid> 
     }
 }
 
-fn thermal(t: &ThermalToml, link_names: &[String; 5], path: &KeyPath) -> Result<ThermalMachine> {
+fn thermal(
+    t: &ThermalToml,
+    link_names: &[String; 5],
+    axes: &[AxisSpec; 3],
+    path: &KeyPath,
+) -> Result<ThermalMachine> {
     let mut names = BTreeMap::new();
     let mut nodes = Vec::new();
     for (i, n) in t.nodes.iter().enumerate() {
@@ -975,9 +986,16 @@ fn thermal(t: &ThermalToml, link_names: &[String; 5], path: &KeyPath) -> Result<
     let network = ThermalNetwork::new(nodes, conductances, sources, ambient)
         .map_err(|e| Invalid::new(path.clone(), e.to_string()))?;
     let deformation = deformation(t, &names, link_names, path)?;
+    let mut screws = [None; 3];
+    for (name, s) in &t.screw {
+        let p = path.key("screw").key(name);
+        let axis = axis_named(name, &p)?;
+        screws[axis.index()] = Some(crate::effects::screw(s, axis, &axes[axis.index()], &p)?);
+    }
     Ok(ThermalMachine {
         network,
         deformation,
+        screws,
     })
 }
 

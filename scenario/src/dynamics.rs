@@ -36,6 +36,14 @@ pub struct DriveToml {
     pub scale_resolution_nm: Option<f64>,
     pub guide_friction: FrictionToml,
     pub screw_friction: FrictionToml,
+    /// Cogging and torque ripple of the motor (`effects`); absent: none.
+    pub motor: Option<crate::effects::MotorToml>,
+    /// Interpolation error of the motor encoder's signals; absent: none.
+    pub encoder_signals: Option<crate::effects::SignalsToml>,
+    /// Interpolation error of the linear scale's signals; absent: none.
+    pub scale_signals: Option<crate::effects::SignalsToml>,
+    /// A preloaded double nut; absent: the linear screw spring alone.
+    pub nut: Option<crate::effects::NutToml>,
 }
 
 fn motor_encoder() -> String {
@@ -53,6 +61,12 @@ pub struct FrictionToml {
     pub bristle_stiffness_n_per_um: f64,
     pub bristle_damping_n_s_per_m: f64,
     pub viscous_n_s_per_m: f64,
+    /// The friction law: "lugre" (absent) or "gms" (`effects`).
+    pub law: Option<String>,
+    /// Elements of the GMS law (4 if absent).
+    pub gms_elements: Option<usize>,
+    /// Attraction parameter of the GMS law, N/s (σ0·vs if absent).
+    pub gms_attraction_n_per_s: Option<f64>,
 }
 
 fn two() -> f64 {
@@ -1346,7 +1360,12 @@ pub fn axes(
             (Some(d), Some(s)) => {
                 let drive = drive(d, moving[i], &p.key("drive"))?;
                 let servo = servo(s, &drive, &p.key("servo"))?;
-                out.push(AxisDynamics { drive, servo });
+                let effects = crate::effects::drive_effects(d, &drive, &p.key("drive"))?;
+                out.push(AxisDynamics {
+                    drive,
+                    servo,
+                    effects,
+                });
             }
             (None, None) => return Ok(None),
             (Some(_), None) => {

@@ -5,7 +5,7 @@
 
 use crate::dataset::{key_path, number, number_mut, value_at};
 use crate::error::ScenarioError;
-use toml_edit::{DocumentMut, Value};
+use toml_edit::{DocumentMut, Item, TableLike, Value};
 
 /// A parsed scenario text that can be edited by key path.
 #[derive(Debug, Clone)]
@@ -105,6 +105,39 @@ impl Template {
         Ok(doc.to_string())
     }
 
+    /// The scenario text with the TOML `fragment` merged into the table at the plain dotted
+    /// key `table` (`""`: the document's root), the tables on its way created where the
+    /// scenario has none. The fragment's tables are merged into the scenario's (inline tables
+    /// too), its arrays of tables appended to the scenario's, and every other value set.
+    /// This switches on what a scenario does not set: a table (`[machine.axes.x.drive.motor]`),
+    /// an element of an array of tables (`[[machine.axes.x.guideway.defects]]`), a key of an
+    /// inline table (`law = "gms"` in `machine.axes.x.drive.guide_friction`). The result is
+    /// a scenario text for [`crate::parse`], which checks it.
+    pub fn with_fragment(&self, table: &str, fragment: &str) -> Result<String, ScenarioError> {
+        let key = if table.is_empty() { "<root>" } else { table };
+        let part: DocumentMut = fragment
+            .parse()
+            .map_err(|e: toml_edit::TomlError| self.error(key, format!("the fragment is not TOML: {}", e.message())))?;
+        let mut doc = self.doc.clone();
+        let mut at: &mut dyn TableLike = doc.as_table_mut();
+        if !table.is_empty() {
+            for t in table.split('.') {
+                if at.get(t).is_none() {
+                    // Into an inline table, insert converts the new table to its inline form.
+                    at.insert(t, toml_edit::table());
+                }
+                at = at
+                    .get_mut(t)
+                    .and_then(Item::as_table_like_mut)
+                    .ok_or_else(|| self.error(key, format!("`{t}` is not a table")))?;
+            }
+        }
+        for (k, item) in part.as_table().iter() {
+            merge(at, k, item).map_err(|m| self.error(key, m))?;
+        }
+        Ok(doc.to_string())
+    }
+
     fn error(&self, key: &str, message: String) -> ScenarioError {
         ScenarioError {
             file: self.file.clone(),
@@ -113,6 +146,38 @@ impl Template {
             message,
         }
     }
+}
+
+/// Merges `item` into `dst` at `key` (see [`Template::with_fragment`]).
+fn merge(dst: &mut dyn TableLike, key: &str, item: &Item) -> Result<(), String> {
+    if let Some(existing) = dst.get_mut(key) {
+        let entries: Option<Vec<(String, Item)>> = match item {
+            Item::Table(t) => Some(t.iter().map(|(k, v)| (k.to_string(), v.clone())).collect()),
+            Item::Value(Value::InlineTable(t)) => Some(
+                t.iter()
+                    .map(|(k, v)| (k.to_string(), Item::Value(v.clone())))
+                    .collect(),
+            ),
+            _ => None,
+        };
+        if let (Some(entries), Some(table)) = (&entries, existing.as_table_like_mut()) {
+            for (k, v) in entries {
+                merge(table, k, v)?;
+            }
+            return Ok(());
+        }
+        if let (Item::ArrayOfTables(more), Item::ArrayOfTables(have)) = (item, &mut *existing) {
+            for t in more.iter() {
+                have.push(t.clone());
+            }
+            return Ok(());
+        }
+    }
+    // An inline table takes a table or an array of tables as its inline form.
+    if !item.is_none() {
+        dst.insert(key, item.clone());
+    }
+    Ok(())
 }
 
 #[cfg(test)]
@@ -141,5 +206,35 @@ mod tests {
         assert_eq!(out, "[job]\nplane = \"ZX\" # the test\n");
         let e = s.with_text(&[("job.radius", "1")]).unwrap_err();
         assert!(e.to_string().contains("job.radius"), "{e}");
+    }
+
+    #[test]
+    fn fragments_add_tables_array_elements_and_inline_keys() {
+        let text = "[a]\nx = 1.0\nf = { c = 4.0 }\n\n[[a.list]]\nn = 1\n";
+        let t = Template::parse(text, "t.toml").unwrap();
+        let out = t.with_fragment("a", "y = \"s\"\n[b]\nz = [1.0, 2.0]\n").unwrap();
+        let doc: toml::Table = toml::from_str(&out).unwrap();
+        assert_eq!(doc["a"]["x"].as_float(), Some(1.0));
+        assert_eq!(doc["a"]["y"].as_str(), Some("s"));
+        assert_eq!(doc["a"]["b"]["z"][1].as_float(), Some(2.0));
+        // Into an inline table, and a new nested table on the way.
+        let out = t.with_fragment("a.f", "law = \"gms\"").unwrap();
+        assert!(out.contains("f = { c = 4.0, law = \"gms\" }"), "{out}");
+        let out = t.with_fragment("a.g.h", "k = 2").unwrap();
+        let doc: toml::Table = toml::from_str(&out).unwrap();
+        assert_eq!(doc["a"]["g"]["h"]["k"].as_integer(), Some(2));
+        // An element appended to an array of tables, and one made where there is none.
+        let out = t.with_fragment("a", "[[list]]\nn = 2\n").unwrap();
+        let doc: toml::Table = toml::from_str(&out).unwrap();
+        let list = doc["a"]["list"].as_array().unwrap();
+        assert_eq!(list.len(), 2);
+        assert_eq!(list[1]["n"].as_integer(), Some(2));
+        let out = t.with_fragment("c", "[[d]]\nm = 1\n").unwrap();
+        let doc: toml::Table = toml::from_str(&out).unwrap();
+        assert_eq!(doc["c"]["d"][0]["m"].as_integer(), Some(1));
+        // Errors name the key: a path through a value, a fragment that is not TOML.
+        let e = t.with_fragment("a.x", "k = 1").unwrap_err();
+        assert!(e.to_string().contains("a.x"), "{e}");
+        assert!(t.with_fragment("a", "k = ").is_err());
     }
 }

@@ -9,10 +9,12 @@ mod build;
 pub mod dataset;
 mod dynamics;
 pub mod edit;
+mod effects;
 mod error;
 mod milling;
 mod schema;
 mod table;
+pub mod withheld;
 
 pub use build::{Execution, MAX_ANGLE_URAD, MAX_TRANSLATION_UM, Scenario, ThermalRunSpec};
 pub use error::{KeyPath, ScenarioError};

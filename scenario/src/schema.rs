@@ -94,6 +94,8 @@ pub struct AxisToml {
     pub moving_mass_kg: f64,
     pub drive: Option<crate::dynamics::DriveToml>,
     pub servo: Option<crate::dynamics::ServoToml>,
+    /// The carriage on its rails, with local defects of the rails (`effects`); absent: none.
+    pub guideway: Option<crate::effects::GuidewayToml>,
 }
 
 #[derive(Debug, Deserialize, Default)]
@@ -141,6 +143,9 @@ pub struct ThermalToml {
     pub links: BTreeMap<String, SensitivityToml>,
     #[serde(default)]
     pub joints: BTreeMap<String, SensitivityToml>,
+    /// Screws simulated along their length in a job, by axis (`effects`).
+    #[serde(default)]
+    pub screw: BTreeMap<String, crate::effects::ScrewToml>,
 }
 
 #[derive(Debug, Deserialize)]

@@ -35,9 +35,12 @@ use nalgebra::Vector3;
 use std::ops::Range;
 use thiserror::Error;
 use vmt_model::drive::servo::{loops_are_stable, sampled_loop_radius};
-use vmt_model::drive::{AxisCommand, CarriageState, Drive, DriveParams, Feedback, ServoParams};
+use vmt_model::drive::{
+    AxisCommand, CarriageState, Drive, DriveEffects, DriveParams, Feedback, ServoParams,
+};
 use vmt_model::kinematics::{AxisState, VolumetricEvaluator};
 use vmt_model::machine::Machine;
+use vmt_model::thermal::screw::ScrewThermal;
 use vmt_model::thermal::{Operating, ThermalStepper};
 use vmt_model::{Axis, Direction, DirectionTracker};
 
@@ -48,6 +51,9 @@ pub struct AxisDynamics {
     pub drive: DriveParams,
     /// Controller settings.
     pub servo: ServoParams,
+    /// The drive's optional physics (cogging, encoder signals, preloaded nut, GMS friction);
+    /// `DriveEffects::default()` for none.
+    pub effects: DriveEffects,
 }
 
 /// How to simulate.
@@ -371,7 +377,7 @@ impl JobRun<'_> {
             sink.start(&recorder.opening(machine, settings, scenario_toml))
                 .map_err(SimError::Log)?;
         }
-        let mut heat = HeatTracker::new(machine)?;
+        let mut heat = HeatTracker::new(machine, axes)?;
         // Link and joint matrices of the current thermal state, rebuilt only when it changes.
         let mut evaluator = machine.volumetric.evaluator(&heat.deformation);
         let mut replay = replayable.then(|| Replay::new(heat.deformation, recorder.traces.len()));
@@ -410,7 +416,7 @@ impl JobRun<'_> {
             let carriages = plant.carriages();
             let q = Vector3::from_fn(|i, _| carriages[i].position_m);
             let direction = directions(&mut trackers, &q);
-            if heat.accumulate(&sp, &carriages.map(|c| c.velocity_m_s), period, machine)? {
+            if heat.accumulate(&sp, &carriages, period, machine)? {
                 evaluator = machine.volumetric.evaluator(&heat.deformation);
                 if let Some(r) = replay.as_mut() {
                     r.thermal_state(heat.deformation);
@@ -715,7 +721,7 @@ pub fn check_step(
 ) -> Result<(), SimError> {
     let h = period_s / substeps.max(1) as f64;
     for (a, d) in Axis::ALL.into_iter().zip(axes) {
-        let (limit, mode) = d.drive.largest_stable_step_s();
+        let (limit, mode) = d.effects.largest_stable_step_s(&d.drive);
         let accepted = limit * STABLE_STEP_FRACTION;
         // A limit that is not a number (parameters beyond any drive's) refuses too.
         if h > accepted || limit.is_nan() {
@@ -808,11 +814,16 @@ pub(crate) fn build_plant(
 ) -> Result<Box<dyn Plant>, SimError> {
     let moving = machine.axes.map(|a| a.moving_mass_kg);
     let l = layout(&machine.volumetric.kinematics.topology, moving)?;
-    let drives: [Drive; 3] = std::array::from_fn(|i| {
-        let mut params = axes[i].drive;
+    let mut drives = Vec::with_capacity(3);
+    for (i, a) in axes.iter().enumerate() {
+        let mut params = a.drive;
         params.carriage_mass_kg = moving[i];
-        Drive::new(params, axes[i].servo, start[i])
-    });
+        let drive = Drive::new(params, a.servo, start[i])
+            .with_effects(&a.effects)
+            .map_err(|e| SimError::Settings(format!("{} drive: {e}", Axis::ALL[i])))?;
+        drives.push(drive);
+    }
+    let drives: [Drive; 3] = [drives[0], drives[1], drives[2]];
     Ok(match fidelity {
         Fidelity::Reduced => Box::new(ReducedPlant::new(drives, &l)),
         Fidelity::Multibody => Box::new(MultibodyPlant::new(drives, &l, h)?),
@@ -827,11 +838,23 @@ struct HeatTracker {
     time_s: f64,
     distance_m: [f64; 3],
     spindle_rpm_s: f64,
+    /// The screws simulated along their length (`thermal::screw`).
+    screws: Vec<ScrewTracker>,
     deformation: vmt_model::thermal_deformation::ThermalDeformation,
 }
 
+/// One screw's temperatures along its length and the heat its nut and bearings left in each
+/// cell since the last thermal step.
+struct ScrewTracker {
+    axis: usize,
+    model: ScrewThermal,
+    temps_c: Vec<f64>,
+    heat_j: Vec<f64>,
+}
+
 impl HeatTracker {
-    fn new(machine: &Machine) -> Result<Self, SimError> {
+    fn new(machine: &Machine, axes: &[AxisDynamics; 3]) -> Result<Self, SimError> {
+        let thermal_error = |e: String| SimError::Thermal(e);
         let (stepper, temps_c) = match &machine.thermal {
             Some(t) => (
                 Some(
@@ -843,26 +866,61 @@ impl HeatTracker {
             ),
             None => (None, Vec::new()),
         };
-        let deformation = machine
-            .thermal_deformation(&temps_c)
-            .map_err(|e| SimError::Thermal(e.to_string()))?;
-        Ok(Self {
+        let mut screws = Vec::new();
+        if let Some(t) = &machine.thermal {
+            let ambient = t.network.ambient().celsius_at(0.0);
+            for (axis, p) in t.screws.iter().enumerate() {
+                // A linear scale closes the loop on the carriage: the screw's growth does not
+                // reach it (the scale's own expansion is the lumped model's).
+                let (Some(p), Feedback::MotorEncoder) = (p, axes[axis].drive.feedback) else {
+                    continue;
+                };
+                let model = ScrewThermal::new(p, THERMAL_PERIOD_S).map_err(thermal_error)?;
+                screws.push(ScrewTracker {
+                    axis,
+                    temps_c: model.initial_temperatures(ambient),
+                    heat_j: vec![0.0; p.cells],
+                    model,
+                });
+            }
+        }
+        let mut tracker = Self {
             stepper,
             temps_c,
             elapsed_s: 0.0,
             time_s: 0.0,
             distance_m: [0.0; 3],
             spindle_rpm_s: 0.0,
-            deformation,
-        })
+            screws,
+            deformation: Default::default(),
+        };
+        tracker.deformation = tracker.deform(machine)?;
+        Ok(tracker)
     }
 
-    /// Adds one servo period of motion; every thermal period, steps the network with the mean
-    /// heat of that period. Returns whether the deformation changed.
+    /// The deformation at the present temperatures: the network's, with each distributed
+    /// screw's growth in place of its axis' lumped expansion.
+    fn deform(
+        &self,
+        machine: &Machine,
+    ) -> Result<vmt_model::thermal_deformation::ThermalDeformation, SimError> {
+        let mut d = machine
+            .thermal_deformation(&self.temps_c)
+            .map_err(|e| SimError::Thermal(e.to_string()))?;
+        for s in &self.screws {
+            let joint = &mut d.joints[s.axis];
+            joint.strain = 0.0;
+            joint.screw = Some(s.model.growth(&s.temps_c));
+        }
+        Ok(d)
+    }
+
+    /// Adds one servo period of motion of the carriages; every thermal period, steps the
+    /// network with the mean heat of that period. Returns whether the deformation changed.
     fn accumulate(
         &mut self,
         sp: &Setpoint,
-        v: &[f64; 3],
+        carriages: &[CarriageState; 3],
         dt: f64,
         machine: &Machine,
     ) -> Result<bool, SimError> {
@@ -870,8 +928,13 @@ impl HeatTracker {
             return Ok(false);
         };
         self.elapsed_s += dt;
-        for (d, v) in self.distance_m.iter_mut().zip(v) {
-            *d += v.abs() * dt;
+        for (d, c) in self.distance_m.iter_mut().zip(carriages) {
+            *d += c.velocity_m_s.abs() * dt;
+        }
+        for s in &mut self.screws {
+            let c = &carriages[s.axis];
+            s.model
+                .deposit(&mut s.heat_j, c.position_m, c.velocity_m_s, dt);
         }
         self.spindle_rpm_s += match sp.spindle {
             Spindle::Clockwise(n) | Spindle::CounterClockwise(n) => n * dt,
@@ -890,13 +953,16 @@ impl HeatTracker {
             .ambient()
             .celsius_at(self.time_s + 0.5 * self.elapsed_s);
         stepper.step(&mut self.temps_c, &heat, ambient);
+        for s in &mut self.screws {
+            let watts: Vec<f64> = s.heat_j.iter().map(|j| j / self.elapsed_s).collect();
+            s.model.step(&mut s.temps_c, &watts, ambient);
+            s.heat_j.iter_mut().for_each(|j| *j = 0.0);
+        }
         self.time_s += self.elapsed_s;
         self.elapsed_s = 0.0;
         self.distance_m = [0.0; 3];
         self.spindle_rpm_s = 0.0;
-        self.deformation = machine
-            .thermal_deformation(&self.temps_c)
-            .map_err(|e| SimError::Thermal(e.to_string()))?;
+        self.deformation = self.deform(machine)?;
         Ok(true)
     }
 }

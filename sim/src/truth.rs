@@ -69,6 +69,11 @@ pub struct TestDrift<'a> {
 ///   drift there, the creep of the axis standing along the plane's normal (which an inclined
 ///   bar reads) and the pivot's creep (measured by the simulator as the trace runs).
 ///
+/// `drives.<axis>.physics` is there only for an axis with optional physics: its motor's
+/// cogging and ripple, its encoder's or scale's signal distortions with the error's
+/// first-order harmonic amplitudes, its preloaded nut, its friction law, its rails' local
+/// defects and its screw along its length (`in_effect` false with a linear scale, whose loop
+/// takes the screw's growth out).
 /// `drives.<axis>.backlash_seen_um` is taken at the job's test feed ([`Job::test_feed_m_s`]);
 /// each circular test of `ballbar.tests` has its own at its feed, and a `figures` object with
 /// every figure a ball-bar diagnosis reports, under the diagnosis' keys (see [`test_figures`]),
@@ -95,9 +100,7 @@ pub fn ground_truth(
         let d = &axes[a.index()];
         let p = &d.drive;
         let seen = backlash_seen_m(d, feed, loads[a.index()]);
-        drives.insert(
-            a.to_string().to_lowercase(),
-            json!({
+        let mut entry = json!({
                 "backlash_um": p.screw.backlash_m * 1e6,
                 "backlash_seen_um": seen * 1e6,
                 "screw_cyclic_um": p.screw.cyclic_m.map(|v| v * 1e6),
@@ -111,8 +114,11 @@ pub fn ground_truth(
                 "kv_per_s": d.servo.kv_per_s,
                 "velocity_ff": d.servo.velocity_ff,
                 "moving_mass_kg": machine.axis(a).moving_mass_kg,
-            }),
-        );
+        });
+        if let Some(extra) = physics(machine, d, a) {
+            entry["physics"] = extra;
+        }
+        drives.insert(a.to_string().to_lowercase(), entry);
     }
     let lag = |a: Axis| lag_s(&axes[a.index()]);
     let mut squareness = serde_json::Map::new();
@@ -177,6 +183,102 @@ pub fn ground_truth(
         "ballbar": ballbar,
         "laser": laser,
     })
+}
+
+/// The optional physics of axis `a` (its drive's `effects`, its rails' local defects, its
+/// screw along its length), in the scenario's units, or `None` when it has none (the truth of a
+/// machine without them is as it was).
+fn physics(machine: &Machine, d: &AxisDynamics, a: Axis) -> Option<Value> {
+    let e = &d.effects;
+    let mut out = serde_json::Map::new();
+    if let Some(m) = &e.motor {
+        out.insert(
+            "motor".into(),
+            json!({
+                "cogging_n_m": m.cogging_n_m,
+                "cogging_periods_per_rev": m.cogging_periods_per_rev,
+                "pole_pairs": m.pole_pairs,
+                "ripple_percent": m.ripple_fraction * 100.0,
+                "ripple_harmonic": m.ripple_harmonic,
+            }),
+        );
+    }
+    let signals = |s: &vmt_model::drive::encoder::EncoderSignals| {
+        json!({
+            "signal_period_um": s.period_m * 1e6,
+            "offsets_percent": [s.offset_cos * 100.0, s.offset_sin * 100.0],
+            "amplitude_ratio": s.amplitude_ratio,
+            "phase_error_deg": s.phase_error_rad.to_degrees(),
+            "first_order_error_um": s.first_order_amplitudes_m().map(|v| v * 1e6),
+        })
+    };
+    if let Some(s) = &e.motor_encoder_signals {
+        out.insert("encoder_signals".into(), signals(s));
+    }
+    if let Some(s) = &e.scale_signals {
+        out.insert("scale_signals".into(), signals(s));
+    }
+    if let Some(n) = &e.nut {
+        out.insert(
+            "nut".into(),
+            json!({
+                "preload_n": n.preload_n,
+                "stiffness_n_per_um": n.stiffness_n_per_m * 1e-6,
+                "remaining_preload_n": n.remaining_preload_n,
+            }),
+        );
+    }
+    for (key, gms) in [("guide_friction_law", &e.guide_gms), ("screw_friction_law", &e.screw_gms)] {
+        if let Some(g) = gms {
+            out.insert(key.into(), json!({"law": "gms", "elements": g.elements}));
+        }
+    }
+    if let Some(g) = &machine.volumetric.errors.guideways[a.index()] {
+        let defects: Vec<Value> = g
+            .defects
+            .iter()
+            .map(|d| {
+                let (shape, width) = match d.shape {
+                    vmt_model::geometric::DefectShape::Bump { width_m } => ("bump", Some(width_m * 1e3)),
+                    vmt_model::geometric::DefectShape::Step => ("step", None),
+                };
+                json!({
+                    "shape": shape,
+                    "direction": d.direction.to_string().to_lowercase(),
+                    "at_mm": d.at_m * 1e3,
+                    "height_um": d.height_m * 1e6,
+                    "width_mm": width,
+                    "rail_offset_mm": d.rail_offset_m.map(|v| v * 1e3),
+                })
+            })
+            .collect();
+        out.insert(
+            "guideway".into(),
+            json!({
+                "block_spacing_mm": g.block_spacing_m * 1e3,
+                "block_length_mm": g.block_length_m * 1e3,
+                "defects": defects,
+            }),
+        );
+    }
+    let screw = machine
+        .thermal
+        .as_ref()
+        .and_then(|t| t.screws[a.index()].as_ref());
+    if let Some(s) = screw {
+        out.insert(
+            "screw_thermal".into(),
+            json!({
+                "span_mm": s.span_m.map(|v| v * 1e3),
+                "fixed_end": if s.fixed_at_high_end { "high" } else { "low" },
+                "nut_w_per_mm_s": s.nut_w_per_m_s * 1e-3,
+                "bearing_w_per_mm_s": s.bearing_w_per_m_s * 1e-3,
+                "warm_rise_k": s.warm.map(|w| w.rise_k),
+                "in_effect": matches!(d.drive.feedback, Feedback::MotorEncoder),
+            }),
+        );
+    }
+    (!out.is_empty()).then_some(Value::Object(out))
 }
 
 /// The constant force on each axis' carriage along its coordinate, N: gravity on Z's moving mass

@@ -16,6 +16,12 @@
 //! motor encoder (semi-closed loop, the usual case, in which the gap is not seen by the control)
 //! or a linear scale on the carriage (closed loop), quantised to its resolution.
 //!
+//! Optional physics ([`DriveEffects`], off by default) enters at four places: the motor's
+//! cogging and torque ripple add to `F_mot` in the motor side's equation; the interpolation
+//! error of an encoder's signals adds to its reading before it is quantised; a preloaded
+//! double nut replaces the nut's share of the screw spring in `F_screw`; the GMS law replaces
+//! LuGre in `F_fm` or `F_fc`. Each is a branch on an empty option when it is off.
+//!
 //! Integrator: semi-implicit (symplectic) Euler over a fixed step `h`: the screw force from the
 //! positions at the start of the step, the current lag and the LuGre bristles integrated exactly
 //! over the step (their end-of-step force enters the velocity update), then velocities, then
@@ -27,6 +33,7 @@
 //! [`LuGreStep`]) are computed once per step size, not every step; the parameters are fixed
 //! when the drive is built.
 
+use super::effects::{ActiveEffects, DriveEffects};
 use super::friction::{LuGre, LuGreParams, LuGreStep, exp};
 use super::servo::{AxisCommand, ServoController, ServoParams};
 use super::transmission::ScrewParams;
@@ -168,6 +175,8 @@ pub struct Drive {
     encoder_resolution_m: f64,
     /// Constants of the last step size.
     step: StepConstants,
+    /// Optional physics ([`Drive::with_effects`]), none by default.
+    effects: ActiveEffects,
 }
 
 /// The constants of a step of `h` seconds: the current-lag factor `1 - exp(-h/Tc)`, `h/M_m`
@@ -213,7 +222,16 @@ impl Drive {
             total_mass_kg: params.total_mass_kg(),
             encoder_resolution_m: params.encoder_resolution_m(),
             step: StepConstants::new(f64::NAN, &params, &servo),
+            effects: ActiveEffects::default(),
         }
+    }
+
+    /// This drive with the optional physics of `effects` (none by default: see
+    /// [`DriveEffects`]); an error names an effect that does not fit the drive.
+    pub fn with_effects(mut self, effects: &DriveEffects) -> Result<Self, String> {
+        effects.check(&self.params)?;
+        self.effects = ActiveEffects::new(effects, &self.params);
+        Ok(self)
     }
 
     /// Physical parameters.
@@ -231,11 +249,19 @@ impl Drive {
     #[inline]
     pub fn feedback(&self, carriage_m: f64) -> (f64, f64) {
         let q = self.encoder_resolution_m;
-        let encoder = floor(self.motor_position_m / q) * q;
+        let motor = match &self.effects.motor_encoder {
+            None => self.motor_position_m,
+            Some(s) => self.motor_position_m + s.error_m(self.motor_position_m),
+        };
+        let encoder = floor(motor / q) * q;
         let position = match self.params.feedback {
             Feedback::MotorEncoder => encoder,
             Feedback::LinearScale { resolution_m } => {
-                floor(carriage_m / resolution_m) * resolution_m
+                let scale = match &self.effects.scale {
+                    None => carriage_m,
+                    Some(s) => carriage_m + s.error_m(carriage_m),
+                };
+                floor(scale / resolution_m) * resolution_m
             }
         };
         (position, encoder)
@@ -267,12 +293,12 @@ impl Drive {
     /// The force the screw exerts on `carriage` now, N.
     #[inline]
     pub fn screw_force(&self, carriage: &CarriageState) -> f64 {
-        self.params.screw.force(
-            self.motor_position_m,
-            self.motor_velocity_m_s,
-            carriage.position_m,
-            carriage.velocity_m_s,
-        )
+        let (x_m, v_m) = (self.motor_position_m, self.motor_velocity_m_s);
+        let (x_c, v_c) = (carriage.position_m, carriage.velocity_m_s);
+        match &self.effects.nut {
+            None => self.params.screw.force(x_m, v_m, x_c, v_c),
+            Some(nut) => self.params.screw.force_through(nut, x_m, v_m, x_c, v_c),
+        }
     }
 
     /// Advances the motor side by `h` (s) against the screw and the guideway friction of
@@ -312,19 +338,25 @@ impl Drive {
         let mut net = [0.0; N];
         for (i, (d, c)) in axes.into_iter().enumerate() {
             let (guide_step, screw_step) = (&d.step.guide_friction, &d.step.screw_friction);
-            let guide = guide_step.settle(
-                &mut c.friction,
-                c.velocity_m_s,
-                guide_slip[i],
-                guide_decay[i],
-            );
+            let guide = match &mut d.effects.guide_gms {
+                None => guide_step.settle(
+                    &mut c.friction,
+                    c.velocity_m_s,
+                    guide_slip[i],
+                    guide_decay[i],
+                ),
+                Some(g) => g.advance(c.velocity_m_s, h),
+            };
             c.friction_force_n = guide;
-            let friction = screw_step.settle(
-                &mut d.screw_friction,
-                d.motor_velocity_m_s,
-                screw_slip[i],
-                screw_decay[i],
-            );
+            let friction = match &mut d.effects.screw_gms {
+                None => screw_step.settle(
+                    &mut d.screw_friction,
+                    d.motor_velocity_m_s,
+                    screw_slip[i],
+                    screw_decay[i],
+                ),
+                Some(g) => g.advance(d.motor_velocity_m_s, h),
+            };
             d.finish_step(h, screw[i], friction);
             net[i] = screw[i] - guide + external_n[i];
         }
@@ -336,7 +368,11 @@ impl Drive {
     fn finish_step(&mut self, h: f64, screw: f64, friction: f64) {
         let c = &self.step;
         self.motor_force_n += (self.controller.force_reference_n - self.motor_force_n) * c.lag;
-        self.motor_velocity_m_s += (self.motor_force_n - screw - friction) * c.h_over_motor_mass;
+        let driving = match &self.effects.motor {
+            None => self.motor_force_n,
+            Some(p) => self.motor_force_n + p.force_n(self.motor_position_m, self.motor_force_n),
+        };
+        self.motor_velocity_m_s += (driving - screw - friction) * c.h_over_motor_mass;
         self.motor_position_m += h * self.motor_velocity_m_s;
         self.screw_friction_force_n = friction;
         self.screw_force_n = screw;

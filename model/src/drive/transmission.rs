@@ -27,6 +27,12 @@
 //!
 //! Under semi-closed loop (motor encoder) the control does not see it and the carriage carries
 //! `e` (amplitude `sqrt(e_c² + e_s²)`, pitch the lead); a linear scale removes it.
+//!
+//! With a preloaded double nut configured (`nut`), the stretch beyond the gap goes through the
+//! nut's Hertzian halves in series with the shaft and bearings instead of the linear `k`
+//! ([`ScrewParams::force_through`]).
+
+use super::nut::NutSeries;
 
 /// Ball screw and nut parameters, SI units.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -63,6 +69,24 @@ impl ScrewParams {
         } else {
             0.0
         }
+    }
+
+    /// [`ScrewParams::force`] with the nut's share of the spring a preloaded double nut
+    /// (`nut`): the stretch beyond the gap goes through the nut's Hertzian halves in series
+    /// with the shaft and bearings, plus the damping.
+    #[inline]
+    pub fn force_through(&self, nut: &NutSeries, x_m: f64, v_m: f64, x_c: f64, v_c: f64) -> f64 {
+        let (nut_at, v_nut) = self.nut(x_m, v_m);
+        let half = 0.5 * self.backlash_m;
+        let delta = nut_at - x_c;
+        let stretch = if delta > half {
+            delta - half
+        } else if delta < -half {
+            delta + half
+        } else {
+            return 0.0;
+        };
+        nut.force(stretch, nut.linear_guess(stretch)).0 + self.damping_n_s_per_m * (v_nut - v_c)
     }
 
     /// Where the screw puts the nut for a motor side at `x_m`, `v_m`: `x_m + e(x_m)` and its

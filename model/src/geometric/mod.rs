@@ -18,11 +18,17 @@
 //! their difference is that component's backlash (EXX's is the positional backlash, ECX's the
 //! yaw backlash, ...). Squareness depends on the approach directions of both of its axes, so it
 //! has four values, whose differences are its two backlash components.
+//!
+//! Besides these smooth functions of position an axis may have local defects of its rails (a
+//! bump, a rail-joint step: [`Guideway`]), which its carriage's blocks ride over; the chain
+//! adds their error motion to the functions'.
 
 mod compiled;
 mod function;
+mod guideway;
 
 pub use function::{ErrorFunction, ErrorTable, FunctionError, Interpolation, LegendreSeries};
+pub use guideway::{DefectShape, Guideway, RailDefect};
 
 use crate::axis::{Axis, Direction};
 use compiled::Compiled;
@@ -241,13 +247,16 @@ impl SquarenessValue {
     }
 }
 
-/// The complete set of geometric errors: 18 axis error motions and 3 squareness errors.
+/// The complete set of geometric errors: 18 axis error motions and 3 squareness errors, and
+/// the local defects of the axes' rails.
 #[derive(Clone, Debug, PartialEq, Default)]
 pub struct GeometricErrors {
     /// Error functions of X, Y, Z.
     pub axes: [AxisErrors; 3],
     /// EC0Y, EB0Z, EA0Z.
     pub squareness: [SquarenessValue; 3],
+    /// The carriages of X, Y, Z on their rails, where the rails have local defects.
+    pub guideways: [Option<Guideway>; 3],
 }
 
 impl GeometricErrors {

@@ -14,7 +14,8 @@
 //! - `J(q) = Trans(q·u + δ(q) + P(T)(q - q_ref)·u) · R(ε(q))`, where `u` is the unit vector of the
 //!   axis' reference straight line (the nominal axis turned by the squareness errors), `δ` the
 //!   translational errors (EX?, EY?, EZ?) and `ε` the angular errors (EA?, EB?, EC?) for the
-//!   axis' direction state. The geometric errors are motions of the tool relative to the
+//!   axis' direction state, with the error motion of the rails' local defects added to both
+//!   (`geometric::Guideway`). The geometric errors are motions of the tool relative to the
 //!   workpiece (ISO 230-1, Ahn & Cho's sign rules), so this form holds on both sides of the
 //!   ground. The thermal rotation `ε_j` is a physical rotation of the carriage: on the tool side
 //!   it turns what the carriage carries, `J·R(ε_j)`; on the workpiece side the carriage is the
@@ -100,6 +101,8 @@ pub struct VolumetricEvaluator<'a> {
     /// Unit vectors of the axes' reference straight lines (squareness), for each of the eight
     /// combinations of direction states, indexed by [`direction_index`].
     axis_lines: [[Vector3<f64>; 3]; 8],
+    /// Whether each axis' carriage moves the tool (else the workpiece).
+    moves_tool: [bool; 3],
 }
 
 /// Index 0..8 of a combination of the three direction states.
@@ -145,9 +148,11 @@ impl VolumetricModel {
             let turns = self.errors.axis_line_rotations(&dirs);
             std::array::from_fn(|i| rotation_matrix(turns[i]).column(i).into_owned())
         });
+        let moves_tool = Axis::ALL.map(|a| topology.axis_side(a) == Side::Tool);
         VolumetricEvaluator {
             model: self,
             axis_lines,
+            moves_tool,
             thermal: *thermal,
             links,
             link_identity,
@@ -210,10 +215,18 @@ impl VolumetricEvaluator<'_> {
     fn joint_parts(&self, axis: Axis, state: &AxisState) -> (Htm, Option<&Matrix3<f64>>) {
         let i = axis.index();
         let q = state.position[i];
-        let motion = self.model.errors.axis(axis).motion(q, state.direction[i]);
+        let mut motion = self.model.errors.axis(axis).motion(q, state.direction[i]);
+        if let Some(g) = &self.model.errors.guideways[i] {
+            let local = g.error_motion(q, self.moves_tool[i]);
+            motion.translation += local.translation;
+            motion.rotation += local.rotation;
+        }
         let u = self.axis_lines[direction_index(&state.direction)][i];
         let jt = &self.thermal.joints[i];
-        let travel = q + jt.strain * (q - jt.reference_m);
+        let mut travel = q + jt.strain * (q - jt.reference_m);
+        if let Some(screw) = &jt.screw {
+            travel += screw.at(q);
+        }
         let geometric = Htm {
             rotation: rotation_matrix(motion.rotation),
             translation: u * travel + motion.translation,

@@ -81,6 +81,13 @@
 //! flow in W, capacity in J/K, conductance in W/K, speeds in m/s, except the
 //! spindle speed in rpm.
 //!
+//! # The screws along their length
+//!
+//! [`screw`] gives a ball screw a temperature field along its length instead of one node:
+//! conduction, convection, and the nut's heat where the nut runs, built as a network of this
+//! module's kind (one node per finite volume) and stepped exactly as above. Its growth between
+//! the fixed bearing and the nut replaces the lumped expansion of that axis in a simulated job.
+//!
 //! # References
 //!
 //! - ISO 230-3:2020, *Test code for machine tools — Part 3: Determination
@@ -95,6 +102,7 @@
 mod ambient;
 mod network;
 mod schedule;
+pub mod screw;
 
 pub use ambient::Ambient;
 pub use network::{

@@ -48,5 +48,9 @@ pub fn axis(moving_mass_kg: f64, backlash_m: f64, kv_per_s: f64) -> AxisDynamics
         force_limit_n: 8000.0,
         following_error_limit_m: None,
     };
-    AxisDynamics { drive, servo }
+    AxisDynamics {
+        drive,
+        servo,
+        effects: Default::default(),
+    }
 }
