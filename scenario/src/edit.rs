@@ -105,6 +105,29 @@ impl Template {
         Ok(doc.to_string())
     }
 
+    /// The scenario text with the TOML `fragment` merged in: its tables into the scenario's
+    /// tables of the same path (inline or not), its values over the scenario's, its arrays of
+    /// tables after the scenario's own entries. Withheld physics is written into a measured
+    /// machine this way, as tables no model parameter edit reaches.
+    pub fn with_merged(&self, fragment: &str) -> Result<String, ScenarioError> {
+        let add = Self::parse(fragment, &format!("{} (merged fragment)", self.file))?;
+        let mut doc = self.doc.clone();
+        merge_table(doc.as_table_mut(), add.doc.as_table(), "")
+            .map_err(|(key, m)| self.error(&key, m))?;
+        Ok(doc.to_string())
+    }
+
+    /// The scenario text with its top-level table `name` replaced by the table `fragment` (the
+    /// table's body: `kind = "ballbar"\nplane = "XY"\n…`); a job is swapped this way.
+    pub fn with_table(&self, name: &str, fragment: &str) -> Result<String, ScenarioError> {
+        let body = Self::parse(fragment, &format!("{} (table {name})", self.file))?;
+        let mut doc = self.doc.clone();
+        let mut table = body.doc.as_table().clone();
+        table.set_implicit(false);
+        doc.insert(name, toml_edit::Item::Table(table));
+        Ok(doc.to_string())
+    }
+
     fn error(&self, key: &str, message: String) -> ScenarioError {
         ScenarioError {
             file: self.file.clone(),
@@ -115,9 +138,82 @@ impl Template {
     }
 }
 
+/// Merges `add` into `into` (see [`Template::with_merged`]); an error names the key where a
+/// table meets a value.
+fn merge_table(
+    into: &mut toml_edit::Table,
+    add: &toml_edit::Table,
+    path: &str,
+) -> Result<(), (String, String)> {
+    use toml_edit::Item;
+    for (key, item) in add.iter() {
+        let here = if path.is_empty() {
+            key.to_string()
+        } else {
+            format!("{path}.{key}")
+        };
+        let clash = || {
+            (
+                here.clone(),
+                "the fragment sets a table where the scenario has a value, or the reverse".into(),
+            )
+        };
+        match (into.get_mut(key), item) {
+            (None, _) => {
+                into.insert(key, item.clone());
+            }
+            (Some(Item::Table(t)), Item::Table(a)) => merge_table(t, a, &here)?,
+            (Some(Item::Value(Value::InlineTable(t))), Item::Table(a)) => {
+                for (k, v) in a.iter() {
+                    let v = v.as_value().ok_or_else(clash)?;
+                    t.insert(k, v.clone());
+                }
+            }
+            (Some(Item::ArrayOfTables(list)), Item::ArrayOfTables(a)) => {
+                for t in a.iter() {
+                    list.push(t.clone());
+                }
+            }
+            (Some(Item::Value(_)), Item::Value(v)) => {
+                into[key] = Item::Value(v.clone());
+            }
+            _ => return Err(clash()),
+        }
+    }
+    Ok(())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_fragment_merges_into_tables_inline_tables_and_arrays_of_tables() {
+        let text = "[a]\nx = 1.0\nf = { c = 4.0 }\n\n[[list]]\nn = 1\n";
+        let t = Template::parse(text, "t.toml").unwrap();
+        let out = t
+            .with_merged("[a]\ny = 2.0\n[a.f]\nd = 5.0\n[a.g]\nz = 3.0\n[[list]]\nn = 2\n")
+            .unwrap();
+        let merged = Template::parse(&out, "out.toml").unwrap();
+        for (key, v) in [
+            ("a.x", 1.0),
+            ("a.y", 2.0),
+            ("a.f.c", 4.0),
+            ("a.f.d", 5.0),
+            ("a.g.z", 3.0),
+            ("list[0].n", 1.0),
+            ("list[1].n", 2.0),
+        ] {
+            assert_eq!(merged.value(key).unwrap(), Some(v), "{key} in\n{out}");
+        }
+        let e = t.with_merged("[a.x]\nq = 1.0\n").unwrap_err();
+        assert!(e.to_string().contains("a.x"), "{e}");
+        let swapped = t.with_table("a", "z = 9.0\n").unwrap();
+        let swapped = Template::parse(&swapped, "swapped.toml").unwrap();
+        assert_eq!(swapped.value("a.z").unwrap(), Some(9.0));
+        assert_eq!(swapped.value("a.x").unwrap(), None);
+        assert_eq!(swapped.value("list[0].n").unwrap(), Some(1.0));
+    }
 
     #[test]
     fn values_are_read_and_written_by_key_path_keeping_the_rest() {
