@@ -7,7 +7,6 @@
 //! and `gap.rrd` (Rerun 0.36: the residual traces before and after as polar plots and series).
 
 use crate::error::CliError;
-use crate::formats::rerun::write_rrd;
 use crate::plot::{self, Format};
 use crate::traces::{self, CsvSetup};
 use serde_json::{Value, json};
@@ -21,6 +20,7 @@ use vmt_gap::peaks::Circle;
 use vmt_gap::select::{self, Linearisation, Selection};
 use vmt_gap::split::Split;
 use vmt_gap::{GapError, TracePair};
+use vmt_logs::rerun::write_rrd;
 use vmt_sim::run::{BallbarTrace, Run};
 
 /// A gap analysis and what it was made from.

@@ -4,7 +4,6 @@
 
 use crate::chatter;
 use crate::error::CliError;
-use crate::formats::rerun::{AxisBands, write_band_rrd};
 use crate::plot::{DrawResult, FONT, Figure, Format, register_font, render};
 use plotters::coord::Shift;
 use plotters::prelude::*;
@@ -13,6 +12,7 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use vmt_gap::GapError;
 use vmt_gap::vibration::{self, Log, MillingModel, Options, Share, VibrationGap};
+use vmt_logs::rerun::{AxisBands, write_band_rrd};
 
 /// Whether `path` holds accelerometer data: an MCAP with an `/accelerometer` topic, or a CSV
 /// whose header names `ax`, `ay` or `az`.
@@ -340,12 +340,12 @@ fn write_rrd(model: &str, report: &str, g: &VibrationGap, path: &Path) -> Result
             after_db: a,
         })
         .collect();
-    write_band_rrd(
+    Ok(write_band_rrd(
         path,
-        &format!("vmt-gap-{}", crate::formats::slug(model)),
+        &format!("vmt-gap-{}", vmt_logs::slug(model)),
         report,
         &axes,
-    )
+    )?)
 }
 
 /// Writes gap.txt, gap.json, gap.rrd and band_levels.png into `dir`.
