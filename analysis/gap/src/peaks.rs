@@ -84,6 +84,9 @@ pub struct AxisPlace {
     pub at_mm: f64,
     /// The angles of the two passes, deg.
     pub angles_deg: [f64; 2],
+    /// The other axis when both passes are also its reversals (within
+    /// [`PAIR_TOLERANCE_DEG`]): the place cannot be told from those reversals by angle alone.
+    pub also_reversals_of: Option<char>,
 }
 
 impl std::fmt::Display for Peak {
@@ -117,7 +120,11 @@ impl std::fmt::Display for AxisPlace {
             f,
             "{} at {:.0} mm (passed at {:.0} and {:.0} deg)",
             self.axis, self.at_mm, self.angles_deg[0], self.angles_deg[1]
-        )
+        )?;
+        if let Some(other) = self.also_reversals_of {
+            write!(f, ", which are the {other} reversals too")?;
+        }
+        Ok(())
     }
 }
 
@@ -384,6 +391,15 @@ pub fn axis_places(
                 _ => 2,
             };
             let r = circle.radius_mm;
+            // Both passes at the reversals of the other axis (p reverses at 0° and 180°, q
+            // at 90° and 270°).
+            let near = |t: f64, at: f64| gap(t - at).abs() <= PAIR_TOLERANCE_DEG;
+            let reversals = |axis: char, at: [f64; 2]| {
+                [ta, tb]
+                    .iter()
+                    .all(|t| at.iter().any(|x| near(*t, *x)))
+                    .then_some(axis)
+            };
             if gap(ta + tb).abs() <= PAIR_TOLERANCE_DEG {
                 let at = 0.5 * (ta.to_radians().cos() + tb.to_radians().cos());
                 out.push(AxisPlace {
@@ -391,6 +407,7 @@ pub fn axis_places(
                     axis: p,
                     at_mm: circle.centre_mm[index(p)] + r * at,
                     angles_deg: [ta, tb],
+                    also_reversals_of: reversals(q, [90.0, 270.0]),
                 });
             } else if gap(ta + tb - 180.0).abs() <= PAIR_TOLERANCE_DEG {
                 let at = 0.5 * (ta.to_radians().sin() + tb.to_radians().sin());
@@ -399,6 +416,7 @@ pub fn axis_places(
                     axis: q,
                     at_mm: circle.centre_mm[index(q)] + r * at,
                     angles_deg: [ta, tb],
+                    also_reversals_of: reversals(p, [0.0, 180.0]),
                 });
             }
         }
@@ -481,6 +499,16 @@ mod tests {
         assert_eq!(places.len(), 1, "{places:#?}");
         assert_eq!(places[0].axis, 'X');
         assert!((places[0].at_mm - 325.0).abs() < 2.0, "{}", places[0]);
+        assert_eq!(places[0].also_reversals_of, None);
+        // Peaks at 0° and 180° are a place on Y at the centre's Y, and the X reversals too.
+        let f = |a: f64| bump(a, 1.0, 1.5, 6.0) + bump(a, 181.0, 1.5, 6.0);
+        let pairs = [run(Sense::Cw, f), run(Sense::Ccw, f)];
+        let places = axis_places(&peaks(&pairs, &circles, 0.15), &pairs, &circles);
+        assert_eq!(places.len(), 1, "{places:#?}");
+        assert_eq!(
+            (places[0].axis, places[0].also_reversals_of),
+            ('Y', Some('X'))
+        );
     }
 
     #[test]
