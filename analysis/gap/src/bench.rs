@@ -352,7 +352,9 @@ impl Outcome {
                 .map(|a| a.effects.join(" + "))
                 .collect();
         }
-        out.implausible_accepted = implausible_values(&s.final_values, library, model);
+        let accepted: Vec<&str> = s.steps.iter().map(|x| x.effect.as_str()).collect();
+        out.implausible_accepted =
+            implausible_values(&s.final_values, &accepted, library, model);
         let before = Localisation::of(&s.initial_pairs, &localise::Options::default())?;
         out.peaks_deg = before.peaks.iter().map(|p| p.angle_deg).collect();
         Ok(out)
@@ -413,16 +415,17 @@ impl Outcome {
     }
 }
 
-/// The chosen effects whose final values (absolute, by key) a machine of the model's class
+/// The `accepted` effects whose final values (absolute, by key) a machine of the model's class
 /// cannot have, checked against the library's ranges afresh.
 fn implausible_values(
     values: &[(String, f64)],
+    accepted: &[&str],
     library: &[Effect],
     model: &dyn Forward,
 ) -> Vec<String> {
     let mut out: Vec<String> = Vec::new();
     for (key, value) in values {
-        for e in library.iter().filter(|e| !e.baseline) {
+        for e in library.iter().filter(|e| accepted.contains(&e.key.as_str())) {
             for p in e.params.iter().filter(|p| p.keys.contains(key)) {
                 let Some(m) = model.value(key) else { continue };
                 let (lo, hi) = p.plausible.range(m);

@@ -187,13 +187,24 @@ fn difference(a: &[Trace], b: &[Trace]) -> Vec<(String, Vec<(f64, f64)>)> {
         .collect()
 }
 
-/// The largest |d| of a difference: its size, angle and run.
-fn largest(d: &[(String, Vec<(f64, f64)>)]) -> (f64, f64, String) {
-    let mut best = (0.0, 0.0, String::new());
+/// The largest |d| of a difference: its size (µm), angle (deg) and run.
+#[derive(Clone, Debug, Default)]
+struct Largest {
+    size: f64,
+    at: f64,
+    run: String,
+}
+
+fn largest(d: &[(String, Vec<(f64, f64)>)]) -> Largest {
+    let mut best = Largest::default();
     for (sense, run) in d {
         for (t, v) in run {
-            if v.abs() > best.0 {
-                best = (v.abs(), *t, sense.clone());
+            if v.abs() > best.size {
+                best = Largest {
+                    size: v.abs(),
+                    at: *t,
+                    run: sense.clone(),
+                };
             }
         }
     }
@@ -252,21 +263,20 @@ pub fn discriminate(
     noise_um: f64,
     progress: &(dyn Fn() + Sync),
 ) -> Result<Vec<Discrimination>, GapError> {
-    let largest_difference =
-        |m: &ScenarioModel| -> Result<Vec<Option<(f64, f64, String)>>, GapError> {
-            let base = m.traces(&chosen.values)?;
-            rivals
-                .iter()
-                .map(|r| Ok(traces_or_none(m, &r.values)?.map(|t| largest(&difference(&base, &t)))))
-                .collect()
-        };
+    let largest_difference = |m: &ScenarioModel| -> Result<Vec<Option<Largest>>, GapError> {
+        let base = m.traces(&chosen.values)?;
+        rivals
+            .iter()
+            .map(|r| Ok(traces_or_none(m, &r.values)?.map(|t| largest(&difference(&base, &t)))))
+            .collect()
+    };
     let own = largest_difference(model)?;
     let grid: Vec<(ScenarioModel, Setup)> = setups()
         .par_iter()
         .filter_map(|s| model_for(model, s))
         .collect();
     // Per test: each rival's largest difference from the chosen explanation.
-    let per_test: Vec<(Setup, Vec<Option<(f64, f64, String)>>)> = grid
+    let per_test: Vec<(Setup, Vec<Option<Largest>>)> = grid
         .par_iter()
         .map(|(m, s)| {
             let found = largest_difference(m)?;
@@ -279,10 +289,10 @@ pub fn discriminate(
         .iter()
         .enumerate()
         .filter_map(|(k, r)| {
-            let (setup, (size, at, run)) = per_test
+            let (setup, Largest { size, at, run }) = per_test
                 .iter()
                 .filter_map(|(s, found)| Some((s, found[k].clone()?)))
-                .max_by(|a, b| a.1.0.total_cmp(&b.1.0))?;
+                .max_by(|a, b| a.1.size.total_cmp(&b.1.size))?;
             Some(Discrimination {
                 rival: r.label.clone(),
                 instead_of: r.instead_of.clone(),
@@ -293,7 +303,7 @@ pub fn discriminate(
                 place: place(&setup.plane, at),
                 noise_um: noise,
                 ratio: size / noise,
-                on_measured_um: own[k].as_ref().map(|x| x.0),
+                on_measured_um: own[k].as_ref().map(|x| x.size),
             })
         })
         .collect())

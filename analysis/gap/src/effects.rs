@@ -320,8 +320,8 @@ pub fn library(p: char, q: char) -> Vec<Effect> {
                 &format!("static force {up}"),
                 "N",
                 &[format!("{axis}.drive.guide_friction.static_n")],
-                // 30 N: a static level 60 % over the sliding one (95 N on 50 N on X).
-                (20.0, 30.0),
+                // 25 N: a static level 80 % over the sliding one (90 N on 50 N on X).
+                (20.0, 25.0),
                 STATIC_FRICTION,
             ))],
         ));
@@ -496,7 +496,8 @@ pub fn thermal_drift(node: usize) -> Effect {
     effect(
         "thermal_drift",
         "thermal drift: the spindle head starts warm and cools during the runs",
-        vec![param(
+        // A head starts warm from running; colder than the shop it does not start.
+        vec![growing(param(
             "spindle head start excess",
             "K",
             &[format!("machine.thermal.nodes[{node}].initial_c")],
@@ -504,7 +505,7 @@ pub fn thermal_drift(node: usize) -> Effect {
             // machine (144 W over 18 W/K).
             (2.0, 8.0),
             SPINDLE_START,
-        )],
+        ))],
     )
 }
 

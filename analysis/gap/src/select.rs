@@ -375,6 +375,10 @@ fn not_in_job(m: &Trace, simulated: &[Trace]) -> GapError {
 /// Per measured trace, the keyed bins (angle bin index, mean residual µm) of the model as given.
 type Grid = Vec<Vec<(i64, f64)>>;
 
+/// Per trace, per bin: a change of the model's deviation on the own job's grid, µm, made from
+/// the per-parameter sensitivities and the grid.
+type Signature<'a> = &'a dyn Fn(&[Vec<Vec<f64>>], &Grid) -> Vec<Vec<f64>>;
+
 /// Residual averaged into bins of the measured angle, in the run's order, each with its key
 /// ⌊angle/width⌋ (the aligned angle is monotone along a run, so keys do not repeat).
 fn bin(p: &TracePair, width: f64) -> Vec<(i64, f64)> {
@@ -995,10 +999,11 @@ impl Linearisation {
 
     /// How far offsets of the model's parameters (`(key, offset)`, keys the model cannot
     /// express ignored; a parameter of several keys takes its first key's offset) stand out on
-    /// the model's own job: the RMS change of the judge bins (the select bins when the judge
-    /// bins are too few), µm, that the linearisation predicts once the baseline (the bar's
-    /// set-up) is fitted to the fit bins, as the selection fits it. Below
-    /// [`Options::min_effect_um`] no selection can attribute them.
+    /// the model's own job: the RMS change, µm, that the linearisation predicts once the
+    /// baseline (the bar's set-up) is fitted to the fit bins, as the selection fits it, on the
+    /// select bins and on the judge bins, whichever is less (the select bins alone when the
+    /// judge bins are too few). Below [`Options::min_effect_um`] no selection can attribute
+    /// them: it gates on the select bins and the judgement reads the judge bins.
     pub fn visibility(
         &self,
         library: &[Effect],
@@ -1057,7 +1062,7 @@ impl Linearisation {
         &self,
         library: &[Effect],
         o: &Options,
-        signature: &dyn Fn(&[Vec<Vec<f64>>], &Grid) -> Vec<Vec<f64>>,
+        signature: Signature<'_>,
     ) -> Result<f64, GapError> {
         if self.own.get().is_none() {
             let _ = self.own.set(self.own_job(o)?);
@@ -1075,22 +1080,26 @@ impl Linearisation {
         let baseline: Vec<usize> = (0..self.available.len())
             .filter(|i| library[self.available[*i].effect].baseline)
             .collect();
-        let judging = if rows.can_judge() {
-            &rows.judge
-        } else {
-            &rows.select
-        };
         let columns = |rows: &[(usize, usize)]| -> Vec<Vec<f64>> {
             baseline.iter().map(|p| stack(&sens[*p], rows)).collect()
         };
-        let (fit, judge) = (columns(&rows.fit), columns(judging));
+        let fit = columns(&rows.fit);
         let beta = solve(&slices(&fit), &stack(&signature, &rows.fit))
             .unwrap_or_else(|| vec![0.0; fit.len()]);
-        Ok(rms(&minus(
-            &stack(&signature, judging),
-            &slices(&judge),
-            &beta,
-        )))
+        let left = |rows: &[(usize, usize)]| {
+            rms(&minus(
+                &stack(&signature, rows),
+                &slices(&columns(rows)),
+                &beta,
+            ))
+        };
+        // The selection gates on the select bins and the judgement reads the judge bins: an
+        // effect is seen only as far as it stands out on both.
+        Ok(if rows.can_judge() {
+            left(&rows.select).min(left(&rows.judge))
+        } else {
+            left(&rows.select)
+        })
     }
 }
 
