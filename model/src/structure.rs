@@ -304,7 +304,9 @@ impl Carriage {
         let across = self.across_axis(&self.stiffness());
         let eig = SymmetricEigen::new(across).eigenvalues;
         let top = eig.amax();
-        if self.blocks.is_empty() || !(eig.min() > 1e-9 * top) {
+        // NaN (unevaluable) counts as free too.
+        let held = eig.min() > 1e-9 * top;
+        if self.blocks.is_empty() || !held {
             return Err(StructureError::Unheld { axis });
         }
         Ok(())

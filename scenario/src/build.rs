@@ -55,8 +55,9 @@ pub struct Execution {
     pub program_file: Option<String>,
     /// The cut of a `kind = "milling"` job.
     pub milling: Option<vmt_sim::machining::MillingJob>,
-    /// What the job accepts but will not do, to be said when it runs (an instrument with
-    /// nothing to record).
+    /// What is to be said when the job runs: a servo loop that is unstable or lightly damped
+    /// (run, not refused), what the job accepts but will not do (an instrument with nothing to
+    /// record).
     pub notes: Vec<String>,
 }
 

@@ -1296,7 +1296,7 @@ impl Recorder {
             fidelity: settings.fidelity.name().into(),
             machine: summary(machine),
             streams: std::iter::once(servo_stream(0))
-                .chain(self.structure.as_ref().map(|s| empty_like(s)))
+                .chain(self.structure.as_ref().map(empty_like))
                 .collect(),
             ballbar: self.traces.iter().map(|t| t.samples(0..0)).collect(),
             laser: self.laser.as_ref().map(Laser::header),

@@ -395,8 +395,7 @@ fn a_step_too_coarse_for_the_blocks_is_refused() {
         "",
         &mut |_| {},
     )
-    .err()
-    .expect("refused");
+    .expect_err("refused");
     assert!(
         matches!(e, SimError::Plant(PlantError::StepTooCoarse { .. })),
         "{e}"
