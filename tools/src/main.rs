@@ -386,7 +386,7 @@ struct DemoArgs {
     /// demo does not write are removed).
     #[arg(long, default_value = "out")]
     out: PathBuf,
-    /// Plant fidelity: reduced or multibody.
+    /// Plant fidelity: reduced, multibody or compliant.
     #[arg(long)]
     fidelity: Option<String>,
     /// No progress bar.
