@@ -12,6 +12,7 @@ pub mod edit;
 mod error;
 mod milling;
 mod schema;
+mod structure;
 mod table;
 
 pub use build::{Execution, MAX_ANGLE_URAD, MAX_TRANSLATION_UM, Scenario, ThermalRunSpec};

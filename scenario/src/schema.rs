@@ -94,6 +94,8 @@ pub struct AxisToml {
     pub moving_mass_kg: f64,
     pub drive: Option<crate::dynamics::DriveToml>,
     pub servo: Option<crate::dynamics::ServoToml>,
+    /// The carriage as a rigid body on its guide blocks (the compliant plant).
+    pub carriage: Option<crate::structure::CarriageToml>,
 }
 
 #[derive(Debug, Deserialize, Default)]
