@@ -786,7 +786,9 @@ pub fn bench_command(a: &BenchArgs) -> Result<(), CliError> {
     let outcomes = bench::run(&text, &model, &lib, &cases, &o, &|| bar.inc(1))
         .map_err(|e| model_error(&file, e))?;
     bar.finish_and_clear();
-    let figures = bench::figures(&outcomes, o.min_effect_um);
+    // What changes the job by less than the level at which the selection starts (the model's
+    // other small mismatches), or by less than an effect must change it, nothing can attribute.
+    let figures = bench::figures(&outcomes, o.min_effect_um.max(o.explained_floor_um));
     let job = format!(
         "{} circle {} mm at {} mm/min, CW and CCW (segments of 40 deg in turn fit, select and judge); the bar's set-up drawn anew",
         a.plane, a.radius_mm, a.feed_mm_min
@@ -834,7 +836,7 @@ fn vibration_bench(a: &BenchArgs, text: &str, file: &str) -> Result<(), CliError
     let outcomes = vb::run(text, file, dir, &model, &cases, &o, &|| bar.inc(1))
         .map_err(|e| model_error(file, e))?;
     bar.finish_and_clear();
-    let figures = vmt_gap::bench::figures(&outcomes, o.min_effect_db);
+    let figures = vmt_gap::bench::figures(&outcomes, o.min_effect_db.max(o.explained_floor_db));
     let job = format!(
         "the milling job of the model (accelerometer logs, tooth passing {:.0} Hz; one log per case, its first half fits, its second half judges)",
         model.tooth_passing_hz()
@@ -939,7 +941,7 @@ fn bench_report(
     if !f.below_floor.is_empty() {
         let _ = writeln!(
             out,
-            "Below the visibility floor ({} {unit} of held-out change predicted for the withheld offsets), so invisible on this job and left out of the figures: {}.\n",
+            "Below the visibility floor ({} {unit} of change predicted for the withheld effect on the select and judge data: the level at which the selection starts, that of a model's other small mismatches), so invisible on this job and left out of the figures: {}.\n",
             f.floor,
             f.below_floor.join("; ")
         );

@@ -353,8 +353,7 @@ impl Outcome {
                 .collect();
         }
         let accepted: Vec<&str> = s.steps.iter().map(|x| x.effect.as_str()).collect();
-        out.implausible_accepted =
-            implausible_values(&s.final_values, &accepted, library, model);
+        out.implausible_accepted = implausible_values(&s.final_values, &accepted, library, model);
         let before = Localisation::of(&s.initial_pairs, &localise::Options::default())?;
         out.peaks_deg = before.peaks.iter().map(|p| p.angle_deg).collect();
         Ok(out)
@@ -425,7 +424,10 @@ fn implausible_values(
 ) -> Vec<String> {
     let mut out: Vec<String> = Vec::new();
     for (key, value) in values {
-        for e in library.iter().filter(|e| accepted.contains(&e.key.as_str())) {
+        for e in library
+            .iter()
+            .filter(|e| accepted.contains(&e.key.as_str()))
+        {
             for p in e.params.iter().filter(|p| p.keys.contains(key)) {
                 let Some(m) = model.value(key) else { continue };
                 let (lo, hi) = p.plausible.range(m);

@@ -72,8 +72,12 @@ pub struct Options {
     /// The gap counts as explained when what the chosen effects leave is at most this RMS, µm
     /// (the level of a model's other small mismatches)…
     pub explained_floor_um: f64,
-    /// …or at most this fraction of the gap's RMS before them. Otherwise the chosen effects
-    /// are reported as partial candidates and the gap as unexplained.
+    /// …or at most this fraction of the gap's RMS before them (2 % of its mean square): an
+    /// effect of the library that is the gap's cause, fitted at its size, leaves its
+    /// nonlinearity and the other small mismatches, a few per cent of its signature; a rival
+    /// that only resembles it leaves the difference of their shapes (a bow's curvature where
+    /// a squareness is straight). Otherwise the chosen effects are reported as partial
+    /// candidates and the gap as unexplained.
     pub explained_fraction: f64,
     /// Significance level of the paired test that calls a rival worse than the chosen effect.
     pub ambiguity_level: f64,
@@ -88,7 +92,7 @@ impl Default for Options {
             max_effects: 4,
             min_effect_um: 0.15,
             explained_floor_um: 0.2,
-            explained_fraction: 0.25,
+            explained_fraction: 0.15,
             ambiguity_level: 0.05,
         }
     }
