@@ -10,6 +10,7 @@
 //! - [`machine`]: a whole machine: axes, error chain, thermal model.
 //! - [`kinematics`]: the 24 topologies and the exact homogeneous-transform chain that gives the
 //!   volumetric error.
+//! - [`structure`]: the carriages as rigid bodies on their compliant guide blocks.
 //! - [`thermal`]: the lumped thermal network (temperatures in time).
 //! - [`thermal_deformation`]: from temperatures to thermal link and joint deformations.
 //!
@@ -24,6 +25,7 @@ pub mod geometric;
 pub mod iso230_2;
 pub mod kinematics;
 pub mod machine;
+pub mod structure;
 pub mod thermal;
 pub mod thermal_deformation;
 

@@ -2,6 +2,7 @@
 
 use crate::axis::Axis;
 use crate::kinematics::{AxisState, VolumetricModel};
+use crate::structure::Structure;
 use crate::thermal::ThermalNetwork;
 use crate::thermal::screw::ScrewThermalParams;
 use crate::thermal_deformation::{DeformationError, ThermalDeformation, ThermalDeformationModel};
@@ -49,6 +50,9 @@ pub struct Machine {
     pub volumetric: VolumetricModel,
     /// Thermal network and deformation model, if the machine has one.
     pub thermal: Option<ThermalMachine>,
+    /// The carriages as rigid bodies on their guide blocks, if the machine describes them (the
+    /// compliant plant needs them).
+    pub structure: Option<Structure>,
 }
 
 impl Machine {

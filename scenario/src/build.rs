@@ -55,8 +55,9 @@ pub struct Execution {
     pub program_file: Option<String>,
     /// The cut of a `kind = "milling"` job.
     pub milling: Option<vmt_sim::machining::MillingJob>,
-    /// What the job accepts but will not do, to be said when it runs (an instrument with
-    /// nothing to record).
+    /// What is to be said when the job runs: a servo loop that is unstable or lightly damped
+    /// (run, not refused), what the job accepts but will not do (an instrument with nothing to
+    /// record).
     pub notes: Vec<String>,
 }
 
@@ -167,17 +168,6 @@ fn execution(
             e.to_string(),
         )
     })?;
-    vmt_sim::simulate::check_servo(&axes, controller.servo_period_s).map_err(|e| {
-        let axis = match &e {
-            vmt_sim::simulate::SimError::ServoUnstable { axis, .. } => axis.to_string(),
-            _ => "x".into(),
-        };
-        let servo = ["machine", "axes", &axis.to_lowercase(), "servo"];
-        Invalid::new(
-            KeyPath::of(&servo).key("velocity_bandwidth_hz"),
-            e.to_string(),
-        )
-    })?;
     // After the step and the loops, in the order the run checks them.
     let default = dynamics::SimulationToml {
         fidelity: "reduced".into(),
@@ -214,7 +204,20 @@ fn execution(
     }
     check_test_rates(&job, job_kind, &controller, program_file.as_deref())?;
     check_generated_travel(machine, &controller, &job, job_kind)?;
-    let notes = dynamics::instrument_notes(job_kind, &raw.instruments, &job);
+    // An unstable or lightly damped servo loop is run, not refused (a machine tuned so rings):
+    // said before the run.
+    let mut notes: Vec<String> =
+        vmt_sim::simulate::servo_warnings(&axes, controller.servo_period_s)
+            .into_iter()
+            .map(|(axis, w)| {
+                let key = format!(
+                    "machine.axes.{}.servo.velocity_bandwidth_hz",
+                    axis.to_string().to_lowercase()
+                );
+                format!("key `{key}`: {w}")
+            })
+            .collect();
+    notes.extend(dynamics::instrument_notes(job_kind, &raw.instruments, &job));
     Ok(Some(Execution {
         axes,
         controller,
@@ -467,11 +470,17 @@ fn machine(m: &MachineToml, base_dir: Option<&Path>) -> Result<Machine> {
         Some(t) => Some(thermal(t, &link_names, &axes, &root.key("thermal"))?),
         None => None,
     };
+    let structure = crate::structure::structure(
+        [&m.axes.x, &m.axes.y, &m.axes.z].map(|a| a.carriage.as_ref()),
+        &topology,
+        axes.map(|a| a.moving_mass_kg),
+    )?;
     Ok(Machine {
         name: m.name.clone(),
         axes,
         volumetric: VolumetricModel::new(kinematics, errors),
         thermal,
+        structure,
     })
 }
 

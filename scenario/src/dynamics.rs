@@ -664,10 +664,13 @@ pub fn simulation(s: &SimulationToml, substeps: usize, servo_period_s: f64) -> R
     let fidelity = match s.fidelity.as_str() {
         "reduced" => Fidelity::Reduced,
         "multibody" => Fidelity::Multibody,
+        "compliant" => Fidelity::Compliant,
         other => {
             return Err(Invalid::new(
                 p.key("fidelity"),
-                format!("`{other}` is not accepted; \"reduced\" or \"multibody\""),
+                format!(
+                    "`{other}` is not accepted; \"reduced\", \"multibody\" or \"compliant\" (the multibody on compliant guide blocks, which needs every axis' carriage)"
+                ),
             ));
         }
     };

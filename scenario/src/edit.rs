@@ -138,6 +138,17 @@ impl Template {
         Ok(doc.to_string())
     }
 
+    /// The scenario text with its top-level table `name` replaced by the table `fragment` (the
+    /// table's body: `kind = "ballbar"\nplane = "XY"\n…`); a job is swapped this way.
+    pub fn with_table(&self, name: &str, fragment: &str) -> Result<String, ScenarioError> {
+        let body = Self::parse(fragment, &format!("{} (table {name})", self.file))?;
+        let mut doc = self.doc.clone();
+        let mut table = body.doc.as_table().clone();
+        table.set_implicit(false);
+        doc.insert(name, toml_edit::Item::Table(table));
+        Ok(doc.to_string())
+    }
+
     fn error(&self, key: &str, message: String) -> ScenarioError {
         ScenarioError {
             file: self.file.clone(),
@@ -183,6 +194,34 @@ fn merge(dst: &mut dyn TableLike, key: &str, item: &Item) -> Result<(), String> 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_fragment_merges_into_tables_inline_tables_and_arrays_of_tables() {
+        let text = "[a]\nx = 1.0\nf = { c = 4.0 }\n\n[[list]]\nn = 1\n";
+        let t = Template::parse(text, "t.toml").unwrap();
+        let out = t
+            .with_merged("[a]\ny = 2.0\n[a.f]\nd = 5.0\n[a.g]\nz = 3.0\n[[list]]\nn = 2\n")
+            .unwrap();
+        let merged = Template::parse(&out, "out.toml").unwrap();
+        for (key, v) in [
+            ("a.x", 1.0),
+            ("a.y", 2.0),
+            ("a.f.c", 4.0),
+            ("a.f.d", 5.0),
+            ("a.g.z", 3.0),
+            ("list[0].n", 1.0),
+            ("list[1].n", 2.0),
+        ] {
+            assert_eq!(merged.value(key).unwrap(), Some(v), "{key} in\n{out}");
+        }
+        let e = t.with_merged("[a.x]\nq = 1.0\n").unwrap_err();
+        assert!(e.to_string().contains("a.x"), "{e}");
+        let swapped = t.with_table("a", "z = 9.0\n").unwrap();
+        let swapped = Template::parse(&swapped, "swapped.toml").unwrap();
+        assert_eq!(swapped.value("a.z").unwrap(), Some(9.0));
+        assert_eq!(swapped.value("a.x").unwrap(), None);
+        assert_eq!(swapped.value("list[0].n").unwrap(), Some(1.0));
+    }
 
     #[test]
     fn values_are_read_and_written_by_key_path_keeping_the_rest() {

@@ -13,6 +13,7 @@ mod effects;
 mod error;
 mod milling;
 mod schema;
+mod structure;
 mod table;
 pub mod withheld;
 

@@ -96,6 +96,8 @@ pub struct AxisToml {
     pub servo: Option<crate::dynamics::ServoToml>,
     /// The carriage on its rails, with local defects of the rails (`effects`); absent: none.
     pub guideway: Option<crate::effects::GuidewayToml>,
+    /// The carriage as a rigid body on its guide blocks (the compliant plant).
+    pub carriage: Option<crate::structure::CarriageToml>,
 }
 
 #[derive(Debug, Deserialize, Default)]

@@ -7,11 +7,16 @@
 //!   on to the end of the last such block that follows it: the workpiece's wall is met where
 //!   the first cutting block starts, and the surface memory starts as a steady cut there. The
 //!   spindle axis position c (m) in the cut's frame is the tool position (carriages plus the
-//!   tool offset, the machine's nominal kinematics: the micrometre geometric errors of the axes
+//!   tool offset by the nominal chain, with the carriages' deflections where the plant has them:
+//!   the micrometre geometric errors of the axes
 //!   are far below the cut's vibration) relative to where the cut started, with the feed along
 //!   +X as the milling model assumes. Cut steps run on their own clock (h of the
-//!   [`MillingSetup`]); c is linearly interpolated between servo ticks. The cutting force is not
-//!   fed back into the feed drives (the tool's modes are 1000× more compliant than the axes).
+//!   [`MillingSetup`]); c is linearly interpolated between servo ticks. The cutting force is
+//!   fed back (two-way): each servo tick's mean cutting force acts on the tool and, as its
+//!   reaction, on the workpiece over the next tick (`Plant::set_tool_force`): on the drives
+//!   along their axes, and with the compliant plant on the carriages' blocks, whose deflection
+//!   moves the tool point the cut sees (the servo's dynamic stiffness: following error and
+//!   surface location error at cut entry).
 //! - **Feed override.** A planned trajectory p(τ) is followed in path time τ, advanced by
 //!   dτ = o·dt per servo period with o the override (0…1), so the setpoint is p(τ), its velocity
 //!   o·p′(τ) and its acceleration o²·p″(τ) (setpoints interpolated linearly between the
@@ -33,13 +38,17 @@ use crate::plant::Plant;
 use crate::run::{Channel, Run, Stream};
 use crate::simulate::{
     AxisDynamics, Job, SERVO_CHANNELS, SimError, SimSettings, build_plant, check_following_error,
-    check_servo, check_step, check_strokes, following_error_limits, push_servo_row, servo_channels,
-    servo_tick, summary,
+    check_step, check_strokes, following_error_limits, push_servo_row, servo_channels, servo_tick,
+    summary,
 };
 use nalgebra::Vector3;
 use serde_json::json;
+use vmt_model::Direction;
 use vmt_model::drive::AxisCommand;
+use vmt_model::geometric::GeometricErrors;
+use vmt_model::kinematics::{AxisState, VolumetricModel};
 use vmt_model::machine::Machine;
+use vmt_model::thermal_deformation::ThermalDeformation;
 
 /// What a milling job adds to its program.
 #[derive(Clone, Debug, PartialEq)]
@@ -167,15 +176,17 @@ impl Cut<'_> {
         from: [f64; 2],
         to: [f64; 2],
         command: &mut SupervisorCommand,
-    ) -> Result<(), MillingError> {
+    ) -> Result<Vector3<f64>, MillingError> {
         let h = self.process.step_s();
+        let (mut force, mut steps) = (Vector3::zeros(), 0.0);
         while self.clock_s + h <= t - self.start_s + 1e-12 {
             let w =
                 ((self.clock_s + 0.5 * h + self.start_s - (t - period)) / period).clamp(0.0, 1.0);
             let c = [0, 1].map(|i| from[i] + (to[i] - from[i]) * w - self.origin[i]);
-            self.process
-                .step(c, command.spindle_rpm)
-                .check_runaway(self.diameter)?;
+            let sample = self.process.step(c, command.spindle_rpm);
+            sample.check_runaway(self.diameter)?;
+            force += Vector3::from(sample.force);
+            steps += 1.0;
             self.clock_s += h;
         }
         let n = self.process.accelerometer_samples()[0].len();
@@ -195,7 +206,7 @@ impl Cut<'_> {
             });
             self.last_called = n;
         }
-        Ok(())
+        Ok(if steps > 0.0 { force / steps } else { force })
     }
 }
 
@@ -219,7 +230,6 @@ pub fn simulate_machining(
     let period = ipo.servo_period_s();
     let substeps = settings.plant_substeps.max(1);
     check_step(axes, period, substeps)?;
-    check_servo(axes, period)?;
     let plan = cut_plan(job, &ipo)?;
     let teeth = milling.setup.tool.teeth.max(1);
     let setup = MillingSetup {
@@ -259,9 +269,23 @@ pub fn simulate_machining(
     let (mut log, mut cursor) = (ServoLog::new(), Cursor::default());
     let (mut tau, mut k) = (0.0, 0usize);
     let duration = ipo.duration_s();
+    // The tool point relative to the workpiece by the nominal chain, with the carriages'
+    // deflections on their guide blocks where the plant has them.
+    let nominal = VolumetricModel::new(
+        machine.volumetric.kinematics.clone(),
+        GeometricErrors::zero(),
+    );
+    let chain = nominal.evaluator(&ThermalDeformation::default());
     let tool_xy = |p: &dyn crate::plant::Plant| {
         let c = p.carriages();
-        [c[0].position_m + tcp.x, c[1].position_m + tcp.y]
+        match p.deflections() {
+            Some(d) => {
+                let q = Vector3::from_fn(|i, _| c[i].position_m);
+                let t = chain.tool_point_deflected(&AxisState::new(q, Direction::Forward), &d);
+                [t.x, t.y]
+            }
+            None => [c[0].position_m + tcp.x, c[1].position_m + tcp.y],
+        }
     };
     let mut before = tool_xy(plant.as_ref());
     let mut speed_taken_over = false;
@@ -296,9 +320,15 @@ pub fn simulate_machining(
             command.spindle_rpm = programmed;
         }
         if let Some(c) = cut.as_mut().filter(|_| tau <= plan.end_s) {
-            c.advance(t, period, before, now, &mut command)
+            let force = c
+                .advance(t, period, before, now, &mut command)
                 .map_err(|e| SimError::Settings(format!("milling: {e}")))?;
+            // Two-way: the tick's mean cutting force pushes back on the machine (the tool
+            // side and, as its reaction, the workpiece side) over the next tick.
+            plant.set_tool_force(force);
             speed_taken_over |= command.spindle_rpm != programmed;
+        } else {
+            plant.set_tool_force(Vector3::zeros());
         }
         if let Some(time) = logged {
             log.push(time, plant.as_ref(), &commands, o, command.spindle_rpm);

@@ -109,7 +109,7 @@ pub struct Run {
     pub scenario_toml: String,
     /// The seed of every random draw in the run.
     pub seed: u64,
-    /// `reduced` or `multibody`.
+    /// `reduced`, `multibody` or `compliant`.
     pub fidelity: String,
     /// The machine, for viewers.
     pub machine: MachineSummary,

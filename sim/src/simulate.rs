@@ -10,8 +10,10 @@
 //! feedback, and the plant is advanced by `n` substeps of `h = T_s / n` (semi-implicit Euler for
 //! the drives and the carriages; the multibody plant has rapier advance its links every macro
 //! step of about 1 ms, see `plant::multibody`). The step is checked against the stiffest
-//! drive mode before the run ([`SimError::StepTooCoarse`]), and the servo period against the
-//! sampled position and velocity loops ([`SimError::ServoUnstable`]). The actual carriage positions and
+//! drive mode before the run ([`SimError::StepTooCoarse`]); the sampled position and velocity
+//! loops are not refused when unstable ([`servo_warnings`] says so): an unstable loop rings,
+//! bounded by the force limit and friction, as a machine tuned so would, unless the excess-error
+//! alarm stops it. The actual carriage positions and
 //! their direction states go through the geometric and thermal error chain of the model crate to
 //! give the tool point relative to the workpiece; the thermal network is advanced every second
 //! with the heat of the spindle and of the axes' motion. Instruments sample the tool point on the
@@ -27,19 +29,22 @@ use crate::ballbar::{Ballbar, BallbarSpec};
 use crate::interpolator::{Cursor, Interpolator, InterpolatorConfig, InterpolatorError, Setpoint};
 use crate::laser::{DriveSample, Laser, LaserSetup, LaserSpec};
 use crate::nc::program::{ArcDirection, Plane, Program, Spindle};
-use crate::plant::{Fidelity, MultibodyPlant, Plant, PlantError, ReducedPlant, layout};
+use crate::plant::{
+    CompliantPlant, Fidelity, MultibodyPlant, Plant, PlantError, ReducedPlant, layout,
+};
 use crate::replay::Replay;
 use crate::run::{BallbarTrace, Channel, LogBlock, LogSink, MachineSummary, Run, Stream};
 use crate::truth::{TestDrift, TruthInputs};
 use nalgebra::Vector3;
 use std::ops::Range;
 use thiserror::Error;
-use vmt_model::drive::servo::{loops_are_stable, sampled_loop_radius};
+use vmt_model::drive::servo::{least_damped_pole, loops_are_stable, sampled_loop_radius};
 use vmt_model::drive::{
     AxisCommand, CarriageState, Drive, DriveEffects, DriveParams, Feedback, ServoParams,
 };
 use vmt_model::kinematics::{AxisState, VolumetricEvaluator};
 use vmt_model::machine::Machine;
+use vmt_model::structure::Structure;
 use vmt_model::thermal::screw::ScrewThermal;
 use vmt_model::thermal::{Operating, ThermalStepper};
 use vmt_model::{Axis, Direction, DirectionTracker};
@@ -351,7 +356,6 @@ impl JobRun<'_> {
         let substeps = settings.plant_substeps.max(1);
         let h = period / substeps as f64;
         check_step(axes, period, substeps)?;
-        check_servo(axes, period)?;
         if !(settings.log_rate_hz > 0.0 && settings.log_rate_hz <= 1.0 / period) {
             return Err(SimError::Settings(format!(
                 "log rate {} Hz: from 0 to the servo rate {} Hz is accepted",
@@ -365,8 +369,13 @@ impl JobRun<'_> {
         let start = job.program.start - tcp;
         let mut plant = build_plant(machine, axes, &start, settings.fidelity, h)?;
         let ticks = interpolator.servo_ticks();
+        let structure = machine
+            .structure
+            .as_ref()
+            .filter(|_| settings.fidelity == Fidelity::Compliant);
         let mut recorder = Recorder::new(
             job,
+            structure,
             settings,
             period,
             &interpolator.block_times(),
@@ -743,6 +752,42 @@ pub fn check_step(
     Ok(())
 }
 
+/// The damping ratio below which a loop is called lightly damped: its ringing after a
+/// disturbance decays by less than 1/e in 1/(2π·0.05) ≈ 3 periods of the ring.
+pub const LIGHTLY_DAMPED: f64 = 0.05;
+
+/// What the sampled loops of each axis at `period_s` give to be said before a run: an unstable
+/// loop ([`check_servo`]'s message; the run goes on, the loop ringing until the force limit and
+/// friction bound it, unless the excess-error alarm stops the job) or a lightly damped one
+/// (its least damped pole below [`LIGHTLY_DAMPED`]).
+pub fn servo_warnings(axes: &[AxisDynamics; 3], period_s: f64) -> Vec<(Axis, String)> {
+    let mut out = Vec::new();
+    for (a, d) in Axis::ALL.into_iter().zip(axes) {
+        let pole = least_damped_pole(&d.servo, &d.drive, period_s);
+        let one = [*d; 3];
+        if let Err(e) = check_servo(&one, period_s) {
+            let ring = pole.map_or(String::new(), |(hz, _)| format!(" at {hz:.0} Hz"));
+            let e = e
+                .to_string()
+                .replacen("the X axis'", &format!("the {a} axis'"), 1);
+            out.push((
+                a,
+                format!(
+                    "{e}. The run goes on: the loop rings{ring}, bounded by the motor's force limit and friction, unless the excess-error alarm stops the job"
+                ),
+            ));
+        } else if let Some((hz, zeta)) = pole.filter(|p| p.1 < LIGHTLY_DAMPED) {
+            out.push((
+                a,
+                format!(
+                    "the {a} axis' servo loops are lightly damped: a pole at {hz:.0} Hz with a damping ratio of {zeta:.3} (below {LIGHTLY_DAMPED}); a disturbance rings there"
+                ),
+            ));
+        }
+    }
+    out
+}
+
 /// Checks the sampled position and velocity loops of every axis at the servo period `period_s`
 /// ([`sampled_loop_radius`]), naming the stable velocity bandwidths when they are not.
 pub fn check_servo(axes: &[AxisDynamics; 3], period_s: f64) -> Result<(), SimError> {
@@ -827,6 +872,11 @@ pub(crate) fn build_plant(
     Ok(match fidelity {
         Fidelity::Reduced => Box::new(ReducedPlant::new(drives, &l)),
         Fidelity::Multibody => Box::new(MultibodyPlant::new(drives, &l, h)?),
+        Fidelity::Compliant => {
+            let structure = machine.structure.as_ref().ok_or(PlantError::NoStructure)?;
+            let tcp = machine.volumetric.kinematics.tool_offset;
+            Box::new(CompliantPlant::new(drives, &l, structure, tcp, h)?)
+        }
     })
 }
 
@@ -1070,6 +1120,9 @@ struct Recorder {
     bar_every: usize,
     /// The `servo` stream: rows since the last block handed to a sink (all rows without one).
     servo: Stream,
+    /// The `structure` stream of a compliant plant (its carriages' motions and block forces),
+    /// at the servo log's instants.
+    structure: Option<Stream>,
     /// Per trace, the samples handed to a sink so far.
     sent: Vec<usize>,
     /// One bar per circular test.
@@ -1081,6 +1134,8 @@ struct Recorder {
     traces: Vec<BallbarTrace>,
     /// Per trace, the drift of its start point (see [`Closing`]).
     closing: Vec<Option<Closing>>,
+    /// Per trace, what the carriages' deflections on their blocks add to the bar's length.
+    dynamic: Vec<Spread>,
     /// The trace being recorded.
     active: Option<usize>,
     laser: Option<Laser>,
@@ -1120,6 +1175,7 @@ impl Recorder {
     /// for one block when `blocks`).
     fn new(
         job: &Job,
+        structure: Option<&Structure>,
         settings: &SimSettings,
         period: f64,
         block_times: &[(usize, f64, f64)],
@@ -1162,11 +1218,13 @@ impl Recorder {
             log_every,
             bar_every,
             servo: servo_stream(rows),
+            structure: structure.map(|s| structure_stream(s, rows)),
             sent: vec![0; traces.len()],
             ballbar,
             data,
             normals: job.ballbar.iter().map(|b| b.plane.normal()).collect(),
             closing: vec![None; traces.len()],
+            dynamic: vec![Spread::default(); traces.len()],
             active: None,
             traces,
             laser,
@@ -1198,7 +1256,10 @@ impl Recorder {
         if !log && !bar && laser.is_none() {
             return Ok(None);
         }
-        let tool = evaluator.tool_point(state);
+        let tool = match plant.deflections() {
+            Some(d) => evaluator.tool_point_deflected(state, &d),
+            None => evaluator.tool_point(state),
+        };
         if let (Some(l), Some(i)) = (&mut self.laser, laser) {
             // The error chain alone: the tool point at the commanded axis positions.
             let commanded = AxisState {
@@ -1235,6 +1296,16 @@ impl Recorder {
                     .values
                     .push(tool[i]);
             }
+            if let (Some(st), Some(m)) = (self.structure.as_mut(), plant.carriage_motions()) {
+                st.times_s.push(sp.time_s);
+                let values = m
+                    .iter()
+                    .flat_map(|(t, th)| th.iter().chain(t.iter()).copied().collect::<Vec<_>>())
+                    .chain(plant.block_normal_forces());
+                for (c, v) in st.channels.iter_mut().zip(values) {
+                    c.values.push(v);
+                }
+            }
         }
         if bar
             && let Some(block) = sp.block
@@ -1248,6 +1319,11 @@ impl Recorder {
             let (reading, angle) = bar.read(&tool, sp.time_s);
             check_range(bar, &self.traces[j], sp.time_s, reading, angle)?;
             let pivot = bar.pivot(sp.time_s);
+            if plant.deflections().is_some() {
+                // What the deflections add along the bar: the tool point less the rigid one.
+                let along = (tool - evaluator.tool_point(state)).dot(&(tool - pivot).normalize());
+                self.dynamic[j].add(along * 1e6);
+            }
             let commanded = AxisState {
                 position: sp.position - machine.volumetric.kinematics.tool_offset,
                 direction: state.direction,
@@ -1285,7 +1361,9 @@ impl Recorder {
             seed: settings.seed,
             fidelity: settings.fidelity.name().into(),
             machine: summary(machine),
-            streams: vec![servo_stream(0)],
+            streams: std::iter::once(servo_stream(0))
+                .chain(self.structure.as_ref().map(empty_like))
+                .collect(),
             ballbar: self.traces.iter().map(|t| t.samples(0..0)).collect(),
             laser: self.laser.as_ref().map(Laser::header),
             ground_truth: serde_json::Value::Null,
@@ -1304,15 +1382,25 @@ impl Recorder {
             .zip(&self.traces)
             .map(|(&from, t)| from..t.times_s.len())
             .collect();
+        let empty = empty_like(&self.servo);
+        let streams: Vec<Stream> = std::iter::once(std::mem::replace(&mut self.servo, empty))
+            .chain(self.structure.as_mut().map(|s| {
+                let empty = empty_like(s);
+                std::mem::replace(s, empty)
+            }))
+            .collect();
         sink.block(&LogBlock {
-            streams: std::slice::from_ref(&self.servo),
+            streams: &streams,
             ballbar: &self.traces,
             new_samples: &new_samples,
         })
         .map_err(SimError::Log)?;
-        self.servo.times_s.clear();
-        for c in &mut self.servo.channels {
-            c.values.clear();
+        let mut streams = streams.into_iter();
+        if let Some(s) = streams.next() {
+            self.servo = cleared(s);
+        }
+        if let (Some(slot), Some(s)) = (self.structure.as_mut(), streams.next()) {
+            *slot = cleared(s);
         }
         for (sent, r) in self.sent.iter_mut().zip(new_samples) {
             *sent = r.end;
@@ -1337,13 +1425,131 @@ impl Recorder {
             .iter()
             .map(|c| c.map(|c| c.error_um()))
             .collect();
+        let mut ground_truth = crate::truth::ground_truth(truth, &closing, laser.as_ref());
+        if self.structure.is_some()
+            && let Some(o) = ground_truth.as_object_mut()
+        {
+            let traces: Vec<serde_json::Value> = self
+                .traces
+                .iter()
+                .zip(&self.dynamic)
+                .map(|(t, d)| d.json(&t.label))
+                .collect();
+            o.insert(
+                "structure_dynamics".into(),
+                serde_json::json!({
+                    "description": "the dynamic part of the axes' errors, kept apart from the geometric ones: what the carriages' deflections on their guide blocks (tilts and offsets under gravity, inertial, drive and process forces) add to each trace's bar length, µm",
+                    "traces": traces,
+                }),
+            );
+        }
         Ok(Run {
-            ground_truth: crate::truth::ground_truth(truth, &closing, laser.as_ref()),
+            ground_truth,
             laser: laser.map(|(run, _)| run),
-            streams: vec![self.servo],
+            streams: std::iter::once(self.servo).chain(self.structure).collect(),
             ballbar: self.traces,
             ..opening
         })
+    }
+}
+
+/// Mean, extremes and root mean square of a series of values.
+#[derive(Clone, Copy, Debug)]
+struct Spread {
+    n: usize,
+    sum: f64,
+    sum_sq: f64,
+    lo: f64,
+    hi: f64,
+}
+
+impl Default for Spread {
+    fn default() -> Self {
+        Self {
+            n: 0,
+            sum: 0.0,
+            sum_sq: 0.0,
+            lo: f64::INFINITY,
+            hi: f64::NEG_INFINITY,
+        }
+    }
+}
+
+impl Spread {
+    fn add(&mut self, x: f64) {
+        self.n += 1;
+        self.sum += x;
+        self.sum_sq += x * x;
+        self.lo = self.lo.min(x);
+        self.hi = self.hi.max(x);
+    }
+
+    /// The trace `label`'s figures (its values in µm) as JSON.
+    fn json(&self, label: &str) -> serde_json::Value {
+        let n = self.n.max(1) as f64;
+        let mean = self.sum / n;
+        serde_json::json!({
+            "label": label,
+            "mean_um": mean,
+            "peak_to_valley_um": if self.n > 0 { self.hi - self.lo } else { 0.0 },
+            "rms_about_mean_um": (self.sum_sq / n - mean * mean).max(0.0).sqrt(),
+        })
+    }
+}
+
+/// A stream with `s`'s name, description and channels but no rows.
+fn empty_like(s: &Stream) -> Stream {
+    Stream {
+        name: s.name.clone(),
+        description: s.description.clone(),
+        times_s: Vec::new(),
+        channels: s
+            .channels
+            .iter()
+            .map(|c| Channel {
+                name: c.name.clone(),
+                unit: c.unit.clone(),
+                values: Vec::new(),
+            })
+            .collect(),
+    }
+}
+
+/// `s` with its rows removed, its room kept.
+fn cleared(mut s: Stream) -> Stream {
+    s.times_s.clear();
+    for c in &mut s.channels {
+        c.values.clear();
+    }
+    s
+}
+
+/// The `structure` stream of a compliant plant with no rows, room for `rows`: for each carriage
+/// `a` of X, Y, Z its rotation about its blocks' centroid `tilt_a_x`, `tilt_a_y`, `tilt_a_z`
+/// (rad) and its translation across its axis `offset_a_x`, … (m), then each block's force on
+/// its carriage along the block's normal, `block_a_k` (N).
+fn structure_stream(structure: &Structure, rows: usize) -> Stream {
+    let ch = |name: String, unit: &str| Channel {
+        name,
+        unit: unit.into(),
+        values: Vec::with_capacity(rows),
+    };
+    let axes = ["x", "y", "z"];
+    let motions = axes.iter().flat_map(|a| {
+        let tilt = axes.map(|c| ch(format!("tilt_{a}_{c}"), "rad"));
+        let offset = axes.map(|c| ch(format!("offset_{a}_{c}"), "m"));
+        tilt.into_iter().chain(offset)
+    });
+    let blocks = structure
+        .carriages
+        .iter()
+        .zip(axes)
+        .flat_map(|(c, a)| (0..c.blocks.len()).map(move |k| ch(format!("block_{a}_{k}"), "N")));
+    Stream {
+        name: "structure".into(),
+        description: "the carriages on their guide blocks: rotation about the blocks' centroid (rad) and translation across the axis (m) of each, and each block's normal force on its carriage (N)".into(),
+        times_s: Vec::with_capacity(rows),
+        channels: motions.chain(blocks).collect(),
     }
 }
 

@@ -12,13 +12,13 @@
 //! `vmt_chatter::detect::spectral` (non-harmonic spectral peak share).
 
 use crate::error::CliError;
-use crate::formats::input::{self, Input};
 use clap::{Args, ValueEnum};
 use serde_json::Value;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use vmt_chatter::detect::kim::{self, KimResult, KimSettings};
 use vmt_chatter::detect::spectral::{self, SpectralResult, SpectralSettings, tooth_passing_hz};
+use vmt_logs::input::{self, Input};
 
 /// The largest acceleration accepted from a CSV log, m/s² (10⁶, about 100 000 g: beyond the
 /// range of shock accelerometers, so a value above it is a unit or data error).

@@ -7,7 +7,8 @@ use crate::traces::{self, CsvSetup};
 use serde_json::{Value, json};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
-use vmt_ballbar::{Diagnosis, Finding, Options, Trace, diagnose, kwon, report};
+use vmt_ballbar::{Diagnosis, Options, Trace, diagnose, kwon, report};
+use vmt_logs::truth::{left_out_bias, truth_drift, truth_effects, truth_figures};
 use vmt_sim::run::BallbarTrace;
 
 /// Diagnoses of every test in a file, with the run's ground truth when it has one.
@@ -180,28 +181,6 @@ pub fn diagnose_file(
     })
 }
 
-/// The truth figures of test `i` of a run, as the simulator wrote them.
-pub fn truth_figures(truth: &Value, i: usize) -> Option<&serde_json::Map<String, Value>> {
-    truth["ballbar"]["tests"][i]["figures"].as_object()
-}
-
-/// The drift of test `i` of a run over its data (`radial_drift`, `pivot_drift_<axis>`, µm), as
-/// the simulator wrote it: no finding reports it, but the findings of a partial arc or of a
-/// circle run one way state their bias per µm of it.
-pub fn truth_drift(truth: &Value, i: usize) -> Option<&serde_json::Map<String, Value>> {
-    truth["ballbar"]["tests"][i]["drift"].as_object()
-}
-
-/// The true values of every effect that a finding of test `i` may state a bias per unit of:
-/// the test's truth figures and its drift.
-pub fn truth_effects(truth: &Value, i: usize) -> Option<serde_json::Map<String, Value>> {
-    let mut effects = truth_figures(truth, i)?.clone();
-    if let Some(drift) = truth_drift(truth, i) {
-        effects.extend(drift.iter().map(|(k, v)| (k.clone(), v.clone())));
-    }
-    Some(effects)
-}
-
 /// The report as text: each test's diagnosis and, for a simulated run, the truth beside it.
 pub fn text(d: &Diagnosed) -> String {
     let mut s = String::new();
@@ -243,12 +222,6 @@ pub fn text(d: &Diagnosed) -> String {
         s.push_str(&kwon::text(&k, kwon_truth(d).as_ref()));
     }
     s
-}
-
-/// [`Finding::left_out_bias`] from a run's truth of the effects the test leaves out (bows,
-/// angular plays, drifts: [`truth_effects`]).
-pub(crate) fn left_out_bias(f: &Finding, effects: &serde_json::Map<String, Value>) -> Option<f64> {
-    f.left_out_bias(|key| effects.get(key)?.as_f64())
 }
 
 /// Kwon's machine report computed from the run's truth figures, by the same formulas.
@@ -400,39 +373,4 @@ fn figures_text(d: &Diagnosis) -> String {
         let _ = writeln!(s, "{}: {:+.*} {}", f.key, digits, f.value, f.unit);
     }
     s
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn the_left_out_bias_sums_each_stated_rate_times_its_truth() {
-        let f = Finding {
-            key: "squareness_zx".into(),
-            name: "Squareness ZX".into(),
-            value: 11.7,
-            unit: "µm/m",
-            ci95: 0.2,
-            contribution_um: 1.2,
-            threshold: 5.0,
-            present: true,
-            details: vec![
-                ("bias_per_um_of_straightness_z".into(), -6.0),
-                ("bias_per_urad_of_angular_play_x".into(), 0.5),
-                ("take_up_um".into(), 9.0),
-            ],
-        };
-        let truth = json!({"straightness_z": -1.0, "angular_play_x": 2.0, "take_up": 1.0});
-        let truth = truth.as_object().expect("an object");
-        assert_eq!(left_out_bias(&f, truth), Some(6.0 + 1.0));
-        let mut partial = truth.clone();
-        partial.remove("angular_play_x");
-        assert_eq!(left_out_bias(&f, &partial), None);
-        let plain = Finding {
-            details: vec![("take_up_um".into(), 9.0)],
-            ..f
-        };
-        assert_eq!(left_out_bias(&plain, truth), None);
-    }
 }

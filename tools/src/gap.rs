@@ -7,17 +7,20 @@
 //! and `gap.rrd` (Rerun 0.36: the residual traces before and after as polar plots and series).
 
 use crate::error::CliError;
-use crate::formats::rerun::write_rrd;
 use crate::plot::{self, Format};
 use crate::traces::{self, CsvSetup};
 use serde_json::{Value, json};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use vmt_ballbar::Trace;
+use vmt_gap::discriminate::{Discrimination, Explanation, discriminate, noise_of};
 use vmt_gap::localise::{self, Localisation, Place};
 use vmt_gap::model::ScenarioModel;
-use vmt_gap::select::{self, Linearisation, Selection, Split};
+use vmt_gap::peaks::Circle;
+use vmt_gap::select::{self, Linearisation, Selection};
+use vmt_gap::split::Split;
 use vmt_gap::{GapError, TracePair};
+use vmt_logs::rerun::write_rrd;
 use vmt_sim::run::{BallbarTrace, Run};
 
 /// A gap analysis and what it was made from.
@@ -32,6 +35,10 @@ pub struct GapReport {
     pub after: Localisation,
     /// The selection.
     pub selection: Selection,
+    /// Whether the chosen effects explain the gap (select bins, confirmed on the judge bins).
+    pub explained: bool,
+    /// For each plausible alternative, the test that would tell it from the chosen effect.
+    pub discriminating: Vec<Discrimination>,
     /// Simulations run in all.
     pub simulations: usize,
 }
@@ -77,26 +84,64 @@ pub fn analyse(model: &Path, files: &[PathBuf], measured: &[Trace]) -> Result<Ga
     };
     let split = Split::automatic(measured).map_err(err)?;
     let lin = Linearisation::new(&forward, &lib).map_err(err)?;
-    let selection = select::select(
-        &forward,
-        &lin,
-        measured,
-        &lib,
-        split,
-        &select::Options::default(),
-    )
-    .map_err(err)?;
+    let so = select::Options::default();
+    let selection = select::select(&forward, &lin, measured, &lib, split, &so).map_err(err)?;
     let o = localise::Options::default();
-    let before = Localisation::of(&selection.initial_pairs, &o).map_err(err)?;
-    let after = Localisation::of(&selection.final_pairs, &o).map_err(err)?;
+    let circles: Vec<Option<Circle>> = select::partners(measured, lin.base())
+        .map_err(err)?
+        .into_iter()
+        .map(|i| forward.circles().get(i).copied())
+        .collect();
+    let before = Localisation::on_circles(&selection.initial_pairs, &circles, &o).map_err(err)?;
+    let after = Localisation::on_circles(&selection.final_pairs, &circles, &o).map_err(err)?;
+    let discriminating = discriminating_tests(&forward, &selection, measured).map_err(err)?;
     Ok(GapReport {
         model_file,
         files: files.iter().map(|f| f.display().to_string()).collect(),
         before,
         after,
+        explained: selection.explained(&so),
         simulations: lin.simulations() + selection.simulations,
         selection,
+        discriminating,
     })
+}
+
+/// The discriminating test of each plausible alternative to a chosen effect
+/// ([`vmt_gap::discriminate`]), with a progress bar over the tests simulated.
+fn discriminating_tests(
+    model: &ScenarioModel,
+    s: &Selection,
+    measured: &[Trace],
+) -> Result<Vec<Discrimination>, GapError> {
+    // The implausible fits too: a range is a judgement, and the test tells them apart.
+    let rivals: Vec<Explanation> = s
+        .alternatives
+        .iter()
+        .map(|a| Explanation {
+            label: a.effects.join(" + "),
+            instead_of: a.instead_of.clone(),
+            values: a.edits.clone(),
+        })
+        .collect();
+    if rivals.is_empty() {
+        return Ok(Vec::new());
+    }
+    let chosen = Explanation {
+        label: s
+            .steps
+            .iter()
+            .map(|x| x.effect.clone())
+            .collect::<Vec<_>>()
+            .join(" + "),
+        instead_of: String::new(),
+        values: s.final_values.clone(),
+    };
+    let bar = indicatif::ProgressBar::new(vmt_gap::discriminate::setups().len() as u64);
+    bar.set_message("tests that tell the explanations apart");
+    let found = discriminate(model, &chosen, &rivals, noise_of(measured), &|| bar.inc(1));
+    bar.finish_and_clear();
+    found
 }
 
 fn places_text(out: &mut String, title: &str, places: &[Place]) {
@@ -134,6 +179,18 @@ fn localisation_text(out: &mut String, l: &Localisation) {
                 .collect();
             let _ = writeln!(out, "  concentrates in: {}", names.join(", "));
         }
+    }
+    if !l.peaks.is_empty() {
+        let _ = writeln!(
+            out,
+            "  peaks on the circle (where the residual concentrates within a few degrees):"
+        );
+        for p in &l.peaks {
+            let _ = writeln!(out, "    {}: {p}", p.test);
+        }
+    }
+    for a in &l.axis_places {
+        let _ = writeln!(out, "  a place on {}: {a} ({})", a.axis, a.test);
     }
     if let Some(w) = l.whiteness {
         let _ = writeln!(out, "{}", whiteness_line(&w, ""));
@@ -173,20 +230,33 @@ pub fn text(r: &GapReport) -> String {
     );
     let _ = writeln!(
         out,
-        "Runs: {} measured; split: {}",
+        "Runs: {} measured; protocol: {}",
         s.initial_pairs.len(),
         s.split.rule
+    );
+    let _ = writeln!(
+        out,
+        "  bins of 1 deg: {} fit, {} select, {} judge",
+        s.bins[0], s.bins[1], s.bins[2]
     );
     let _ = writeln!(out, "\n1. Where (measured - model, before):");
     localisation_text(&mut out, &r.before);
     let _ = writeln!(
         out,
-        "\n2. Which effects explain it, and 3. how much (held-out runs):"
+        "\n2. Which effects explain it, and 3. how much (on data they were not fitted or chosen on):"
     );
+    let judged = match s.judged {
+        Some(j) => format!("judge RMS {:.3} um (untouched)", j.before_um),
+        None => format!(
+            "no untouched judgement: the judge data hold fewer than {} segments of {:.0} deg",
+            vmt_gap::split::MIN_JUDGE_SEGMENTS,
+            s.split.segment_deg
+        ),
+    };
     let _ = writeln!(
         out,
-        "  model as given: calibration RMS {:.3} um, held-out RMS {:.3} um",
-        s.calibration_before_um, s.held_out_before_um
+        "  model as given: fit RMS {:.3} um, select RMS {:.3} um, {judged}",
+        s.fit_before_um, s.select_before_um
     );
     if !s.baseline.is_empty() {
         let values: Vec<String> = s
@@ -200,35 +270,63 @@ pub fn text(r: &GapReport) -> String {
             values.join(", ")
         );
     }
-    if s.steps.is_empty() {
-        let _ = writeln!(
-            out,
-            "  no candidate effect explains the gap on the held-out runs: it stays unexplained"
-        );
-    }
     for (i, step) in s.steps.iter().enumerate() {
         let values: Vec<String> = step
             .values
             .iter()
             .map(|v| format!("{} {:+.3} {}", v.name, v.value, v.unit))
             .collect();
+        let judge = step
+            .judge_rms_um
+            .map_or(String::new(), |j| format!(", judge RMS {j:.3} um"));
         let _ = writeln!(
             out,
-            "  + {}. {} ({}): {}\n      held-out RMS {:.3} um ({:.0} % of the remaining mean square removed), calibration RMS {:.3} um",
+            "  + {}. {} ({}): {}\n      select RMS {:.3} um ({:.0} % of the remaining mean square removed), fit RMS {:.3} um{judge}",
             i + 1,
             step.effect,
             step.description,
             values.join(", "),
-            step.held_out_rms_um,
-            100.0 * step.held_out_shrink,
-            step.calibration_rms_um
+            step.select_rms_um,
+            100.0 * step.select_shrink,
+            step.fit_rms_um
         );
     }
-    let _ = writeln!(
-        out,
-        "  in all: {:.0} % of the held-out mean square removed",
-        100.0 * s.held_out_shrink()
-    );
+    for x in &s.rejected {
+        let _ = writeln!(out, "  not an explanation: {} {}", x.effect, x.implausible);
+    }
+    match (s.steps.is_empty(), r.explained, s.judged) {
+        (true, _, _) => {
+            let _ = writeln!(
+                out,
+                "  no plausible candidate effect explains the gap: it stays unexplained"
+            );
+        }
+        (false, true, Some(j)) => {
+            let _ = writeln!(
+                out,
+                "  explained: {:.0} % of the untouched judge data's mean square removed (RMS {:.3} -> {:.3} um)",
+                100.0 * j.shrink(),
+                j.before_um,
+                j.after_um
+            );
+        }
+        (false, true, None) => {
+            let _ = writeln!(
+                out,
+                "  explained on the select data; no untouched figure (too few judge data)"
+            );
+        }
+        (false, false, judged) => {
+            let on = judged.map_or(String::new(), |j| {
+                format!(" (judge RMS {:.3} -> {:.3} um)", j.before_um, j.after_um)
+            });
+            let _ = writeln!(
+                out,
+                "  the effects above explain part of it only{on}: the gap stays unexplained"
+            );
+        }
+    }
+    alternatives_text(&mut out, r);
     if !s.unavailable.is_empty() {
         let names: Vec<String> = s
             .unavailable
@@ -241,10 +339,56 @@ pub fn text(r: &GapReport) -> String {
             names.join(", ")
         );
     }
-    let _ = writeln!(out, "\nUnexplained residual (after):");
+    let _ = writeln!(out, "\nResidual left (after):");
     localisation_text(&mut out, &r.after);
     let _ = writeln!(out, "\n{} simulations.", r.simulations);
     out
+}
+
+/// The equally good explanations, the implausible fits beside them, and the tests that tell
+/// them apart.
+fn alternatives_text(out: &mut String, r: &GapReport) {
+    let s = &r.selection;
+    for step in &s.steps {
+        let good = s.equally_good(&step.effect);
+        if good.is_empty() {
+            continue;
+        }
+        let _ = writeln!(
+            out,
+            "  equally good explanations of the {} data in place of {} (paired test over its segments, p > 0.05):",
+            s.alternatives_judged_on, step.effect
+        );
+        for a in good {
+            let values: Vec<String> = a
+                .values
+                .iter()
+                .map(|v| format!("{} {:+.3} {}", v.name, v.value, v.unit))
+                .collect();
+            let _ = writeln!(
+                out,
+                "    {} ({}): RMS {:.3} um against {:.3} um, p = {:.2}",
+                a.effects.join(" + "),
+                values.join(", "),
+                a.rms_um,
+                a.chosen_rms_um,
+                a.p_value
+            );
+        }
+    }
+    for a in s.alternatives.iter().filter(|a| a.implausible.is_some()) {
+        if let Some(why) = &a.implausible {
+            let _ = writeln!(
+                out,
+                "  fits as well in place of {}, but {} {why}",
+                a.instead_of,
+                a.effects.join(" + ")
+            );
+        }
+    }
+    for d in &r.discriminating {
+        let _ = writeln!(out, "  to tell them apart: {d}");
+    }
 }
 
 fn places_json(places: &[Place]) -> Value {
@@ -261,6 +405,8 @@ fn localisation_json(l: &Localisation) -> Value {
         "by_harmonic": places_json(&l.by_harmonic),
         "by_time": places_json(&l.by_time),
         "concentrations": places_json(&l.concentrations),
+        "peaks": serde_json::to_value(&l.peaks).unwrap_or(Value::Null),
+        "axis_places": serde_json::to_value(&l.axis_places).unwrap_or(Value::Null),
         "whiteness": l.whiteness.map(|w| json!({"q": w.q, "dof": w.dof, "p_value": w.p_value})),
     })
 }
@@ -271,12 +417,32 @@ pub fn json(r: &GapReport) -> Value {
     json!({
         "model": r.model_file,
         "measured": r.files,
-        "split": {"rule": s.split.rule, "calibration": s.split.calibration, "held_out": s.split.held_out},
+        "protocol": {
+            "rule": s.split.rule,
+            "segment_deg": s.split.segment_deg,
+            "bins": {"fit": s.bins[0], "select": s.bins[1], "judge": s.bins[2]},
+        },
         "before": localisation_json(&r.before),
         "baseline": s.baseline,
         "effects": s.steps,
-        "held_out_rms_before_um": s.held_out_before_um,
-        "held_out_shrink": s.held_out_shrink(),
+        "explained": r.explained,
+        "fit_rms_before_um": s.fit_before_um,
+        "select_rms_before_um": s.select_before_um,
+        "judged": s.judged.map(|j| json!({
+            "bins": j.bins,
+            "segments": j.segments,
+            "rms_before_um": j.before_um,
+            "rms_after_um": j.after_um,
+            "shrink": j.shrink(),
+        })),
+        "not_judged_because": s.judged.is_none().then(|| format!(
+            "the judge data hold fewer than {} segments of {} deg",
+            vmt_gap::split::MIN_JUDGE_SEGMENTS, s.split.segment_deg
+        )),
+        "implausible": s.rejected,
+        "alternatives": s.alternatives,
+        "alternatives_judged_on": s.alternatives_judged_on,
+        "discriminating_tests": r.discriminating,
         "unexplained": localisation_json(&r.after),
         "last_round": s.last_round,
         "unavailable": s.unavailable,
@@ -613,15 +779,18 @@ pub fn bench_command(a: &BenchArgs) -> Result<(), CliError> {
         ScenarioModel::new(&text, &file, a.model_dir()).map_err(|e| model_error(&file, e))?;
     let (p, q) = plane.axes();
     let lib = model.library(&[(p.to_ascii_lowercase(), q.to_ascii_lowercase())]);
-    let cases = bench::cases(&model, &lib, &a.settings());
+    let physics = vmt_gap::physics::cases(&model, plane).map_err(|e| model_error(&file, e))?;
+    let cases = bench::cases(&model, &lib, &physics, &a.settings());
     let bar = a.progress(cases.len(), "gap-bench cases");
     let o = select::Options::default();
     let outcomes = bench::run(&text, &model, &lib, &cases, &o, &|| bar.inc(1))
         .map_err(|e| model_error(&file, e))?;
     bar.finish_and_clear();
-    let figures = bench::figures(&outcomes, o.min_effect_um);
+    // What changes the job by less than the level at which the selection starts (the model's
+    // other small mismatches), or by less than an effect must change it, nothing can attribute.
+    let figures = bench::figures(&outcomes, o.min_effect_um.max(o.explained_floor_um));
     let job = format!(
-        "{} circle {} mm at {} mm/min, CW and CCW (CW fits, CCW judges); the bar's set-up drawn anew",
+        "{} circle {} mm at {} mm/min, CW and CCW (segments of 40 deg in turn fit, select and judge); the bar's set-up drawn anew",
         a.plane, a.radius_mm, a.feed_mm_min
     );
     let command = format!(
@@ -667,7 +836,7 @@ fn vibration_bench(a: &BenchArgs, text: &str, file: &str) -> Result<(), CliError
     let outcomes = vb::run(text, file, dir, &model, &cases, &o, &|| bar.inc(1))
         .map_err(|e| model_error(file, e))?;
     bar.finish_and_clear();
-    let figures = vmt_gap::bench::figures(&outcomes, o.min_effect_db);
+    let figures = vmt_gap::bench::figures(&outcomes, o.min_effect_db.max(o.explained_floor_db));
     let job = format!(
         "the milling job of the model (accelerometer logs, tooth passing {:.0} Hz; one log per case, its first half fits, its second half judges)",
         model.tooth_passing_hz()
@@ -740,14 +909,39 @@ fn bench_report(
     );
     let _ = writeln!(
         out,
-        "| Pairs: both effects found | {} | - | {} |\n",
+        "| Pairs: both effects found | {} | - | {} |",
         pct(f.pairs_both_found),
         f.pair_cases
+    );
+    let _ = writeln!(
+        out,
+        "| Withheld physics that is a library effect by another mechanism: attributed to it or to an ambiguity set holding it | {} | >= 90 % | {} |",
+        pct(f.physics_attributed),
+        f.physics_library_cases
+    );
+    let _ = writeln!(
+        out,
+        "| Withheld physics outside the library: unexplained, a peak within {} deg of the truth | {} | >= 90 % | {} |",
+        vmt_gap::bench::WHERE_TOLERANCE_DEG,
+        pct(f.physics_unexplained),
+        f.physics_outside_cases
+    );
+    let _ = writeln!(
+        out,
+        "| Cases with an effect accepted at an implausible size | {} | 0 | {} |",
+        f.implausible_accepted,
+        outcomes.len()
+    );
+    let _ = writeln!(
+        out,
+        "\nHeld-out figures are of the judge data, used neither to fit nor to choose ({} of {} cases had too few and are of the select data).\n",
+        f.not_judged,
+        outcomes.len()
     );
     if !f.below_floor.is_empty() {
         let _ = writeln!(
             out,
-            "Below the visibility floor ({} {unit} of held-out change predicted for the withheld offsets), so invisible on this job and left out of the figures: {}.\n",
+            "Below the visibility floor ({} {unit} of change predicted for the withheld effect on the select and judge data: the level at which the selection starts, that of a model's other small mismatches), so invisible on this job and left out of the figures: {}.\n",
             f.floor,
             f.below_floor.join("; ")
         );
@@ -762,19 +956,27 @@ fn bench_report(
     }
     let _ = writeln!(
         out,
-        "\n## Cases\n\n| Case | Visible ({unit}) | Found | Partial | Held-out RMS before ({unit}) | after ({unit}) | Shrink |\n|---|---|---|---|---|---|---|"
+        "\n## Cases\n\n| Case | Visible ({unit}) | Found | Equally good | Partial | Right | Held-out RMS before ({unit}) | after ({unit}) | Shrink | Peaks (deg) |\n|---|---|---|---|---|---|---|---|---|---|"
     );
     for o in outcomes {
+        let right = match o.physics_right() {
+            Some(true) => "yes",
+            Some(false) => "no",
+            None => "",
+        };
+        let peaks: Vec<String> = o.peaks_deg.iter().map(|p| format!("{p:.0}")).collect();
         let _ = writeln!(
             out,
-            "| {} | {:.3} | {} | {} | {:.3} | {:.3} | {} |",
+            "| {} | {:.3} | {} | {} | {} | {right} | {:.3} | {:.3} | {} | {} |",
             o.case,
             o.visible,
             o.found.join(", "),
+            o.ambiguous.join(", "),
             o.partial.join(", "),
             o.held_out_before,
             o.held_out_after,
-            pct(o.shrink)
+            pct(o.shrink),
+            peaks.join(", ")
         );
     }
     out

@@ -7,16 +7,14 @@
 //! `ground_truth.json`.
 
 use crate::error::CliError;
-use crate::formats::live::RunFiles;
-use crate::formats::{mcap::write_mcap, rerun::write_rrd};
 use crate::plot::{self, Format};
 use indicatif::{ProgressBar, ProgressStyle};
 use std::path::{Path, PathBuf};
+use vmt_logs::live::RunFiles;
+use vmt_logs::{mcap::write_mcap, rerun::write_rrd};
 use vmt_scenario::Scenario;
-use vmt_sim::machining::simulate_machining;
 use vmt_sim::plant::Fidelity;
 use vmt_sim::run::{BallbarTrace, LogSink, Run};
-use vmt_sim::simulate::{SimError, simulate_logged};
 
 /// The files a run wrote.
 #[derive(Clone, Debug)]
@@ -78,21 +76,8 @@ fn execute_into(
     quiet: bool,
     sink: Option<&mut dyn LogSink>,
 ) -> Result<Run, CliError> {
-    let Some(exec) = &scenario.execution else {
-        return Err(CliError::Argument(
-            "the scenario has no job to run: it needs [machine.axes.<axis>.drive] and .servo for X, Y and Z, [controller] and [job]".into(),
-        ));
-    };
-    let mut settings = exec.settings;
-    if let Some(f) = fidelity {
-        settings.fidelity = f;
-    }
-    if let Some(file) = &exec.program_file {
-        for note in clamped_feeds(&exec.job.program, exec.controller.limits.max_feed_m_s, file) {
-            crate::errln!("note: {note}");
-        }
-    }
-    for note in &exec.notes {
+    let exec = vmt_dataset::job::execution(scenario)?;
+    for note in vmt_dataset::job::notes(exec) {
         crate::errln!("note: {note}");
     }
     let bar = if quiet {
@@ -106,67 +91,12 @@ fn execute_into(
         )
         .unwrap_or_else(|_| ProgressStyle::default_bar()),
     );
-    bar.set_message(format!("simulating ({})", settings.fidelity.name()));
+    let shown = fidelity.unwrap_or(exec.settings.fidelity);
+    bar.set_message(format!("simulating ({})", shown.name()));
     let mut progress = |f: f64| bar.set_position((f * 1000.0) as u64);
-    let run = match &exec.milling {
-        Some(m) => simulate_machining(
-            &scenario.machine,
-            &exec.axes,
-            &exec.controller,
-            &exec.job,
-            m,
-            &settings,
-            text,
-            None,
-            &mut progress,
-        ),
-        None => simulate_logged(
-            &scenario.machine,
-            &exec.axes,
-            &exec.controller,
-            &exec.job,
-            &settings,
-            text,
-            &mut progress,
-            sink,
-        ),
-    }
-    .map_err(|e| sim_error(&e, exec.program_file.as_deref()))?;
+    let run = vmt_dataset::job::simulate(scenario, text, fidelity, &mut progress, sink)?;
     bar.finish_and_clear();
     Ok(run)
-}
-
-/// A simulation error as `vmt` prints it: one about a block of the program file `file` starts
-/// with `file:line:`, as the program's parse errors do.
-fn sim_error(e: &SimError, file: Option<&str>) -> CliError {
-    match (e.line(), file) {
-        (Some(line), Some(file)) => CliError::Model(format!("{file}:{line}: {e}")),
-        _ => CliError::Model(e.to_string()),
-    }
-}
-
-/// The feeds of a program file above the controller's largest, which it clamps to it as a
-/// controller does (a ball-bar or positioning test is refused instead, at load): one note per
-/// line, naming the file and line.
-pub fn clamped_feeds(program: &vmt_sim::nc::Program, max_feed_m_s: f64, file: &str) -> Vec<String> {
-    use vmt_sim::nc::Motion;
-    let max = (max_feed_m_s * 60_000.0 * 1e6).round() / 1e6;
-    let mut notes: Vec<String> = program
-        .blocks
-        .iter()
-        .filter_map(|b| match b.motion {
-            Motion::Linear { feed, .. } | Motion::Arc { feed, .. } if feed * 60_000.0 > max * (1.0 + 1e-9) => {
-                Some(format!(
-                    "{file}:{}: F{} mm/min is above controller.max_feed_mm_min = {max} mm/min; the controller runs it at {max}",
-                    b.span.line,
-                    (feed * 60_000.0 * 1e6).round() / 1e6
-                ))
-            }
-            _ => None,
-        })
-        .collect();
-    notes.dedup();
-    notes
 }
 
 /// Writes the run's files into `dir`.

@@ -7,7 +7,6 @@ pub mod chatter_bench;
 pub mod dataset;
 pub mod diagnose;
 pub mod error;
-pub mod formats;
 pub mod gap;
 pub mod job;
 pub mod lobes;

@@ -366,7 +366,8 @@ struct RunArgs {
     /// write are removed once the run's files are complete (a note lists them).
     #[arg(long, default_value = "out")]
     out: PathBuf,
-    /// Plant fidelity, overriding the scenario: reduced or multibody.
+    /// Plant fidelity, overriding the scenario: reduced, multibody or compliant (the multibody
+    /// on compliant guide blocks; needs the carriages).
     #[arg(long)]
     fidelity: Option<String>,
     /// No progress bar.
@@ -385,7 +386,7 @@ struct DemoArgs {
     /// demo does not write are removed).
     #[arg(long, default_value = "out")]
     out: PathBuf,
-    /// Plant fidelity: reduced or multibody.
+    /// Plant fidelity: reduced, multibody or compliant.
     #[arg(long)]
     fidelity: Option<String>,
     /// No progress bar.
@@ -404,9 +405,10 @@ fn run_job(args: RunArgs) -> Result<(), CliError> {
         None => None,
         Some("reduced") => Some(vmt_sim::plant::Fidelity::Reduced),
         Some("multibody") => Some(vmt_sim::plant::Fidelity::Multibody),
+        Some("compliant") => Some(vmt_sim::plant::Fidelity::Compliant),
         Some(other) => {
             return Err(CliError::Argument(format!(
-                "--fidelity {other}: accepted: reduced, multibody"
+                "--fidelity {other}: accepted: reduced, multibody, compliant"
             )));
         }
     };

@@ -10,7 +10,7 @@ use plotters::style::FontStyle;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
 use std::path::Path;
 use std::sync::Once;
-use vmt_ballbar::samples::transient_deg;
+use vmt_logs::ballbar::largest_deviations;
 use vmt_sim::run::BallbarTrace;
 
 /// Image formats.
@@ -409,42 +409,13 @@ struct Polar {
     px_per_um: f64,
 }
 
-/// The largest |deviation| of the finite samples of `traces` (µm), and of those more than
-/// [`transient_deg`] from either end of their trace; `None` without a finite sample. The
-/// polar plots of the PNGs and of the Rerun recording take their scales from it.
-pub(crate) fn largest_deviations<'a>(
-    traces: impl IntoIterator<Item = &'a BallbarTrace>,
-) -> Option<(f64, Option<f64>)> {
-    let mut all: Option<f64> = None;
-    let mut inner: Option<f64> = None;
-    for t in traces {
-        let finite: Vec<(f64, f64)> = t
-            .angle_deg
-            .iter()
-            .zip(&t.deviation_um)
-            .filter(|(a, d)| a.is_finite() && d.is_finite())
-            .map(|(a, d)| (*a, d.abs()))
-            .collect();
-        let (Some(first), Some(last)) = (finite.first(), finite.last()) else {
-            continue;
-        };
-        let ends = transient_deg(t.feed_mm_min, t.radius_mm);
-        for &(a, d) in &finite {
-            all = Some(all.map_or(d, |m| m.max(d)));
-            if (a - first.0).abs() >= ends && (last.0 - a).abs() >= ends {
-                inner = Some(inner.map_or(d, |m| m.max(d)));
-            }
-        }
-    }
-    all.map(|a| (a, inner))
-}
-
 impl Polar {
     /// The scale for `traces`: the smallest round division (1, 2, 5 × 10ⁿ µm) that shows the
     /// largest deviation within three divisions either side of the nominal circle, leaving out
-    /// the [`transient_deg`] at each end of a trace (all of a trace that short). A run without
-    /// overshoot starts with the carriages' lag at its feed-in corner (150 µm in Kwon's
-    /// programs), which would otherwise set a scale that hides errors of a few µm.
+    /// the [`transient_deg`](vmt_ballbar::samples::transient_deg) at each end of a trace (all
+    /// of a trace that short). A run without overshoot starts with the carriages' lag at its
+    /// feed-in corner (150 µm in Kwon's programs), which would otherwise set a scale that
+    /// hides errors of a few µm.
     fn new(traces: &[BallbarTrace]) -> Option<Self> {
         let (all, inner) = largest_deviations(traces)?;
         let max_dev = inner.unwrap_or(all);

@@ -18,7 +18,6 @@
 //! `/laser` topic); the axis name comes from `--axis` (CSV) or the run.
 
 use crate::error::CliError;
-use crate::formats::input::{self, Input};
 use crate::plot::{DrawResult, FONT, Figure, Format, register_font, render};
 use crate::traces::{csv_with_header, finite_cell};
 use plotters::coord::Shift;
@@ -26,6 +25,7 @@ use plotters::prelude::*;
 use serde_json::{Value, json};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
+use vmt_logs::input::{self, Input};
 use vmt_positioning::{Approach, Evaluation, PositioningRun, Reading, evaluate, report};
 
 /// An evaluated positioning test.

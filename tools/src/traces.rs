@@ -16,12 +16,12 @@
 //! `--plane`). Rows of one direction must be consecutive and in the order measured.
 
 use crate::error::CliError;
-use crate::formats::input::{self, Input};
-use serde_json::Value;
-use std::collections::BTreeMap;
 use std::path::Path;
 use vmt_ballbar::{Trace, TraceError};
+use vmt_logs::input::{self, Input};
 use vmt_sim::run::BallbarTrace;
+
+pub use vmt_logs::ballbar::{Recorded, group_tests, run_tests};
 
 /// The set-up of a CSV trace, from the command line.
 #[derive(Clone, Copy, Debug)]
@@ -34,73 +34,16 @@ pub struct CsvSetup<'a> {
     pub feed_mm_min: f64,
 }
 
-/// The traces of a run, grouped by test (the traces of one circular test share plane, radius,
-/// feed and set-up), and the run's ground truth if it carries one.
-pub struct Recorded {
-    /// Tests, each one or two traces.
-    pub tests: Vec<Vec<Trace>>,
-    /// Ground truth of a simulated run.
-    pub ground_truth: Option<Value>,
-}
-
 /// A simulated trace as a diagnosis trace.
 pub fn from_run(t: &BallbarTrace, file: &str) -> Result<Trace, CliError> {
     vmt_gap::model::trace_of(t).map_err(|e| CliError::input(file, None, e.to_string()))
-}
-
-/// Groups consecutive traces into tests: a new test starts when the plane, radius or feed
-/// changes or a direction repeats (the next test of a multi-step procedure).
-pub fn group_tests(traces: Vec<Trace>) -> Vec<Vec<Trace>> {
-    let sizes = test_sizes(&traces, |a, b| {
-        a.plane == b.plane
-            && a.radius_mm == b.radius_mm
-            && a.feed_mm_min == b.feed_mm_min
-            && a.sense != b.sense
-    });
-    let mut rest = traces.into_iter();
-    sizes
-        .into_iter()
-        .map(|n| rest.by_ref().take(n).collect())
-        .collect()
-}
-
-/// The tests of a run's traces, as [`group_tests`] makes them of the traces read back.
-pub fn run_tests(traces: &[BallbarTrace]) -> Vec<&[BallbarTrace]> {
-    let sizes = test_sizes(traces, |a, b| {
-        a.plane.eq_ignore_ascii_case(&b.plane)
-            && a.radius_mm == b.radius_mm
-            && a.feed_mm_min == b.feed_mm_min
-            && !a.direction.eq_ignore_ascii_case(&b.direction)
-    });
-    let mut rest = traces;
-    sizes
-        .into_iter()
-        .map(|n| {
-            let (test, tail) = rest.split_at(n);
-            rest = tail;
-            test
-        })
-        .collect()
-}
-
-/// The number of traces of each test, in order: a trace joins the one before it when that one
-/// is alone in its test and `pair` says the two are its directions.
-fn test_sizes<T>(traces: &[T], pair: impl Fn(&T, &T) -> bool) -> Vec<usize> {
-    let mut sizes: Vec<usize> = Vec::new();
-    for (i, t) in traces.iter().enumerate() {
-        match sizes.last_mut() {
-            Some(n) if *n == 1 && pair(&traces[i - 1], t) => *n = 2,
-            _ => sizes.push(1),
-        }
-    }
-    sizes
 }
 
 /// Reads `path`: an MCAP run (by its magic bytes) or a CSV trace file.
 pub fn read(path: &Path, csv: Option<CsvSetup>) -> Result<Recorded, CliError> {
     let file = path.display().to_string();
     let bytes = match input::open(path, &file)? {
-        Input::Mcap => return read_mcap(path, &file),
+        Input::Mcap => return Ok(vmt_logs::ballbar::read(path, &file)?),
         Input::Other(bytes) => bytes,
     };
     let setup = csv.ok_or_else(|| {
@@ -112,81 +55,6 @@ pub fn read(path: &Path, csv: Option<CsvSetup>) -> Result<Recorded, CliError> {
     Ok(Recorded {
         tests: group_tests(traces),
         ground_truth: None,
-    })
-}
-
-/// One ball-bar channel being read: its metadata and samples.
-#[derive(Default)]
-struct Channel {
-    meta: BTreeMap<String, String>,
-    time: Vec<f64>,
-    angle: Vec<f64>,
-    deviation: Vec<f64>,
-}
-
-fn read_mcap(path: &Path, file: &str) -> Result<Recorded, CliError> {
-    let bad = |m: String| CliError::input(file, None, m);
-    let mut channels: BTreeMap<u16, Channel> = BTreeMap::new();
-    let mut truth = None;
-    for message in input::messages(path, file)? {
-        let m = message?;
-        let topic = m.channel.topic.as_str();
-        if topic == "/ground_truth" {
-            truth = serde_json::from_slice(&m.data).ok();
-            continue;
-        }
-        if !topic.starts_with("/ballbar/") {
-            continue;
-        }
-        let c = channels.entry(m.channel.id).or_insert_with(|| Channel {
-            meta: m.channel.metadata.clone(),
-            ..Default::default()
-        });
-        let v: Value = serde_json::from_slice(&m.data)
-            .map_err(|e| bad(format!("{topic}: a message that is not JSON: {e}")))?;
-        let num = |k: &str| {
-            v[k].as_f64()
-                .ok_or_else(|| bad(format!("{topic}: a message without a number `{k}`")))
-        };
-        c.time.push(num("time_s")?);
-        c.angle.push(num("angle_deg")?);
-        c.deviation.push(num("deviation_um")?);
-    }
-    if channels.is_empty() {
-        return Err(bad(
-            "no /ballbar/ topics: not a ball-bar run (a run of a ballbar or kwon_seven_step job is needed)".into(),
-        ));
-    }
-    let traces = channels
-        .into_values()
-        .map(|c| {
-            let meta = |k: &str| {
-                c.meta
-                    .get(k)
-                    .cloned()
-                    .ok_or_else(|| bad(format!("a ball-bar channel without `{k}` metadata")))
-            };
-            let number = |k: &str| -> Result<f64, CliError> {
-                meta(k)?
-                    .parse()
-                    .map_err(|_| bad(format!("ball-bar channel metadata `{k}` is not a number")))
-            };
-            Trace::new(
-                &meta("label")?,
-                &meta("plane")?,
-                &meta("direction")?,
-                number("radius_mm")?,
-                number("feed_mm_min")?,
-                c.angle,
-                c.deviation,
-                Some(c.time),
-            )
-            .map_err(|e| bad(e.to_string()))
-        })
-        .collect::<Result<Vec<_>, _>>()?;
-    Ok(Recorded {
-        tests: group_tests(traces),
-        ground_truth: truth,
     })
 }
 

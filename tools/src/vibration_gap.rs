@@ -4,7 +4,6 @@
 
 use crate::chatter;
 use crate::error::CliError;
-use crate::formats::rerun::{AxisBands, write_band_rrd};
 use crate::plot::{DrawResult, FONT, Figure, Format, register_font, render};
 use plotters::coord::Shift;
 use plotters::prelude::*;
@@ -13,6 +12,7 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use vmt_gap::GapError;
 use vmt_gap::vibration::{self, Log, MillingModel, Options, Share, VibrationGap};
+use vmt_logs::rerun::{AxisBands, write_band_rrd};
 
 /// Whether `path` holds accelerometer data: an MCAP with an `/accelerometer` topic, or a CSV
 /// whose header names `ax`, `ay` or `az`.
@@ -112,18 +112,32 @@ pub fn text(model: &str, files: &[PathBuf], g: &VibrationGap) -> String {
     );
     let _ = writeln!(
         out,
-        "  RMS {:.2} dB calibration, {:.2} dB held out",
-        g.calibration_before_db, g.held_out_before_db
+        "  RMS {:.2} dB fit, {:.2} dB select, {:.2} dB judge (untouched)",
+        g.fit_before_db, g.select_before_db, g.judge_before_db
     );
     shares_text(&mut out, "by band (5 % or more)", &g.before_by_band, 0.05);
     shares_text(&mut out, "by axis", &g.before_by_axis, 0.0);
     shares_text(&mut out, "harmonic or not", &g.before_by_kind, 0.0);
     shares_text(
         &mut out,
-        "by piece (a log, or a half of one in time)",
+        "by piece (a third of a log in time)",
         &g.before_by_piece,
         0.0,
     );
+    if !g.before_in_time.is_empty() {
+        let _ = writeln!(
+            out,
+            "  in time (windows of {} s, largest residuals):",
+            vmt_gap::vibration::WINDOW_S
+        );
+        for t in &g.before_in_time {
+            let _ = writeln!(
+                out,
+                "    {}: {:.2}-{:.2} s, {} {}: {:+.1} dB",
+                t.log, t.from_s, t.to_s, t.axis, t.band, t.residual_db
+            );
+        }
+    }
     let c = concentrations(g);
     let _ = writeln!(
         out,
@@ -136,7 +150,7 @@ pub fn text(model: &str, files: &[PathBuf], g: &VibrationGap) -> String {
     );
     let _ = writeln!(
         out,
-        "2. Which effects explain it, and 3. how much (held-out pieces):"
+        "2. Which effects explain it, and 3. how much (judge pieces, used neither to fit nor to choose):"
     );
     for (k, s) in g.steps.iter().enumerate() {
         let _ = writeln!(out, "  + {}. {} ({})", k + 1, s.effect, s.description);
@@ -149,38 +163,59 @@ pub fn text(model: &str, files: &[PathBuf], g: &VibrationGap) -> String {
         }
         let _ = writeln!(
             out,
-            "      held-out RMS {:.2} dB ({:.0} % of the remaining mean square removed), calibration RMS {:.2} dB",
-            s.held_out_rms_db,
-            100.0 * s.held_out_shrink,
-            s.calibration_rms_db
+            "      select RMS {:.2} dB ({:.0} % of the remaining mean square removed), fit RMS {:.2} dB, judge RMS {:.2} dB",
+            s.select_rms_db,
+            100.0 * s.select_shrink,
+            s.fit_rms_db,
+            s.judge_rms_db
+        );
+    }
+    for r in &g.rejected {
+        let _ = writeln!(out, "  not an explanation: {} {}", r.effect, r.implausible);
+    }
+    for a in &g.alternatives {
+        let values: Vec<String> = a
+            .values
+            .iter()
+            .map(|v| format!("{} {:.4} {}", v.name, v.value, v.unit))
+            .collect();
+        let verdict = match &a.implausible {
+            None => "explains the judge pieces as well".to_string(),
+            Some(why) => format!("fits as well, but {why}"),
+        };
+        let _ = writeln!(
+            out,
+            "  in place of {}: {} ({}) {verdict}: {:.2} dB against {:.2} dB, p = {:.2}",
+            a.instead_of,
+            a.effect,
+            values.join(", "),
+            a.judge_rms_db,
+            a.chosen_judge_rms_db,
+            a.p_value
         );
     }
     let o = Options::default();
-    let after = g.held_out_after_db();
-    let verdict = if g.steps.is_empty() && g.held_out_before_db <= o.explained_floor_db {
+    let (before, after) = (g.judge_before_db, g.judge_after_db);
+    let verdict = if g.steps.is_empty() && g.select_before_db <= o.explained_floor_db {
         "the model matches the measurement to the level of band-level scatter".to_string()
     } else if g.explained(&o) {
-        format!(
-            "explained: held out {:.2} -> {after:.2} dB",
-            g.held_out_before_db
-        )
+        format!("explained: judge pieces {before:.2} -> {after:.2} dB")
     } else {
         format!(
-            "unexplained residual: held out {:.2} -> {after:.2} dB; no candidate accounts for the rest",
-            g.held_out_before_db
+            "unexplained residual: judge pieces {before:.2} -> {after:.2} dB; no plausible candidate accounts for the rest"
         )
     };
     let _ = writeln!(out, "  {verdict}");
     if !g.last_round.is_empty() {
         let _ = writeln!(
             out,
-            "  last round (held-out RMS with each candidate, BIC change):"
+            "  last round (select RMS with each candidate, BIC change):"
         );
         for s in &g.last_round {
             let _ = writeln!(
                 out,
                 "    {:<24} {:>7.2} dB  {:>+9.1}",
-                s.effect, s.held_out_rms_db, s.bic_change
+                s.effect, s.select_rms_db, s.bic_change
             );
         }
     }
@@ -204,19 +239,19 @@ pub fn json(model: &str, files: &[PathBuf], g: &VibrationGap) -> Value {
         "files": files.iter().map(|f| f.display().to_string()).collect::<Vec<_>>(),
         "kind": "vibration",
         "gap": g,
-        "held_out_after_db": g.held_out_after_db(),
+        "judge_shrink": g.judge_shrink(),
         "explained": g.explained(&Options::default()),
     })
 }
 
-/// Band levels of the first held-out piece, per axis: measured, model before and after.
+/// Band levels of the first judge piece, per axis: measured, model before and after.
 struct Levels<'a>(&'a VibrationGap);
 
 impl Figure for Levels<'_> {
     fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> DrawResult<DB> {
         let g = self.0;
         root.fill(&WHITE)?;
-        let piece = g.calibration.len().min(g.measured.len().saturating_sub(1));
+        let piece = g.first_judge_piece;
         let panels = root.split_evenly((g.channels.len().max(1), 1));
         let db = |l: f64| 20.0 * l.max(1e-9).log10();
         // The frequency axis is log10(f), labelled in Hz.
@@ -237,7 +272,7 @@ impl Figure for Levels<'_> {
             });
             let mut chart = ChartBuilder::on(area)
                 .caption(
-                    format!("{name}: third-octave band levels, held-out piece"),
+                    format!("{name}: third-octave band levels, first judge piece"),
                     (FONT, 18),
                 )
                 .margin(10)
@@ -277,9 +312,9 @@ impl Figure for Levels<'_> {
     }
 }
 
-/// The band levels of the first held-out piece, per axis, as a Rerun recording.
+/// The band levels of the first judge piece, per axis, as a Rerun recording.
 fn write_rrd(model: &str, report: &str, g: &VibrationGap, path: &Path) -> Result<(), CliError> {
-    let piece = g.calibration.len().min(g.measured.len().saturating_sub(1));
+    let piece = g.first_judge_piece;
     let db = |levels: &[f64]| -> Vec<f64> {
         levels.iter().map(|l| 20.0 * l.max(1e-9).log10()).collect()
     };
@@ -305,12 +340,12 @@ fn write_rrd(model: &str, report: &str, g: &VibrationGap, path: &Path) -> Result
             after_db: a,
         })
         .collect();
-    write_band_rrd(
+    Ok(write_band_rrd(
         path,
-        &format!("vmt-gap-{}", crate::formats::slug(model)),
+        &format!("vmt-gap-{}", vmt_logs::slug(model)),
         report,
         &axes,
-    )
+    )?)
 }
 
 /// Writes gap.txt, gap.json, gap.rrd and band_levels.png into `dir`.

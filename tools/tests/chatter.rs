@@ -150,7 +150,7 @@ fn mcap_run_uses_its_accelerometer_stream_and_ground_truth() {
         ground_truth: json!({ "milling": { "spindle_rpm": 7500.0, "teeth": 4 } }),
     };
     let path = dir.path().join("run.mcap");
-    vmt_tools::formats::write_mcap(&run, &path).unwrap();
+    vmt_logs::write_mcap(&run, &path).unwrap();
     let o = vmt(&[
         "chatter",
         "detect",

@@ -13,8 +13,8 @@ use mcap_records::records;
 use python::python;
 use serde_json::{Value, json};
 use std::f64::consts::PI;
+use vmt_logs::{write_mcap, write_rrd};
 use vmt_sim::run::{BallbarTrace, Channel, MachineSummary, Run, Stream};
-use vmt_tools::formats::{write_mcap, write_rrd};
 use vmt_tools::plot::{Format, POLAR_SIZE, draw_polar};
 
 /// Log rate of the servo stream, Hz.
@@ -393,7 +393,7 @@ fn rows_of(s: &Stream, rows: std::ops::Range<usize>) -> Stream {
 /// and the failed file is removed.
 #[test]
 fn files_written_in_blocks_name_a_bad_row_by_its_place_in_the_run() {
-    use vmt_tools::formats::{RunFile, mcap::McapFile, rerun::RrdFile};
+    use vmt_logs::{RunFile, mcap::McapFile, rerun::RrdFile};
     let dir = tempfile::tempdir().expect("temp dir");
     let mut run = test_run();
     run.streams[0].times_s[13] = f64::NAN;

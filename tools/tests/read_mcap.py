@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Reads an MCAP file written by `vmt_tools::formats::write_mcap` with the Python `mcap` package
+"""Reads an MCAP file written by `vmt_logs::write_mcap` with the Python `mcap` package
 and prints a JSON summary on stdout: package version, header, topics (schema, encodings, message
 counts), metadata names and values, first/last log time (ns), chunk compressions, whether the
 streams' and traces' messages are in log-time order and which topics follow them, the decoded

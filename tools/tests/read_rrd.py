@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Reads a Rerun recording written by `vmt_tools::formats::write_rrd` with the Python
+"""Reads a Rerun recording written by `vmt_logs::write_rrd` with the Python
 `rerun-sdk` (0.36: `rerun.experimental.RrdReader`) and prints a JSON summary on stdout: the
 package version, the recording and blueprint stores, and for every entity path its number of
 temporal rows, whether it has static data, its timelines and its component columns.

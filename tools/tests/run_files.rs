@@ -190,7 +190,7 @@ fn the_mcap_written_while_the_job_runs_equals_the_finished_runs() {
     let rows = run.streams[0].times_s.len();
     assert!(rows > 3 * 8192, "{rows} rows");
     let whole = dir.path().join("whole.mcap");
-    vmt_tools::formats::write_mcap(&run, &whole).unwrap();
+    vmt_logs::write_mcap(&run, &whole).unwrap();
     let whole = std::fs::read(whole).unwrap();
     assert!(
         streamed == whole,
@@ -201,7 +201,7 @@ fn the_mcap_written_while_the_job_runs_equals_the_finished_runs() {
     // The recording is not byte-identical between writes (Rerun's chunk ids), but its entities,
     // row counts, components and first and last values are the finished run's.
     let whole_rrd = dir.path().join("whole.rrd");
-    vmt_tools::formats::write_rrd(&run, &whole_rrd).unwrap();
+    vmt_logs::write_rrd(&run, &whole_rrd).unwrap();
     let (a, b) = (
         python::python("read_rrd.py", &out.join("run.rrd")),
         python::python("read_rrd.py", &whole_rrd),

@@ -17,7 +17,8 @@
 
 use std::time::Instant;
 use vmt_gap::model::{Forward, ScenarioModel};
-use vmt_gap::select::{Linearisation, Options, Split, select};
+use vmt_gap::select::{Linearisation, Options, select};
+use vmt_gap::split::Split;
 
 fn main() {
     let path = concat!(
@@ -62,12 +63,16 @@ fn main() {
         })
         .collect();
     println!(
-        "seven-step gap diagnosis: {total:.1} s on {} threads ({} + {} model evaluations, {} of them replays of the recorded motion; linearisation {t_lin:.1} s); found {found:?}; held-out RMS before {:.3} um; held-out shrink {:.1} %",
+        "seven-step gap diagnosis: {total:.1} s on {} threads ({} + {} model evaluations, {} of them replays of the recorded motion; linearisation {t_lin:.1} s); found {found:?}; alternatives {:?}; untouched judge RMS before {:.3} um; judge shrink {:.1} %",
         rayon::current_num_threads(),
         lin.simulations(),
         s.simulations,
         model.replays(),
-        s.held_out_before_um,
-        100.0 * s.held_out_shrink()
+        s.alternatives
+            .iter()
+            .map(|a| (a.effects.join(" + "), a.implausible.is_some()))
+            .collect::<Vec<_>>(),
+        s.judged.map_or(f64::NAN, |j| j.before_um),
+        100.0 * s.judge_shrink().unwrap_or(f64::NAN)
     );
 }

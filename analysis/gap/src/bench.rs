@@ -7,7 +7,18 @@
 //! - a few pairs withheld together;
 //! - null cases: nothing withheld;
 //! - out-of-library cases: a library effect withheld and also taken out of the candidates
-//!   ([`HIDDEN`]), at three sizes: what no candidate can express must stay unexplained.
+//!   ([`HIDDEN`]), at three sizes: what no candidate can express must stay unexplained;
+//! - withheld-physics cases ([`Physics`]): physics the simulator has and the candidate library
+//!   does not, switched on in the measured machine by scenario tables no candidate edits
+//!   (motor cogging, encoder interpolation error, a local guideway defect, the screw warming
+//!   during the test, a nut that lost its preload, another friction law). Each states its
+//!   right answer ([`Answer`]): the library effect that is physically the same thing (by
+//!   another mechanism), or unexplained with the residual at the right place.
+//!
+//! Every case is scored on what the analysis reports: the effects found (explained on the
+//! select bins and confirmed on the untouched judge bins), the equally good alternatives to
+//! the first one (its ambiguity set), the sizes accepted against their plausible ranges, and
+//! the peaks of the residual for "where".
 //!
 //! Every case adds nuisance: each available parameter is offset by N(0, (ν·typical)²) (ν =
 //! [`Settings::nuisance`]), the instrument keeps its noise and resolution, and the simulation
@@ -15,8 +26,10 @@
 
 use crate::align::GapError;
 use crate::effects::Effect;
+use crate::localise::{self, Localisation};
 use crate::model::{Forward, ScenarioModel};
-use crate::select::{Linearisation, Options, Selection, Split, select_without};
+use crate::select::{Linearisation, Options, Selection, select_without};
+use crate::split::Split;
 use rand::SeedableRng;
 use rand::rngs::StdRng;
 use rand_distr::{Distribution, Normal};
@@ -36,6 +49,43 @@ pub enum Withheld {
     Null,
     /// An effect outside the library.
     Outside(String),
+    /// Physics the library lacks, with its right answer.
+    Physics(String, Answer),
+}
+
+/// The right answer to a withheld-physics case.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+#[serde(tag = "answer", rename_all = "snake_case")]
+pub enum Answer {
+    /// The library effect that is physically the same thing, by another mechanism: found
+    /// first, or in the ambiguity set of the effect found first.
+    Library {
+        /// Its key.
+        effect: String,
+    },
+    /// Outside the library: left unexplained, with a peak of the residual within
+    /// [`WHERE_TOLERANCE_DEG`] of one of these angles (deg).
+    Unexplained {
+        /// Where the circle passes the physics' place.
+        angles_deg: Vec<f64>,
+    },
+}
+
+/// How close a reported peak must lie to the truth's angle, deg.
+pub const WHERE_TOLERANCE_DEG: f64 = 10.0;
+
+/// One withheld-physics case: the scenario text the measured machine gets on top of the
+/// model, and the right answer.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Physics {
+    /// Case name, e.g. `rail bump X x1`.
+    pub name: String,
+    /// The physics, e.g. `rail_bump_x`.
+    pub effect: String,
+    /// TOML merged into the measured machine's scenario (tables no candidate edits).
+    pub toml: String,
+    /// The right answer.
+    pub answer: Answer,
 }
 
 /// The library effects the out-of-library cases withhold and hide from the candidates: a
@@ -62,6 +112,8 @@ pub struct Case {
     pub seed: u64,
     /// The effect left out of the candidates (out-of-library cases).
     pub hidden: Option<String>,
+    /// TOML merged into the measured machine (withheld-physics cases).
+    pub physics: Option<String>,
 }
 
 /// Settings of the bench.
@@ -100,13 +152,18 @@ fn offsets_of(e: &Effect, m: f64) -> Vec<(String, f64)> {
         .collect()
 }
 
-/// The cases of the bench for `library` on `model`: [`Settings::repeats`] draws of the list,
-/// each with its own seeds.
-pub fn cases(model: &dyn Forward, library: &[Effect], s: &Settings) -> Vec<Case> {
+/// The cases of the bench for `library` on `model`, with the withheld-physics cases
+/// `physics`: [`Settings::repeats`] draws of the list, each with its own seeds.
+pub fn cases(
+    model: &dyn Forward,
+    library: &[Effect],
+    physics: &[Physics],
+    s: &Settings,
+) -> Vec<Case> {
     let mut out: Vec<Case> = Vec::new();
     for r in 0..s.repeats.max(1) {
         let seed = out.last().map_or(s.seed, |c| c.seed + 1);
-        let mut draw = cases_once(model, library, &Settings { seed, ..*s });
+        let mut draw = cases_once(model, library, physics, &Settings { seed, ..*s });
         if s.repeats > 1 {
             draw.iter_mut()
                 .for_each(|c| c.name = format!("{} (draw {})", c.name, r + 1));
@@ -117,7 +174,12 @@ pub fn cases(model: &dyn Forward, library: &[Effect], s: &Settings) -> Vec<Case>
 }
 
 /// One draw of the cases, seeds from `s.seed` up.
-fn cases_once(model: &dyn Forward, library: &[Effect], s: &Settings) -> Vec<Case> {
+fn cases_once(
+    model: &dyn Forward,
+    library: &[Effect],
+    physics: &[Physics],
+    s: &Settings,
+) -> Vec<Case> {
     let expressible = |e: &&Effect| {
         e.params
             .iter()
@@ -128,22 +190,24 @@ fn cases_once(model: &dyn Forward, library: &[Effect], s: &Settings) -> Vec<Case
     let effects: Vec<&Effect> = available.iter().copied().filter(|e| !e.baseline).collect();
     let mut out = Vec::new();
     let mut seed = s.seed;
-    let mut push = |name: String, withheld: Withheld, offsets: Vec<(String, f64)>| {
-        let hidden = match &withheld {
-            Withheld::Outside(e) => Some(e.clone()),
-            _ => None,
+    let mut push =
+        |name: String, withheld: Withheld, offsets: Vec<(String, f64)>, physics: Option<String>| {
+            let hidden = match &withheld {
+                Withheld::Outside(e) => Some(e.clone()),
+                _ => None,
+            };
+            let edits = nuisance(model, &available, &offsets, s.nuisance, seed);
+            out.push(Case {
+                name,
+                withheld,
+                edits,
+                withheld_offsets: offsets,
+                seed,
+                hidden,
+                physics,
+            });
+            seed += 1;
         };
-        let edits = nuisance(model, &available, &offsets, s.nuisance, seed);
-        out.push(Case {
-            name,
-            withheld,
-            edits,
-            withheld_offsets: offsets,
-            seed,
-            hidden,
-        });
-        seed += 1;
-    };
     let sizes = [1.0, -2.0, 3.0];
     for e in &effects {
         for (k, m) in sizes.into_iter().enumerate() {
@@ -151,6 +215,7 @@ fn cases_once(model: &dyn Forward, library: &[Effect], s: &Settings) -> Vec<Case
                 format!("{} x{}", e.key, k + 1),
                 Withheld::One(e.key.clone()),
                 offsets_of(e, m),
+                None,
             );
         }
     }
@@ -161,16 +226,26 @@ fn cases_once(model: &dyn Forward, library: &[Effect], s: &Settings) -> Vec<Case
             format!("{} + {}", pair[0].key, pair[1].key),
             withheld,
             offsets,
+            None,
         );
     }
     for i in 0..s.nulls {
-        push(format!("null {}", i + 1), Withheld::Null, Vec::new());
+        push(format!("null {}", i + 1), Withheld::Null, Vec::new(), None);
     }
     for e in effects.iter().filter(|e| HIDDEN.contains(&e.key.as_str())) {
         for (k, m) in sizes.into_iter().enumerate() {
             let name = format!("{} x{} (not in the library)", e.key, k + 1);
-            push(name, Withheld::Outside(e.key.clone()), offsets_of(e, m));
+            push(
+                name,
+                Withheld::Outside(e.key.clone()),
+                offsets_of(e, m),
+                None,
+            );
         }
+    }
+    for p in physics {
+        let withheld = Withheld::Physics(p.effect.clone(), p.answer.clone());
+        push(p.name.clone(), withheld, Vec::new(), Some(p.toml.clone()));
     }
     out
 }
@@ -234,13 +309,33 @@ pub struct Outcome {
     pub visible: f64,
     /// Unit of the RMS figures: `um` for ball-bar deviations, `dB` for band levels.
     pub unit: &'static str,
+    /// Whether the RMS figures are of untouched judge data (else of the select data: too few
+    /// to judge).
+    pub judged: bool,
+    /// The plausible alternatives to the first effect found (its ambiguity set; a pair as
+    /// `a + b`).
+    pub ambiguous: Vec<String>,
+    /// Effects accepted with a size outside their plausible range (the bench asks for none).
+    pub implausible_accepted: Vec<String>,
+    /// Angles of the peaks of the residual before any effect, deg.
+    pub peaks_deg: Vec<f64>,
 }
 
 impl Outcome {
-    fn of(case: &Case, s: &Selection, o: &Options, visible_um: f64) -> Self {
-        let chosen = s.steps.iter().map(|x| x.effect.clone()).collect();
-        let held = (s.held_out_before_um, s.held_out_after_um());
-        Self::new(
+    fn of(
+        case: &Case,
+        s: &Selection,
+        o: &Options,
+        visible_um: f64,
+        library: &[Effect],
+        model: &dyn Forward,
+    ) -> Result<Self, GapError> {
+        let chosen: Vec<String> = s.steps.iter().map(|x| x.effect.clone()).collect();
+        let (held, judged) = match s.judged {
+            Some(j) => ((j.before_um, j.after_um), true),
+            None => ((s.select_before_um, s.select_after_um()), false),
+        };
+        let mut out = Self::new(
             &case.name,
             &case.withheld,
             chosen,
@@ -248,7 +343,20 @@ impl Outcome {
             held,
             visible_um,
             "um",
-        )
+        );
+        out.judged = judged;
+        if let Some(first) = out.found.first() {
+            out.ambiguous = s
+                .equally_good(first)
+                .iter()
+                .map(|a| a.effects.join(" + "))
+                .collect();
+        }
+        let accepted: Vec<&str> = s.steps.iter().map(|x| x.effect.as_str()).collect();
+        out.implausible_accepted = implausible_values(&s.final_values, &accepted, library, model);
+        let before = Localisation::of(&s.initial_pairs, &localise::Options::default())?;
+        out.peaks_deg = before.peaks.iter().map(|p| p.angle_deg).collect();
+        Ok(out)
     }
 
     /// The outcome of case `name`: the `chosen` effects are found when they `explained` the
@@ -277,8 +385,59 @@ impl Outcome {
             shrink: 1.0 - (after / before).powi(2),
             visible,
             unit,
+            judged: true,
+            ambiguous: Vec::new(),
+            implausible_accepted: Vec::new(),
+            peaks_deg: Vec::new(),
         }
     }
+
+    /// Whether the analysis gave the right answer to a withheld-physics case (`None` for the
+    /// other kinds).
+    pub fn physics_right(&self) -> Option<bool> {
+        let Withheld::Physics(_, answer) = &self.withheld else {
+            return None;
+        };
+        Some(match answer {
+            Answer::Library { effect } => {
+                self.found.first() == Some(effect) || self.ambiguous.contains(effect)
+            }
+            Answer::Unexplained { angles_deg } => {
+                self.found.is_empty()
+                    && self.peaks_deg.iter().any(|p| {
+                        angles_deg.iter().any(|t| {
+                            ((p - t + 180.0).rem_euclid(360.0) - 180.0).abs() <= WHERE_TOLERANCE_DEG
+                        })
+                    })
+            }
+        })
+    }
+}
+
+/// The `accepted` effects whose final values (absolute, by key) a machine of the model's class
+/// cannot have, checked against the library's ranges afresh.
+fn implausible_values(
+    values: &[(String, f64)],
+    accepted: &[&str],
+    library: &[Effect],
+    model: &dyn Forward,
+) -> Vec<String> {
+    let mut out: Vec<String> = Vec::new();
+    for (key, value) in values {
+        for e in library
+            .iter()
+            .filter(|e| accepted.contains(&e.key.as_str()))
+        {
+            for p in e.params.iter().filter(|p| p.keys.contains(key)) {
+                let Some(m) = model.value(key) else { continue };
+                let (lo, hi) = p.plausible.range(m);
+                if !(lo..=hi).contains(value) && !out.contains(&e.key) {
+                    out.push(e.key.clone());
+                }
+            }
+        }
+    }
+    out
 }
 
 /// Runs every case: the measured machine simulated with its instrument, the gap analysis of
@@ -293,6 +452,20 @@ pub fn run(
 ) -> Result<Vec<Outcome>, GapError> {
     let lin = Linearisation::new(model, library)?;
     let template = Template::parse(text, "model").map_err(|e| GapError::Model(e.to_string()))?;
+    let scenario_error = |e: vmt_scenario::ScenarioError| GapError::Model(e.to_string());
+    // The physics' visibility: the model with it, noise-free, against the model as given; the
+    // same for every draw of a case.
+    let mut physics: Vec<&str> = cases.iter().filter_map(|c| c.physics.as_deref()).collect();
+    physics.sort_unstable();
+    physics.dedup();
+    let visible_physics: BTreeMap<&str, f64> = physics
+        .par_iter()
+        .map(|toml| {
+            let with = template.with_merged(toml).map_err(scenario_error)?;
+            let changed = ScenarioModel::new(&with, "physics", None)?.traces(&[])?;
+            Ok((*toml, lin.visibility_of(library, &changed, o)?))
+        })
+        .collect::<Result<_, GapError>>()?;
     cases
         .par_iter()
         .map(|c| {
@@ -300,17 +473,23 @@ pub fn run(
                 c.edits.iter().map(|(k, v)| (k.as_str(), *v)).collect();
             let seed = c.seed as f64;
             edits.push(("simulation.seed", seed));
-            let measured_text = template
-                .with(&edits)
-                .map_err(|e| GapError::Model(e.to_string()))?;
+            let mut measured_text = template.with(&edits).map_err(scenario_error)?;
+            if let Some(toml) = &c.physics {
+                measured_text = Template::parse(&measured_text, &c.name)
+                    .and_then(|t| t.with_merged(toml))
+                    .map_err(scenario_error)?;
+            }
             let measured =
                 ScenarioModel::instrumented(&measured_text, &c.name, None)?.traces(&[])?;
             let split = Split::automatic(&measured)?;
             let hidden: Vec<&str> = c.hidden.iter().map(String::as_str).collect();
             let s = select_without(model, &lin, &measured, library, &hidden, split, o)?;
-            let visible = lin.visibility(library, &c.withheld_offsets, o)?;
+            let visible = match &c.physics {
+                Some(toml) => visible_physics.get(toml.as_str()).copied().unwrap_or(0.0),
+                None => lin.visibility(library, &c.withheld_offsets, o)?,
+            };
             progress();
-            Ok(Outcome::of(c, &s, o, visible))
+            Outcome::of(c, &s, o, visible, library, model)
         })
         .collect()
 }
@@ -336,13 +515,28 @@ pub struct Figures {
     pub pair_cases: usize,
     /// Median held-out shrink over the in-library cases (single and pairs).
     pub median_shrink: f64,
+    /// Withheld-physics cases whose right answer is a library effect, answered right
+    /// (attributed to it, or to an ambiguity set holding it), fraction.
+    pub physics_attributed: f64,
+    /// Such cases.
+    pub physics_library_cases: usize,
+    /// Withheld-physics cases outside the library left unexplained with the right "where",
+    /// fraction.
+    pub physics_unexplained: f64,
+    /// Such cases.
+    pub physics_outside_cases: usize,
+    /// Cases (of any kind) in which an effect was accepted with an implausible size.
+    pub implausible_accepted: usize,
+    /// Cases whose held-out figures are of the select data, the judge data being too few.
+    pub not_judged: usize,
     /// Confusion counts: withheld (or `null`, `outside`) → first found (or `none`).
     pub confusion: BTreeMap<String, BTreeMap<String, usize>>,
     /// The visibility floor, in the outcomes' unit (the selection's least effect).
     pub floor: f64,
-    /// Single-effect and out-of-library cases whose withheld offsets stand out by less than
-    /// the floor on the job ([`Outcome::visible`]): no analysis of these runs can see them,
-    /// so they are listed here and left out of the rates, the confusion and the shrink.
+    /// Single-effect, out-of-library and withheld-physics cases whose withheld effect stands
+    /// out by less than the floor on the job ([`Outcome::visible`]): no analysis of these runs
+    /// can see them, so they are listed here and left out of the rates, the confusion and the
+    /// shrink.
     pub below_floor: Vec<String>,
 }
 
@@ -369,9 +563,15 @@ pub fn figures(outcomes: &[Outcome], floor: f64) -> Figures {
     ) = (0, 0, 0, 0, 0, 0, 0, 0);
     let mut shrinks = Vec::new();
     let mut below_floor = Vec::new();
+    let (mut lib_cases, mut lib_right, mut out_cases, mut out_right) = (0, 0, 0, 0);
     for o in outcomes {
         let seen = o.visible >= floor;
-        if !seen && matches!(o.withheld, Withheld::One(_) | Withheld::Outside(_)) {
+        if !seen
+            && matches!(
+                o.withheld,
+                Withheld::One(_) | Withheld::Outside(_) | Withheld::Physics(..)
+            )
+        {
             below_floor.push(o.case.clone());
             continue;
         }
@@ -399,6 +599,18 @@ pub fn figures(outcomes: &[Outcome], floor: f64) -> Figures {
                 unexplained += usize::from(o.found.is_empty());
                 "outside".into()
             }
+            Withheld::Physics(effect, answer) => {
+                let right = usize::from(o.physics_right() == Some(true));
+                match answer {
+                    Answer::Library { .. } => {
+                        (lib_cases, lib_right) = (lib_cases + 1, lib_right + right)
+                    }
+                    Answer::Unexplained { .. } => {
+                        (out_cases, out_right) = (out_cases + 1, out_right + right)
+                    }
+                }
+                format!("physics: {effect}")
+            }
         };
         *confusion
             .entry(row)
@@ -417,6 +629,15 @@ pub fn figures(outcomes: &[Outcome], floor: f64) -> Figures {
         pairs_both_found: frac(both, pairs),
         pair_cases: pairs,
         median_shrink: shrinks.get(shrinks.len() / 2).copied().unwrap_or(f64::NAN),
+        physics_attributed: frac(lib_right, lib_cases),
+        physics_library_cases: lib_cases,
+        physics_unexplained: frac(out_right, out_cases),
+        physics_outside_cases: out_cases,
+        implausible_accepted: outcomes
+            .iter()
+            .filter(|o| !o.implausible_accepted.is_empty())
+            .count(),
+        not_judged: outcomes.iter().filter(|o| !o.judged).count(),
         confusion,
         floor,
         below_floor,

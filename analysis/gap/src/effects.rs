@@ -4,6 +4,13 @@
 //!
 //! The keys follow the scenario format of `scenarios/vmc500.toml`; a candidate whose keys the
 //! model file does not set is reported as unavailable rather than invented.
+//!
+//! Every parameter states the values a machine of the model's class (a vertical machining
+//! centre of about 500 mm travel with ball-screw drives and rolling guides) can have
+//! ([`Plausible`]): absolute bounds on the value the machine would then have (the model's
+//! value plus the offset), and, where the model sets a non-zero value, bounds relative to it;
+//! each with the catalogue, standard or physics it comes from. A fit outside them is not an
+//! explanation: the selection reports it as one that would need an implausible value.
 
 /// One free parameter of a candidate.
 #[derive(Clone, Debug, PartialEq)]
@@ -18,11 +25,106 @@ pub struct Param {
     /// simulator's round-off, small enough to stay linear.
     pub step: f64,
     /// A typical size on a real machine of the class, in `unit`: what `vmt gap-bench` injects
-    /// times 1, 2 and 3, chosen so that the smallest stands clear (about 0.2 µm RMS or more) of
-    /// the bench's nuisance on its 100 mm, 2000 mm/min test.
+    /// times 1, 2 and 3; three times it stays within [`Param::plausible`] (a bench that
+    /// injected what no machine has would test nothing), whether or not the smallest stands
+    /// clear of the bench's nuisance (the bench sets apart what its test cannot see).
     pub typical: f64,
     /// Whether only increases are physical (a backlash, a friction force above the model's).
     pub increase_only: bool,
+    /// The values a machine of the model's class can have.
+    pub plausible: Plausible,
+}
+
+/// The values a parameter can take on a machine of the model's class, and why.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Plausible {
+    /// Least and greatest value the machine can have (the model's value plus the offset), in
+    /// the parameter's unit.
+    pub absolute: (f64, f64),
+    /// Least and greatest value as multiples of the model's own value, where the model sets a
+    /// non-zero one (a friction force, a gain); `None` where only the absolute bounds mean
+    /// something (a gap, an offset, a bow).
+    pub relative: Option<(f64, f64)>,
+    /// The catalogue, standard or physics the bounds come from.
+    pub reason: &'static str,
+}
+
+/// Why a value is not plausible: what was fitted against what the class allows.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct Implausible {
+    /// The parameter.
+    pub name: String,
+    /// The value the machine would have, in `unit`.
+    pub value: f64,
+    /// The model's value, in `unit`.
+    pub model: f64,
+    /// Unit.
+    pub unit: String,
+    /// The plausible range of the value, in `unit` (the absolute and relative bounds together).
+    pub range: (f64, f64),
+    /// Why that range.
+    pub reason: String,
+}
+
+impl Plausible {
+    /// The range of values allowed for a parameter whose model value is `model`: the absolute
+    /// bounds, narrowed by the relative ones when the model's value is not zero.
+    pub fn range(&self, model: f64) -> (f64, f64) {
+        let (mut lo, mut hi) = self.absolute;
+        if let (Some((a, b)), true) = (self.relative, model != 0.0) {
+            let (r0, r1) = (a * model, b * model);
+            lo = lo.max(r0.min(r1));
+            hi = hi.min(r0.max(r1));
+        }
+        (lo, hi)
+    }
+}
+
+impl Param {
+    /// Whether the machine can have this parameter at the model's value `model` plus `offset`
+    /// (every key of the parameter shares the offset, each from its own model value); the
+    /// first key outside its range is named.
+    pub fn check(&self, models: &[f64], offset: f64) -> Result<(), Implausible> {
+        for (key, model) in self.keys.iter().zip(models) {
+            let value = model + offset;
+            let (lo, hi) = self.plausible.range(*model);
+            if !(lo..=hi).contains(&value) {
+                let name = match self.keys.len() {
+                    1 => self.name.clone(),
+                    _ => format!("{} (`{key}`)", self.name),
+                };
+                return Err(Implausible {
+                    name,
+                    value,
+                    model: *model,
+                    unit: self.unit.to_string(),
+                    range: (lo, hi),
+                    reason: self.plausible.reason.to_string(),
+                });
+            }
+        }
+        Ok(())
+    }
+}
+
+impl std::fmt::Display for Implausible {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let times = if self.model != 0.0 {
+            format!(
+                ", {:.1} x the model's {:.4} {}",
+                self.value / self.model,
+                self.model,
+                self.unit
+            )
+        } else {
+            String::new()
+        };
+        write!(
+            f,
+            "would need an implausible {} of {:.4} {}{times}; a machine of this class has {:.4} to {:.4} {} ({})",
+            self.name, self.value, self.unit, self.range.0, self.range.1, self.unit, self.reason
+        )
+    }
 }
 
 /// One candidate effect.
@@ -39,7 +141,13 @@ pub struct Effect {
     pub baseline: bool,
 }
 
-fn param(name: &str, unit: &'static str, keys: &[String], (step, typical): (f64, f64)) -> Param {
+fn param(
+    name: &str,
+    unit: &'static str,
+    keys: &[String],
+    (step, typical): (f64, f64),
+    plausible: Plausible,
+) -> Param {
     Param {
         name: name.into(),
         unit,
@@ -47,8 +155,110 @@ fn param(name: &str, unit: &'static str, keys: &[String], (step, typical): (f64,
         step,
         typical,
         increase_only: false,
+        plausible,
     }
 }
+
+/// A range of absolute values only.
+const fn absolute(lo: f64, hi: f64, reason: &'static str) -> Plausible {
+    Plausible {
+        absolute: (lo, hi),
+        relative: None,
+        reason,
+    }
+}
+
+/// Absolute bounds narrowed by bounds relative to the model's value.
+const fn relative(abs: (f64, f64), rel: (f64, f64), reason: &'static str) -> Plausible {
+    Plausible {
+        absolute: abs,
+        relative: Some(rel),
+        reason,
+    }
+}
+
+/// Drive backlash, µm.
+const BACKLASH: Plausible = absolute(
+    0.0,
+    25.0,
+    "lost motion of ball-screw drives: 0-5 um with a preloaded nut, 10-25 um worn \
+     (reversal values of ISO 230-2 tests of machining centres)",
+);
+/// Coulomb (and with it static) friction of the guides, N.
+const GUIDE_FRICTION: Plausible = relative(
+    (5.0, 400.0),
+    (0.25, 4.0),
+    "rolling guides: 0.002-0.005 of the carried load plus 2-15 N of seal drag per block \
+     (THK, Bosch Rexroth catalogues), 20-100 N for carriages of this class; preload class, \
+     lubrication and wipers change it by up to 4 times either way",
+);
+/// Static friction of the guides, N.
+const STATIC_FRICTION: Plausible = relative(
+    (5.0, 500.0),
+    (0.5, 2.5),
+    "static friction exceeds the sliding level by 10-30 % on rolling guides and by up to \
+     100 % on lubricated sliding ones (Armstrong-Helouvry, Dupont & Canudas de Wit, \
+     Automatica 30(7), 1994): up to 2.5 times the model's static level",
+);
+/// Lateral play (backward offset), µm.
+const LATERAL_PLAY: Plausible = absolute(
+    -10.0,
+    10.0,
+    "lateral play of preloaded rolling guides is below 1-2 um; 10 um is a loose or worn guide",
+);
+/// Cosine or sine part of a screw's periodic lead error, µm.
+const CYCLIC: Plausible = absolute(
+    -8.0,
+    8.0,
+    "periodic lead error v_2pi of ball screws: 3-8 um for ISO 3408-3 classes 3 to 7",
+);
+/// Legendre c2 of a straightness, µm.
+const STRAIGHTNESS: Plausible = absolute(
+    -15.0,
+    15.0,
+    "straightness of machining-centre axes: ISO 10791-2 tolerances of 10-20 um over 500 mm \
+     (the bow's sagitta is 1.5 c2)",
+);
+/// Legendre c1 of a linear positioning error (half its change over the stroke), µm.
+const SCALE: Plausible = absolute(
+    -25.0,
+    25.0,
+    "linear positioning error of uncompensated ball-screw axes: up to 50 um over 500 mm \
+     (about 100 ppm: lead tolerance and a few K of screw warming at 11.5 ppm/K)",
+);
+/// Position-loop gain, 1/s.
+const SERVO_GAIN: Plausible = relative(
+    (5.0, 200.0),
+    (0.85, 1.15),
+    "position-loop gains of interpolating axes are matched at commissioning to within a few \
+     per cent; 15 % (about 5 ms of lag at Kv = 33/s) is a gross error",
+);
+/// Squareness, µrad.
+const SQUARENESS: Plausible = absolute(
+    -100.0,
+    100.0,
+    "squareness of machining-centre axes: ISO 10791-2 tolerances of 20 um over 500 mm \
+     (40 urad); 100 urad is a crashed or badly rebuilt machine",
+);
+/// Start temperature of the spindle head, °C.
+const SPINDLE_START: Plausible = absolute(
+    10.0,
+    60.0,
+    "a spindle head runs 5-30 K above the shop's 20 degC (ISO 230-3 warm-up tests), 40 K \
+     after hard running",
+);
+/// The bar's set-up offset, µm.
+const PIVOT_OFFSET: Plausible = absolute(
+    -1000.0,
+    1000.0,
+    "a ball bar's measuring range: a pivot set further off cannot be read",
+);
+/// The bar's temperature, °C.
+const BAR_TEMPERATURE: Plausible = absolute(
+    5.0,
+    40.0,
+    "a bar in a workshop; the standard asks for 20 degC and a stated temperature",
+);
 
 /// A parameter that can only grow (a negative gap or friction force is not physical).
 fn growing(p: Param) -> Param {
@@ -82,6 +292,7 @@ pub fn library(p: char, q: char) -> Vec<Effect> {
                 "um",
                 &[format!("{axis}.drive.backlash_um")],
                 (1.0, 2.0),
+                BACKLASH,
             ))],
         ));
         out.push(effect(
@@ -96,7 +307,10 @@ pub fn library(p: char, q: char) -> Vec<Effect> {
                     format!("{axis}.drive.guide_friction.coulomb_n"),
                     format!("{axis}.drive.guide_friction.static_n"),
                 ],
-                (20.0, 80.0),
+                // 40 N: a preload class or a lubrication state apart (3 x 40 N on 50 N is
+                // 3.4 times the model's force, within the class's range).
+                (20.0, 40.0),
+                GUIDE_FRICTION,
             ))],
         ));
         out.push(effect(
@@ -106,7 +320,9 @@ pub fn library(p: char, q: char) -> Vec<Effect> {
                 &format!("static force {up}"),
                 "N",
                 &[format!("{axis}.drive.guide_friction.static_n")],
-                (50.0, 250.0),
+                // 25 N: a static level 80 % over the sliding one (90 N on 50 N on X).
+                (20.0, 25.0),
+                STATIC_FRICTION,
             ))],
         ));
         let other = if a == p { q } else { p }.to_ascii_uppercase();
@@ -118,6 +334,7 @@ pub fn library(p: char, q: char) -> Vec<Effect> {
                 "um",
                 &[format!("{errors}.backward.E{other}{up}_um[0]")],
                 (1.0, 1.5),
+                LATERAL_PLAY,
             )],
         ));
         out.push(effect(
@@ -134,6 +351,7 @@ pub fn library(p: char, q: char) -> Vec<Effect> {
                         // Both parts at 0.7 µm: an amplitude of 1 µm (ISO 3408-3 v2π of
                         // 1-6 µm by accuracy class).
                         (0.5, 0.7),
+                        CYCLIC,
                     )
                 })
                 .collect(),
@@ -145,7 +363,9 @@ pub fn library(p: char, q: char) -> Vec<Effect> {
                 &format!("E{other}{up} c2"),
                 "um",
                 &[format!("{errors}.forward.E{other}{up}_um[2]")],
-                (2.0, 6.0),
+                // 4 um of c2: a 6 um bow over the stroke.
+                (2.0, 4.0),
+                STRAIGHTNESS,
             )],
         ));
     }
@@ -166,6 +386,7 @@ pub fn library(p: char, q: char) -> Vec<Effect> {
                 format!("{e}.backward.E{pu}{pu}_um[1]"),
             ],
             (2.0, 3.0),
+            SCALE,
         )],
     ));
     out.push(effect(
@@ -177,6 +398,7 @@ pub fn library(p: char, q: char) -> Vec<Effect> {
             &[format!("machine.axes.{p}.servo.kv_per_s")],
             // 0.1/s at Kv = 33/s is a lag change of ΔKv/Kv² ≈ 0.09 ms.
             (0.1, 0.1),
+            SERVO_GAIN,
         )],
     ));
     out.push(effect(
@@ -187,6 +409,7 @@ pub fn library(p: char, q: char) -> Vec<Effect> {
             "urad",
             &[squareness_key(p, q)],
             (10.0, 15.0),
+            SQUARENESS,
         )],
     ));
     out.push(Effect {
@@ -205,6 +428,7 @@ pub fn library(p: char, q: char) -> Vec<Effect> {
                             axis_index(a)
                         )],
                         (5.0, 8.0),
+                        PIVOT_OFFSET,
                     )
                 })
                 .collect(),
@@ -222,6 +446,7 @@ pub fn library(p: char, q: char) -> Vec<Effect> {
                 "K",
                 &["instruments.ballbar.bar_temperature_c".to_string()],
                 (1.0, 1.5),
+                BAR_TEMPERATURE,
             )],
         )
     });
@@ -271,14 +496,16 @@ pub fn thermal_drift(node: usize) -> Effect {
     effect(
         "thermal_drift",
         "thermal drift: the spindle head starts warm and cools during the runs",
-        vec![param(
+        // A head starts warm from running; colder than the shop it does not start.
+        vec![growing(param(
             "spindle head start excess",
             "K",
             &[format!("machine.thermal.nodes[{node}].initial_c")],
             // 8 K: the spindle node's steady excess after running at 8000 rpm on the built-in
             // machine (144 W over 18 W/K).
             (2.0, 8.0),
-        )],
+            SPINDLE_START,
+        ))],
     )
 }
 

@@ -25,6 +25,9 @@
 //!   (`E[c_i (Aᵀy)_i] = σ² ((AᵀA)⁻¹AᵀA)_ii`, c the coefficients, A the columns);
 //! - **time**: the straight-line trend of each run in time (drift) and the rest.
 //!
+//! - **peaks**: the angles where the residual concentrates within a few degrees, with their
+//!   width, share and the axis positions they correspond to ([`crate::peaks`]).
+//!
 //! Beside each share stands the share the same place would hold if the residual were spread
 //! evenly (white noise): the fraction of samples for angles, one half for direction, `2/n` per
 //! harmonic order (`1/n` for order 0), `1/n`·(fit size) for a trend. Their ratio is the place's
@@ -32,6 +35,7 @@
 //! the gap sits.
 
 use crate::align::{GapError, TracePair};
+use crate::peaks::{AxisPlace, Circle, Peak, axis_places, peaks};
 use crate::whiteness::{Whiteness, ljung_box};
 use nalgebra::{DMatrix, DVector};
 use vmt_ballbar::Sense;
@@ -51,6 +55,8 @@ pub struct Options {
     pub min_share: f64,
     /// …and its concentration at least this.
     pub min_concentration: f64,
+    /// Least RMS of a peak of the high-passed residual, µm ([`crate::peaks`]).
+    pub min_peak_um: f64,
 }
 
 impl Default for Options {
@@ -62,6 +68,7 @@ impl Default for Options {
             whiteness_bin_deg: 1.0,
             min_share: 0.15,
             min_concentration: 1.6,
+            min_peak_um: 0.15,
         }
     }
 }
@@ -112,11 +119,25 @@ pub struct Localisation {
     pub concentrations: Vec<Place>,
     /// Whiteness of what is left after the harmonic fit (full circles) or the trend (arcs).
     pub whiteness: Option<Whiteness>,
+    /// The angles where the residual concentrates within a few degrees, largest share first.
+    pub peaks: Vec<Peak>,
+    /// Places on an axis the circle passes twice with a peak at both passes.
+    pub axis_places: Vec<AxisPlace>,
 }
 
 impl Localisation {
-    /// Localises the residual of `pairs`.
+    /// Localises the residual of `pairs` (peaks without axis positions).
     pub fn of(pairs: &[TracePair], o: &Options) -> Result<Self, GapError> {
+        Self::on_circles(pairs, &[], o)
+    }
+
+    /// Localises the residual of `pairs` whose circles (per pair, in axis coordinates) are
+    /// `circles`: the peaks are also given as axis positions.
+    pub fn on_circles(
+        pairs: &[TracePair],
+        circles: &[Option<Circle>],
+        o: &Options,
+    ) -> Result<Self, GapError> {
         if pairs.is_empty() {
             return Err(GapError::Empty);
         }
@@ -158,7 +179,11 @@ impl Localisation {
         .cloned()
         .collect();
         concentrations.sort_by(|a, b| b.share.total_cmp(&a.share));
+        let peaks = peaks(pairs, circles, o.min_peak_um);
+        let axis_places = axis_places(&peaks, pairs, circles);
         Ok(Self {
+            peaks,
+            axis_places,
             rms_um: (total / pairs.len() as f64).sqrt(),
             by_run,
             by_quadrant,

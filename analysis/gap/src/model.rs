@@ -13,6 +13,7 @@
 
 use crate::align::GapError;
 use crate::effects::{Effect, library_for, thermal_drift};
+use crate::peaks::Circle;
 use std::path::PathBuf;
 use std::sync::OnceLock;
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -56,6 +57,8 @@ pub struct ScenarioModel {
     /// Per axis X, Y, Z under a motor encoder: the screw's lead and periodic lead error
     /// `[e_c, e_s]` as given, m (for [`vmt_sim::replay::replay_lead_error`]).
     leads: [Option<(f64, [f64; 2])>; 3],
+    /// The tool's circle of each trace of the job, in axis coordinates.
+    circles: Vec<Circle>,
 }
 
 /// Key prefixes whose values change what the bar reads but not the motion.
@@ -83,6 +86,16 @@ impl ScenarioModel {
         Self::instrumented(&quiet, file, base_dir)
     }
 
+    /// The same model with its `[job]` replaced by `job` (the table's body, TOML): another
+    /// test the machine could run.
+    pub fn for_job(&self, job: &str) -> Result<Self, GapError> {
+        let text = self
+            .template
+            .with_table("job", job)
+            .map_err(|e| GapError::Model(e.to_string()))?;
+        Self::instrumented(&text, &self.file, self.base_dir.clone())
+    }
+
     /// How many evaluations were replays of the recorded motion rather than simulations.
     pub fn replays(&self) -> usize {
         self.replays.load(Ordering::Relaxed)
@@ -104,10 +117,25 @@ impl ScenarioModel {
             replays: AtomicUsize::new(0),
             spindle_node: None,
             leads: [None; 3],
+            circles: Vec::new(),
         };
         // Parse once now, so a bad model is refused before any fitting.
         let s = model.scenario(text)?;
         if let Some(exec) = &s.execution {
+            let offset = s.machine.volumetric.kinematics.tool_offset;
+            model.circles = exec
+                .job
+                .ballbar
+                .iter()
+                .flat_map(|b| {
+                    let (centre, radius) = b.tool_circle();
+                    let c = (centre - offset) * 1e3;
+                    b.data.iter().map(move |_| Circle {
+                        centre_mm: [c.x, c.y, c.z],
+                        radius_mm: radius * 1e3,
+                    })
+                })
+                .collect();
             model.leads = std::array::from_fn(|i| {
                 let d = &exec.axes[i].drive;
                 (d.feedback == Feedback::MotorEncoder).then_some((d.screw.lead_m, d.screw.cyclic_m))
@@ -120,6 +148,12 @@ impl ScenarioModel {
             })
         });
         Ok(model)
+    }
+
+    /// The tool's circle of each trace the job records, in the order of the traces, in axis
+    /// coordinates (the tool point less the tool offset).
+    pub fn circles(&self) -> &[Circle] {
+        &self.circles
     }
 
     /// The candidate library for tests in `planes` ([`library_for`]), with the thermal drift

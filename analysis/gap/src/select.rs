@@ -1,54 +1,86 @@
-//! Which unmodelled effect explains the gap, and how much adding it buys.
+//! Which unmodelled effect explains the gap, how much adding it buys, and which others would
+//! explain it as well.
 //!
-//! The measured traces are split into calibration and held-out runs ([`Split`]). Every free
-//! parameter `β_p` of every available candidate gets its sensitivity by a finite difference
-//! through the simulator, `J_p = (m(β₀ + h_p e_p) − m(β₀)) / h_p`, where `m` is the model's
-//! deviation at the measured angles averaged into bins (1° by default). Effects are then added
-//! by forward selection:
+//! The measured runs' residual bins (1° of the angle by default) are dealt out between fit,
+//! select and judge ([`crate::split`]). Every free parameter `β_p` of every available
+//! candidate gets its sensitivity by a finite difference through the simulator,
+//! `J_p = (m(β₀ + h_p e_p) − m(β₀)) / h_p`, where `m` is the model's deviation at the measured
+//! angles averaged into the bins. Effects are then added by forward selection:
 //!
 //! 1. for each candidate `c` not yet chosen, the parameters of the chosen effects and of `c`
-//!    are fitted jointly to the calibration residual, `min ‖r_cal − J_cal β‖²` (Gauss–Newton
-//!    step from the model as given, the effects being near-linear at the micrometre level), and
-//!    scored on the held-out residual the linear model predicts;
-//! 2. the candidate with the smallest predicted held-out residual among those that lower the
-//!    calibration BIC `n ln(RSS/n) + k ln n` by at least [`Options::min_bic_drop`] is simulated
-//!    with its fitted values (the nonlinear check) and accepted when the simulated BIC drops by
-//!    at least [`Options::min_bic_drop`] and the held-out mean square shrinks by at least
-//!    [`Options::min_held_out_shrink`] of what is left;
-//! 3. one more Gauss–Newton step from the simulated residual refines the values.
+//!    (with the bar's set-up, the baseline) are fitted jointly to the fit bins,
+//!    `min ‖r_fit − J_fit β‖²` (Gauss–Newton step from the model as given, the effects being
+//!    near-linear at the micrometre level), and scored on the select bins by the residual the
+//!    linear model predicts there;
+//! 2. the candidates that lower the fit bins' BIC `n ln(RSS/n) + k ln n` by at least
+//!    [`Options::min_bic_drop`] are taken in the order of their predicted select residual. One
+//!    whose fitted values a machine of the model's class cannot have
+//!    ([`crate::effects::Plausible`]) is set aside as implausible, before or after its
+//!    simulation; the first plausible one is simulated at its values, refined by one more
+//!    Gauss–Newton step on the fit bins, and accepted when its simulated fit BIC drops by at
+//!    least [`Options::min_bic_drop`], the select bins' mean square shrinks by at least
+//!    [`Options::min_select_shrink`] of what is left and changes by at least
+//!    [`Options::min_effect_um`] RMS.
 //!
-//! Selection does not start when the held-out gap is already at [`Options::explained_floor_um`]
-//! and stops when no candidate passes; what is left is reported as unexplained.
+//! Selection does not start when the select bins' gap is already at
+//! [`Options::explained_floor_um`], and stops when no candidate passes. Then the judge bins,
+//! untouched so far, give the held-out figures: the RMS of the model as given (its set-up
+//! fitted) and with the chosen effects, both simulated. The gap counts as explained when the
+//! chosen effects explain it on the select bins and the judge bins confirm it; with too few
+//! judge bins no untouched figure is given ([`Judged`]).
+//!
+//! Ambiguity is an answer too. For each chosen effect, every other candidate and pair of
+//! candidates is fitted in its place (the other chosen effects kept) on the fit bins, and its
+//! residual on the judge bins compared with the chosen one's by a paired test over the judge
+//! segments: `d_s` = the segment's mean square with the rival less with the chosen effect,
+//! `t = mean(d) / (sd(d)/√S)` against Student's t with S − 1 degrees of freedom. A rival
+//! that would itself explain the gap on the judge bins (the same floor and fraction as the
+//! chosen effects) and is not worse at level [`Options::ambiguity_level`] by the linearised
+//! prediction is simulated (the most promising [`MAX_RIVALS_SIMULATED`]) and tested again on
+//! its simulated residual; what passes both is an equally good explanation, reported with the
+//! size it would need. A pair holding an effect that is as good alone is not listed. A rival
+//! whose size is implausible is reported as such and is not an explanation.
 
 use crate::align::{GapError, TracePair};
-use crate::effects::Effect;
+use crate::effects::{Effect, Implausible, Param};
 use crate::model::Forward;
+use crate::split::{Role, Rows, Split};
 use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
+use statrs::distribution::{ContinuousCDF, StudentsT};
 use std::sync::OnceLock;
 use vmt_ballbar::Trace;
+
+/// Rivals of a chosen effect simulated to confirm an ambiguity, at most.
+pub const MAX_RIVALS_SIMULATED: usize = 3;
 
 /// Settings of the selection.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Options {
     /// Bin width of the residual vectors, deg.
     pub bin_deg: f64,
-    /// Least drop of the calibration BIC for an effect to be added.
+    /// Least drop of the fit bins' BIC for an effect to be added.
     pub min_bic_drop: f64,
-    /// Least shrink of the held-out mean square, as a fraction of what is left.
-    pub min_held_out_shrink: f64,
+    /// Least shrink of the select bins' mean square, as a fraction of what is left.
+    pub min_select_shrink: f64,
     /// Most effects added.
     pub max_effects: usize,
-    /// Least RMS change an effect must make to the held-out residual, µm: above the ball
+    /// Least RMS change an effect must make to the select bins' residual, µm: above the ball
     /// bar's resolution (0.1 µm) and the level at which a model's other small mismatches
     /// (the bench's nuisance) already change the residual.
     pub min_effect_um: f64,
-    /// The gap counts as explained when what the chosen effects leave on the held-out runs
-    /// is at most this RMS, µm (the level of a model's other small mismatches)…
+    /// The gap counts as explained when what the chosen effects leave is at most this RMS, µm
+    /// (the level of a model's other small mismatches)…
     pub explained_floor_um: f64,
-    /// …or at most this fraction of the gap's RMS before them. Otherwise the chosen effects
-    /// are reported as partial candidates and the gap as unexplained.
+    /// …or at most this fraction of the gap's RMS before them (2 % of its mean square): an
+    /// effect of the library that is the gap's cause, fitted at its size, leaves its
+    /// nonlinearity and the other small mismatches, a few per cent of its signature; a rival
+    /// that only resembles it leaves the difference of their shapes (a bow's curvature where
+    /// a squareness is straight). Otherwise the chosen effects are reported as partial
+    /// candidates and the gap as unexplained.
     pub explained_fraction: f64,
+    /// Significance level of the paired test that calls a rival worse than the chosen effect.
+    pub ambiguity_level: f64,
 }
 
 impl Default for Options {
@@ -56,63 +88,13 @@ impl Default for Options {
         Self {
             bin_deg: 1.0,
             min_bic_drop: 10.0,
-            min_held_out_shrink: 0.3,
+            min_select_shrink: 0.3,
             max_effects: 4,
             min_effect_um: 0.15,
             explained_floor_um: 0.2,
-            explained_fraction: 0.25,
+            explained_fraction: 0.15,
+            ambiguity_level: 0.05,
         }
-    }
-}
-
-/// Which measured traces fit the effects and which judge them (indices into the measured list).
-#[derive(Clone, Debug, PartialEq)]
-pub struct Split {
-    /// Calibration traces.
-    pub calibration: Vec<usize>,
-    /// Held-out traces.
-    pub held_out: Vec<usize>,
-    /// How the split was made, for the report.
-    pub rule: String,
-}
-
-impl Split {
-    /// With several tests (plane, radius, feed), every other test is held out; with one test
-    /// of two directions, CW fits and CCW judges.
-    pub fn automatic(measured: &[Trace]) -> Result<Self, GapError> {
-        let mut tests: Vec<(String, f64, f64)> = Vec::new();
-        let test_of: Vec<usize> = measured
-            .iter()
-            .map(|t| {
-                let key = (t.plane.to_string(), t.radius_mm, t.feed_mm_min);
-                tests.iter().position(|k| *k == key).unwrap_or_else(|| {
-                    tests.push(key);
-                    tests.len() - 1
-                })
-            })
-            .collect();
-        let (calibration, held_out, rule): (Vec<usize>, Vec<usize>, String) = if tests.len() >= 2 {
-            let (c, h) = (0..measured.len()).partition(|i| test_of[*i].is_multiple_of(2));
-            (
-                c,
-                h,
-                "every other test (plane, radius, feed) held out".into(),
-            )
-        } else {
-            let (c, h) =
-                (0..measured.len()).partition(|i| measured[*i].sense == vmt_ballbar::Sense::Cw);
-            (c, h, "CW fits, CCW judges".into())
-        };
-        if calibration.is_empty() || held_out.is_empty() {
-            return Err(GapError::Model(
-                "the gap analysis needs runs to fit and other runs to judge: give two directions or two tests".into(),
-            ));
-        }
-        Ok(Self {
-            calibration,
-            held_out,
-            rule,
-        })
     }
 }
 
@@ -135,14 +117,16 @@ pub struct Step {
     /// What it is.
     pub description: String,
     /// Its parameters' offsets, with those of the effects before it refitted (the baseline's
-    /// are left out).
+    /// are left out), fitted on the fit bins.
     pub values: Vec<Fitted>,
-    /// RMS of the calibration residual after it, µm.
-    pub calibration_rms_um: f64,
-    /// RMS of the held-out residual after it, µm.
-    pub held_out_rms_um: f64,
-    /// Shrink of the held-out mean square from before this effect, fraction.
-    pub held_out_shrink: f64,
+    /// RMS of the fit bins after it, µm.
+    pub fit_rms_um: f64,
+    /// RMS of the select bins after it, µm.
+    pub select_rms_um: f64,
+    /// Shrink of the select bins' mean square from before this effect, fraction.
+    pub select_shrink: f64,
+    /// RMS of the judge bins after it, µm, when they are enough to judge.
+    pub judge_rms_um: Option<f64>,
 }
 
 /// A candidate's score in the last round, for the report.
@@ -150,25 +134,93 @@ pub struct Step {
 pub struct Score {
     /// Effect key.
     pub effect: String,
-    /// Predicted held-out RMS with it, µm.
-    pub held_out_rms_um: f64,
-    /// Predicted change of the calibration BIC.
+    /// Predicted RMS of the select bins with it, µm.
+    pub select_rms_um: f64,
+    /// Predicted change of the fit bins' BIC.
     pub bic_change: f64,
+}
+
+/// A candidate set aside because a machine of the model's class cannot have its fitted size.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct Rejected {
+    /// Effect key.
+    pub effect: String,
+    /// The value it would need.
+    pub implausible: Implausible,
+}
+
+/// The untouched judgement: the judge bins' RMS before and after the chosen effects.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub struct Judged {
+    /// Judge bins used.
+    pub bins: usize,
+    /// Judge segments of at least half a segment.
+    pub segments: usize,
+    /// RMS of the model as given (set-up fitted on the fit bins), µm.
+    pub before_um: f64,
+    /// RMS with the chosen effects, µm.
+    pub after_um: f64,
+}
+
+impl Judged {
+    /// The fraction of the judge bins' mean square the chosen effects remove.
+    pub fn shrink(&self) -> f64 {
+        1.0 - (self.after_um / self.before_um).powi(2)
+    }
+}
+
+/// An explanation as good as a chosen effect on the data that judge it.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct Alternative {
+    /// The chosen effect it could stand in for.
+    pub instead_of: String,
+    /// Its effects: one, or a pair.
+    pub effects: Vec<String>,
+    /// The sizes it would need (its own parameters), fitted on the fit bins.
+    pub values: Vec<Fitted>,
+    /// RMS of the judging bins with it, µm (simulated, or the linear prediction when
+    /// implausible).
+    pub rms_um: f64,
+    /// RMS of the judging bins with the chosen effect, on the same footing, µm.
+    pub chosen_rms_um: f64,
+    /// Paired t statistic of its mean-square excess over the chosen effect's, per judging
+    /// segment (positive: worse).
+    pub t: f64,
+    /// One-sided p-value of that excess: above [`Options::ambiguity_level`] it is not worse.
+    pub p_value: f64,
+    /// When a size it needs is beyond what the machine's class can have: it is then no
+    /// explanation, only a fit.
+    pub implausible: Option<Implausible>,
+    /// The values the explanation writes into the model (absolute, by key): its own and the
+    /// other chosen effects', refitted with it.
+    pub edits: Vec<(String, f64)>,
 }
 
 /// The outcome of the selection.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Selection {
-    /// The split used.
+    /// The protocol used.
     pub split: Split,
-    /// Held-out RMS of the model as given (with the baseline fitted), µm.
-    pub held_out_before_um: f64,
-    /// Calibration RMS of the model as given (with the baseline fitted), µm.
-    pub calibration_before_um: f64,
+    /// Bins that fit, select and judge.
+    pub bins: [usize; 3],
+    /// RMS of the fit bins of the model as given (with the baseline fitted), µm.
+    pub fit_before_um: f64,
+    /// RMS of the select bins of the model as given (with the baseline fitted), µm.
+    pub select_before_um: f64,
+    /// The untouched judgement, when the judge bins are enough.
+    pub judged: Option<Judged>,
     /// The baseline parameters (the bar's set-up), fitted before any effect and with each.
     pub baseline: Vec<Fitted>,
     /// The effects added, in order.
     pub steps: Vec<Step>,
+    /// Candidates set aside as implausible, in the order they were tried.
+    pub rejected: Vec<Rejected>,
+    /// Explanations as good as a chosen one on the judging bins (plausible or not; see
+    /// [`Alternative::implausible`]).
+    pub alternatives: Vec<Alternative>,
+    /// Which bins judged the alternatives: `judge`, or `select` when the judge bins are too
+    /// few.
+    pub alternatives_judged_on: &'static str,
     /// Candidates the model file cannot express (effect, missing key).
     pub unavailable: Vec<(String, String)>,
     /// Scores of the round that stopped the selection.
@@ -177,37 +229,45 @@ pub struct Selection {
     pub final_pairs: Vec<TracePair>,
     /// The model's residuals before any effect (with the baseline fitted).
     pub initial_pairs: Vec<TracePair>,
+    /// The final values of every chosen effect's keys (absolute, as written into the model).
+    pub final_values: Vec<(String, f64)>,
     /// Simulations run for the selection (besides the linearisation's).
     pub simulations: usize,
 }
 
 impl Selection {
-    /// Held-out RMS after the chosen effects, µm.
-    pub fn held_out_after_um(&self) -> f64 {
+    /// RMS of the select bins after the chosen effects, µm.
+    pub fn select_after_um(&self) -> f64 {
         self.steps
             .last()
-            .map_or(self.held_out_before_um, |s| s.held_out_rms_um)
+            .map_or(self.select_before_um, |s| s.select_rms_um)
     }
 
-    /// Whether the chosen effects explain the gap ([`Options::explained_floor_um`],
-    /// [`Options::explained_fraction`]); a gap with no effect chosen is not explained.
+    /// Whether the chosen effects explain the gap: on the select bins
+    /// ([`Options::explained_floor_um`], [`Options::explained_fraction`]) and, when they are
+    /// enough to judge, on the untouched judge bins too. A gap with no effect chosen is not
+    /// explained.
     pub fn explained(&self, o: &Options) -> bool {
+        let by = |before: f64, after: f64| {
+            explained(before, after, o.explained_floor_um, o.explained_fraction)
+        };
         !self.steps.is_empty()
-            && explained(
-                self.held_out_before_um,
-                self.held_out_after_um(),
-                o.explained_floor_um,
-                o.explained_fraction,
-            )
+            && by(self.select_before_um, self.select_after_um())
+            && self.judged.is_none_or(|j| by(j.before_um, j.after_um))
     }
 
-    /// The fraction of the held-out mean square removed by all the effects.
-    pub fn held_out_shrink(&self) -> f64 {
-        let after = self
-            .steps
-            .last()
-            .map_or(self.held_out_before_um, |s| s.held_out_rms_um);
-        1.0 - (after / self.held_out_before_um).powi(2)
+    /// The untouched held-out shrink: the fraction of the judge bins' mean square removed by
+    /// the chosen effects, when the judge bins are enough.
+    pub fn judge_shrink(&self) -> Option<f64> {
+        self.judged.map(|j| j.shrink())
+    }
+
+    /// The plausible alternatives to the chosen effect `key`: the ambiguity set beside it.
+    pub fn equally_good(&self, key: &str) -> Vec<&Alternative> {
+        self.alternatives
+            .iter()
+            .filter(|a| a.instead_of == key && a.implausible.is_none())
+            .collect()
     }
 }
 
@@ -215,10 +275,15 @@ impl Selection {
 #[derive(Clone)]
 struct Available {
     effect: usize,
-    name: String,
-    unit: &'static str,
+    param: Param,
+    /// The keys with the model's values.
     keys: Vec<(String, f64)>,
-    step: f64,
+}
+
+impl Available {
+    fn models(&self) -> Vec<f64> {
+        self.keys.iter().map(|(_, v)| *v).collect()
+    }
 }
 
 /// The simulated traces matched to the measured ones, aligned and binned.
@@ -235,18 +300,44 @@ fn residuals(
     bin_deg: f64,
     grid: Option<&Grid>,
 ) -> Result<(Vec<TracePair>, Vec<Vec<f64>>), GapError> {
+    let pairs = pair_up(measured, simulated)?;
+    let bins = match grid {
+        None => pairs.iter().map(|p| values(&bin(p, bin_deg))).collect(),
+        Some(g) => pairs
+            .iter()
+            .zip(g)
+            .map(|(p, reference)| on_grid(p, bin_deg, reference))
+            .collect(),
+    };
+    Ok((pairs, bins))
+}
+
+/// Each measured trace aligned with the simulated trace of the same test (see [`residuals`]).
+fn pair_up(measured: &[Trace], simulated: &[Trace]) -> Result<Vec<TracePair>, GapError> {
+    partners(measured, simulated)?
+        .into_iter()
+        .zip(measured)
+        .map(|(s, m)| TracePair::align(m, &simulated[s]))
+        .collect()
+}
+
+/// For each measured trace, the index of the simulated trace of the same test it pairs with:
+/// the k-th measured trace of a (plane, direction, radius, feed) with the k-th simulated one.
+pub fn partners(measured: &[Trace], simulated: &[Trace]) -> Result<Vec<usize>, GapError> {
     let same = |s: &Trace, m: &Trace| {
         s.plane == m.plane
             && s.sense == m.sense
             && (s.radius_mm - m.radius_mm).abs() <= 1e-6 * s.radius_mm
             && (s.feed_mm_min - m.feed_mm_min).abs() <= 1e-3 * s.feed_mm_min
     };
-    let mut pairs = Vec::with_capacity(measured.len());
+    let mut out = Vec::with_capacity(measured.len());
     for (i, m) in measured.iter().enumerate() {
         let k = measured[..i].iter().filter(|x| same(x, m)).count();
-        let in_job: Vec<&Trace> = simulated.iter().filter(|s| same(s, m)).collect();
+        let in_job: Vec<usize> = (0..simulated.len())
+            .filter(|s| same(&simulated[*s], m))
+            .collect();
         let s = match in_job.get(k) {
-            Some(s) => s,
+            Some(s) => *s,
             None if in_job.is_empty() => return Err(not_in_job(m, simulated)),
             None => {
                 return Err(GapError::MoreThanInJob {
@@ -257,17 +348,9 @@ fn residuals(
                 });
             }
         };
-        pairs.push(TracePair::align(m, s)?);
+        out.push(s);
     }
-    let bins = match grid {
-        None => pairs.iter().map(|p| values(&bin(p, bin_deg))).collect(),
-        Some(g) => pairs
-            .iter()
-            .zip(g)
-            .map(|(p, reference)| on_grid(p, bin_deg, reference))
-            .collect(),
-    };
-    Ok((pairs, bins))
+    Ok(out)
 }
 
 /// A test as `XY 150 mm 1000 mm/min cw`.
@@ -295,6 +378,10 @@ fn not_in_job(m: &Trace, simulated: &[Trace]) -> GapError {
 
 /// Per measured trace, the keyed bins (angle bin index, mean residual µm) of the model as given.
 type Grid = Vec<Vec<(i64, f64)>>;
+
+/// Per trace, per bin: a change of the model's deviation on the own job's grid, µm, made from
+/// the per-parameter sensitivities and the grid.
+type Signature<'a> = &'a dyn Fn(&[Vec<Vec<f64>>], &Grid) -> Vec<Vec<f64>>;
 
 /// Residual averaged into bins of the measured angle, in the run's order, each with its key
 /// ⌊angle/width⌋ (the aligned angle is monotone along a run, so keys do not repeat).
@@ -333,12 +420,13 @@ fn on_grid(p: &TracePair, width: f64, reference: &[(i64, f64)]) -> Vec<f64> {
         .collect()
 }
 
-fn stack(bins: &[Vec<f64>], rows: &[usize]) -> Vec<f64> {
-    rows.iter().flat_map(|i| bins[*i].iter().copied()).collect()
+/// The values of `bins` (per trace) at `rows` ((trace, bin) pairs), in order.
+fn stack(bins: &[Vec<f64>], rows: &[(usize, usize)]) -> Vec<f64> {
+    rows.iter().map(|(t, b)| bins[*t][*b]).collect()
 }
 
-/// Whether a gap of held-out RMS `before` left at `after` counts as explained: at most `floor`,
-/// or at most `fraction` of `before` (either unit).
+/// Whether a gap of RMS `before` left at `after` counts as explained: at most `floor`, or at
+/// most `fraction` of `before` (either unit).
 pub(crate) fn explained(before: f64, after: f64, floor: f64, fraction: f64) -> bool {
     after <= floor || after <= fraction * before
 }
@@ -347,13 +435,17 @@ pub(crate) fn rss(v: &[f64]) -> f64 {
     v.iter().map(|x| x * x).sum()
 }
 
+fn rms(v: &[f64]) -> f64 {
+    (rss(v) / v.len().max(1) as f64).sqrt()
+}
+
 /// The Bayesian information criterion of a least-squares fit: `n ln(RSS/n) + k ln n`.
 pub(crate) fn bic(rss: f64, n: usize, k: usize) -> f64 {
     let n_f = n as f64;
     n_f * (rss / n_f).max(1e-300).ln() + k as f64 * n_f.ln()
 }
 
-/// Least squares `min ‖y − A β‖²` by QR-free normal equations with a tiny ridge for safety.
+/// Least squares `min ‖y − A β‖²` by normal equations with a tiny ridge for safety.
 fn solve(columns: &[&[f64]], y: &[f64]) -> Option<Vec<f64>> {
     let k = columns.len();
     let ata = DMatrix::from_fn(k, k, |i, j| {
@@ -379,13 +471,50 @@ fn minus(y: &[f64], columns: &[&[f64]], beta: &[f64]) -> Vec<f64> {
         .collect()
 }
 
-/// A candidate's linear fit in one round.
+fn slices(columns: &[Vec<f64>]) -> Vec<&[f64]> {
+    columns.iter().map(Vec::as_slice).collect()
+}
+
+/// The paired test of a rival's residual `rival` against the chosen one's `chosen` over the
+/// judging `segments` (positions into both): the t statistic of the per-segment excess of mean
+/// square and its one-sided p-value (small: the rival is worse).
+pub(crate) fn paired_excess(rival: &[f64], chosen: &[f64], segments: &[Vec<usize>]) -> (f64, f64) {
+    let excess: Vec<f64> = segments
+        .iter()
+        .map(|s| {
+            s.iter()
+                .map(|&i| rival[i] * rival[i] - chosen[i] * chosen[i])
+                .sum::<f64>()
+                / s.len() as f64
+        })
+        .collect();
+    let n = excess.len() as f64;
+    if excess.len() < 2 {
+        return (0.0, 1.0);
+    }
+    let mean = excess.iter().sum::<f64>() / n;
+    let sd = (excess.iter().map(|d| (d - mean).powi(2)).sum::<f64>() / (n - 1.0)).sqrt();
+    let t = if sd > 0.0 {
+        mean / (sd / n.sqrt())
+    } else if mean > 0.0 {
+        f64::INFINITY
+    } else {
+        0.0
+    };
+    let p = StudentsT::new(0.0, 1.0, n - 1.0).map_or(1.0, |d| 1.0 - d.cdf(t));
+    (t, p)
+}
+
+/// A candidate's linear fit.
+#[derive(Clone)]
 struct Candidate {
-    effect: usize,
+    /// The effects it adds (one; two for a rival pair).
+    effects: Vec<usize>,
+    /// Every parameter fitted: the baseline's, the chosen effects', its own.
     params: Vec<usize>,
     beta: Vec<f64>,
     bic_change: f64,
-    held_rss: f64,
+    select_rss: f64,
 }
 
 /// The residual bins of a simulation: per measured trace.
@@ -396,99 +525,109 @@ struct Selector<'a> {
     model: &'a dyn Forward,
     measured: &'a [Trace],
     library: &'a [Effect],
-    split: &'a Split,
+    rows: Rows,
     o: &'a Options,
     available: Vec<Available>,
     /// Per available parameter, per measured trace: the model's binned sensitivity.
     sensitivities: Vec<Vec<Vec<f64>>>,
     /// The bins every simulation is read on.
     grid: Grid,
-    cal0: Vec<f64>,
-    held0: Vec<f64>,
+    /// The residual of the model as given on the fit, select and judge bins.
+    given: [Vec<f64>; 3],
     simulations: usize,
 }
 
 impl Selector<'_> {
-    /// The parameters fitted with `chosen` effects and `extra`: the baseline's, then the
+    /// The parameters fitted with `chosen` effects and `extra` ones: the baseline's, then the
     /// effects', in library order.
-    fn params(&self, chosen: &[usize], extra: Option<usize>) -> Vec<usize> {
+    fn params(&self, chosen: &[usize], extra: &[usize]) -> Vec<usize> {
         (0..self.available.len())
             .filter(|i| {
                 let owner = self.available[*i].effect;
-                self.library[owner].baseline || chosen.contains(&owner) || Some(owner) == extra
+                self.library[owner].baseline || chosen.contains(&owner) || extra.contains(&owner)
             })
             .collect()
     }
 
-    fn column(&self, p: usize, rows: &[usize]) -> Vec<f64> {
-        stack(&self.sensitivities[p], rows)
+    fn columns(&self, params: &[usize], role: Role) -> Vec<Vec<f64>> {
+        let rows = self.rows.of(role);
+        params
+            .iter()
+            .map(|p| stack(&self.sensitivities[*p], rows))
+            .collect()
     }
 
-    fn columns(&self, params: &[usize], rows: &[usize]) -> Vec<Vec<f64>> {
-        params.iter().map(|p| self.column(*p, rows)).collect()
+    fn given(&self, role: Role) -> &[f64] {
+        &self.given[role as usize]
     }
 
-    /// Every candidate not yet chosen, fitted jointly with the chosen ones.
-    fn candidates(&self, chosen: &[usize], cur_bic: f64) -> Vec<Candidate> {
-        let n_cal = self.cal0.len();
+    /// The linear fit of `chosen` and `extra` effects on the fit bins, scored on the select
+    /// bins; `None` when singular.
+    fn fit(&self, chosen: &[usize], extra: &[usize], cur_bic: f64) -> Option<Candidate> {
+        let params = self.params(chosen, extra);
+        let fit = self.columns(&params, Role::Fit);
+        let select = self.columns(&params, Role::Select);
+        let beta = solve(&slices(&fit), self.given(Role::Fit))?;
+        let fit_rss = rss(&minus(self.given(Role::Fit), &slices(&fit), &beta));
+        let select_rss = rss(&minus(self.given(Role::Select), &slices(&select), &beta));
+        let bic_change = bic(fit_rss, self.given(Role::Fit).len(), params.len()) - cur_bic;
+        Some(Candidate {
+            effects: extra.to_vec(),
+            params,
+            beta,
+            bic_change,
+            select_rss,
+        })
+    }
+
+    /// The effects that can be candidates: available, not baseline, not `chosen`, not hidden.
+    fn pool(&self, chosen: &[usize], hidden: &[&str]) -> Vec<usize> {
         (0..self.library.len())
             .filter(|e| {
                 !chosen.contains(e)
                     && !self.library[*e].baseline
+                    && !hidden.contains(&self.library[*e].key.as_str())
                     && self.available.iter().any(|p| p.effect == *e)
-            })
-            .filter_map(|e| {
-                let params = self.params(chosen, Some(e));
-                let cal = self.columns(&params, &self.split.calibration);
-                let held = self.columns(&params, &self.split.held_out);
-                let cal: Vec<&[f64]> = cal.iter().map(Vec::as_slice).collect();
-                let held: Vec<&[f64]> = held.iter().map(Vec::as_slice).collect();
-                let beta = solve(&cal, &self.cal0)?;
-                let cal_rss = rss(&minus(&self.cal0, &cal, &beta));
-                let held_rss = rss(&minus(&self.held0, &held, &beta));
-                let bic_change = bic(cal_rss, n_cal, params.len()) - cur_bic;
-                Some(Candidate {
-                    effect: e,
-                    params,
-                    beta,
-                    bic_change,
-                    held_rss,
-                })
             })
             .collect()
     }
 
+    /// Every candidate of `pool`, fitted jointly with the chosen ones.
+    fn candidates(&self, chosen: &[usize], pool: &[usize], cur_bic: f64) -> Vec<Candidate> {
+        pool.iter()
+            .filter_map(|e| self.fit(chosen, &[*e], cur_bic))
+            .collect()
+    }
+
+    /// The first parameter of a non-baseline effect in `c` a machine cannot have.
+    fn implausible(&self, c: &Candidate) -> Option<Rejected> {
+        c.params.iter().zip(&c.beta).find_map(|(p, b)| {
+            let a = &self.available[*p];
+            if self.library[a.effect].baseline {
+                return None;
+            }
+            a.param
+                .check(&a.models(), *b)
+                .err()
+                .map(|implausible| Rejected {
+                    effect: self.library[a.effect].key.clone(),
+                    implausible,
+                })
+        })
+    }
+
     /// Simulates the candidate at its fitted values, then once more after a Gauss–Newton step
-    /// from the simulated residual, and keeps the better of the two.
+    /// from the simulated residual on the fit bins, and keeps the better of the two.
     fn verify(&mut self, c: &mut Candidate) -> Result<Simulated, GapError> {
-        let first = simulate_at(
-            self.model,
-            self.measured,
-            &self.available,
-            &c.params,
-            &c.beta,
-            &self.grid,
-            self.o,
-        )?;
-        self.simulations += 1;
-        let cal = self.columns(&c.params, &self.split.calibration);
-        let cal: Vec<&[f64]> = cal.iter().map(Vec::as_slice).collect();
-        let cal_rss = |s: &Simulated| rss(&stack(&s.1, &self.split.calibration));
-        let Some(delta) = solve(&cal, &stack(&first.1, &self.split.calibration)) else {
+        let first = self.simulate(&c.params, &c.beta)?;
+        let fit = self.columns(&c.params, Role::Fit);
+        let Some(delta) = solve(&slices(&fit), &stack(&first.1, &self.rows.fit)) else {
             return Ok(first);
         };
         let refined: Vec<f64> = c.beta.iter().zip(&delta).map(|(b, d)| b + d).collect();
-        let second = simulate_at(
-            self.model,
-            self.measured,
-            &self.available,
-            &c.params,
-            &refined,
-            &self.grid,
-            self.o,
-        )?;
-        self.simulations += 1;
-        if cal_rss(&second) < cal_rss(&first) {
+        let second = self.simulate(&c.params, &refined)?;
+        let fit_rss = |s: &Simulated| rss(&stack(&s.1, &self.rows.fit));
+        if fit_rss(&second) < fit_rss(&first) {
             c.beta = refined;
             Ok(second)
         } else {
@@ -496,13 +635,45 @@ impl Selector<'_> {
         }
     }
 
+    fn simulate(&mut self, params: &[usize], beta: &[f64]) -> Result<Simulated, GapError> {
+        self.simulations += 1;
+        let traces = self.model.traces(&self.values(params, beta))?;
+        residuals(self.measured, &traces, self.o.bin_deg, Some(&self.grid))
+    }
+
+    /// The absolute values of the keys of `params` at offsets `beta`.
+    /// A key two parameters share (a guide's static force: friction level and stick-slip)
+    /// takes the sum of their offsets.
+    fn values(&self, params: &[usize], beta: &[f64]) -> Vec<(String, f64)> {
+        let mut out: Vec<(String, f64)> = Vec::new();
+        for (p, b) in params.iter().zip(beta) {
+            for (k, v) in &self.available[*p].keys {
+                match out.iter_mut().find(|(key, _)| key == k) {
+                    Some((_, total)) => *total += b,
+                    None => out.push((k.clone(), v + b)),
+                }
+            }
+        }
+        out
+    }
+
+    /// The values `c` writes into the model for its effects (the baseline's left out).
+    fn edits(&self, c: &Candidate) -> Vec<(String, f64)> {
+        let (params, beta): (Vec<usize>, Vec<f64>) = c
+            .params
+            .iter()
+            .zip(&c.beta)
+            .filter(|(p, _)| !self.library[self.available[**p].effect].baseline)
+            .unzip();
+        self.values(&params, &beta)
+    }
+
     /// Fits the baseline parameters (the set-up) alone and simulates them: the model as given,
     /// measured as it was set up. Without baseline parameters, the model as given.
-    fn baseline(&mut self, given: Vec<TracePair>) -> Result<(Vec<Fitted>, Simulated), GapError> {
-        let params = self.params(&[], None);
-        let cal = self.columns(&params, &self.split.calibration);
-        let cal: Vec<&[f64]> = cal.iter().map(Vec::as_slice).collect();
-        let beta = match solve(&cal, &self.cal0) {
+    fn baseline(&mut self, given: Vec<TracePair>) -> Result<(Candidate, Simulated), GapError> {
+        let params = self.params(&[], &[]);
+        let fit = self.columns(&params, Role::Fit);
+        let beta = match solve(&slices(&fit), self.given(Role::Fit)) {
             Some(b) if !params.is_empty() => b,
             _ => {
                 let bins = given
@@ -510,56 +681,180 @@ impl Selector<'_> {
                     .zip(&self.grid)
                     .map(|(p, reference)| on_grid(p, self.o.bin_deg, reference))
                     .collect();
-                return Ok((Vec::new(), (given, bins)));
+                let none = Candidate {
+                    effects: Vec::new(),
+                    params: Vec::new(),
+                    beta: Vec::new(),
+                    bic_change: 0.0,
+                    select_rss: 0.0,
+                };
+                return Ok((none, (given, bins)));
             }
         };
         let mut c = Candidate {
-            effect: usize::MAX,
+            effects: Vec::new(),
             params,
             beta,
             bic_change: 0.0,
-            held_rss: 0.0,
+            select_rss: 0.0,
         };
         let simulated = self.verify(&mut c)?;
-        Ok((self.fitted(&c), simulated))
+        Ok((c, simulated))
     }
 
-    fn fitted(&self, c: &Candidate) -> Vec<Fitted> {
+    fn fitted(&self, c: &Candidate, only: impl Fn(usize) -> bool) -> Vec<Fitted> {
         c.params
             .iter()
             .zip(&c.beta)
+            .filter(|(p, _)| only(self.available[**p].effect))
             .map(|(p, b)| Fitted {
-                name: self.available[*p].name.clone(),
+                name: self.available[*p].param.name.clone(),
                 value: *b,
-                unit: self.available[*p].unit.into(),
+                unit: self.available[*p].param.unit.into(),
             })
             .collect()
     }
 
     fn score(&self, c: &Candidate) -> Score {
         Score {
-            effect: self.library[c.effect].key.clone(),
-            held_out_rms_um: (c.held_rss / self.held0.len() as f64).sqrt(),
+            effect: self.library[c.effects[0]].key.clone(),
+            select_rms_um: (c.select_rss / self.given(Role::Select).len() as f64).sqrt(),
             bic_change: c.bic_change,
         }
     }
 
-    fn step(&self, c: &Candidate, cal: f64, held: f64, shrink: f64) -> Step {
-        let effect = &self.library[c.effect];
+    fn judge_rms(&self, bins: &[Vec<f64>]) -> Option<f64> {
+        self.rows
+            .can_judge()
+            .then(|| rms(&stack(bins, &self.rows.judge)))
+    }
+
+    fn step(&self, c: &Candidate, bins: &[Vec<f64>], shrink: f64) -> Step {
+        let effect = &self.library[c.effects[0]];
         Step {
             effect: effect.key.clone(),
             description: effect.description.clone(),
-            values: self
-                .fitted(c)
-                .into_iter()
-                .zip(&c.params)
-                .filter(|(_, p)| !self.library[self.available[**p].effect].baseline)
-                .map(|(f, _)| f)
-                .collect(),
-            calibration_rms_um: (cal / self.cal0.len() as f64).sqrt(),
-            held_out_rms_um: (held / self.held0.len() as f64).sqrt(),
-            held_out_shrink: shrink,
+            values: self.fitted(c, |e| !self.library[e].baseline),
+            fit_rms_um: rms(&stack(bins, &self.rows.fit)),
+            select_rms_um: rms(&stack(bins, &self.rows.select)),
+            select_shrink: shrink,
+            judge_rms_um: self.judge_rms(bins),
         }
+    }
+
+    /// The judging bins and segments: the judge's when they are enough, else the select's.
+    fn judging(&self) -> (Role, &[Vec<usize>]) {
+        if self.rows.can_judge() {
+            (Role::Judge, &self.rows.judge_segments)
+        } else {
+            (Role::Select, &self.rows.select_segments)
+        }
+    }
+
+    /// The residual the linearised model predicts on the bins of `role` with `c`'s values.
+    fn linear(&self, c: &Candidate, role: Role) -> Vec<f64> {
+        let columns = self.columns(&c.params, role);
+        minus(self.given(role), &slices(&columns), &c.beta)
+    }
+
+    /// The rivals of each chosen effect that explain the judging bins as well (module doc);
+    /// `chosen_bins` are the simulated residual with the chosen effects.
+    fn alternatives(
+        &mut self,
+        chosen: &[usize],
+        chosen_bins: &[Vec<f64>],
+        hidden: &[&str],
+    ) -> Result<Vec<Alternative>, GapError> {
+        let (role, segments) = self.judging();
+        let segments = segments.to_vec();
+        let chosen_now = stack(chosen_bins, self.rows.of(role));
+        let mut out = Vec::new();
+        for &effect in chosen {
+            let others: Vec<usize> = chosen.iter().copied().filter(|e| *e != effect).collect();
+            let Some(mine) = self.fit(&others, &[effect], 0.0) else {
+                continue;
+            };
+            let mine_linear = self.linear(&mine, role);
+            let pool = self.pool(chosen, hidden);
+            let mut sets: Vec<Vec<usize>> = pool.iter().map(|e| vec![*e]).collect();
+            for (k, a) in pool.iter().enumerate() {
+                sets.extend(pool[k + 1..].iter().map(|b| vec![*a, *b]));
+            }
+            let before = rms(self.given(role));
+            let as_good = |r: &[f64], test: (f64, f64)| {
+                test.1 > self.o.ambiguity_level
+                    && explained(
+                        before,
+                        rms(r),
+                        self.o.explained_floor_um,
+                        self.o.explained_fraction,
+                    )
+            };
+            let mut rivals: Vec<(Candidate, Vec<f64>, (f64, f64))> = sets
+                .par_iter()
+                .filter_map(|set| {
+                    let c = self.fit(&others, set, 0.0)?;
+                    let r = self.linear(&c, role);
+                    let test = paired_excess(&r, &mine_linear, &segments);
+                    as_good(&r, test).then_some((c, r, test))
+                })
+                .collect();
+            // A pair holding an effect that is as good alone adds nothing to it.
+            let singles: Vec<usize> = rivals
+                .iter()
+                .filter(|r| r.0.effects.len() == 1)
+                .map(|r| r.0.effects[0])
+                .collect();
+            rivals.retain(|r| {
+                r.0.effects.len() == 1 || !r.0.effects.iter().any(|e| singles.contains(e))
+            });
+            rivals.sort_by(|a, b| rss(&a.1).total_cmp(&rss(&b.1)));
+            let chosen_key = self.library[effect].key.clone();
+            let mut simulated = 0;
+            for (mut c, r, (t, p)) in rivals {
+                let own = |e: usize| c.effects.contains(&e);
+                let mut alt = Alternative {
+                    instead_of: chosen_key.clone(),
+                    effects: c
+                        .effects
+                        .iter()
+                        .map(|e| self.library[*e].key.clone())
+                        .collect(),
+                    values: self.fitted(&c, own),
+                    rms_um: rms(&r),
+                    chosen_rms_um: rms(&mine_linear),
+                    t,
+                    p_value: p,
+                    implausible: self.implausible(&c).map(|r| r.implausible),
+                    edits: self.edits(&c),
+                };
+                if alt.implausible.is_some() {
+                    // Reported as a fit that needs an implausible size: no simulation.
+                    out.push(alt);
+                    continue;
+                }
+                if simulated == MAX_RIVALS_SIMULATED {
+                    continue;
+                }
+                simulated += 1;
+                let (_, bins) = match self.verify(&mut c) {
+                    Ok(s) => s,
+                    Err(GapError::Model(_)) => continue,
+                    Err(e) => return Err(e),
+                };
+                let rival = stack(&bins, self.rows.of(role));
+                let (t, p) = paired_excess(&rival, &chosen_now, &segments);
+                if as_good(&rival, (t, p)) {
+                    alt.values = self.fitted(&c, |e| c.effects.contains(&e));
+                    alt.implausible = self.implausible(&c).map(|r| r.implausible);
+                    alt.edits = self.edits(&c);
+                    (alt.rms_um, alt.chosen_rms_um, alt.t, alt.p_value) =
+                        (rms(&rival), rms(&chosen_now), t, p);
+                    out.push(alt);
+                }
+            }
+        }
+        Ok(out)
     }
 }
 
@@ -583,14 +878,12 @@ fn availability(
         available.extend(effect.params.iter().map(|p| {
             Available {
                 effect: e,
-                name: p.name.clone(),
-                unit: p.unit,
+                param: p.clone(),
                 keys: p
                     .keys
                     .iter()
                     .map(|k| (k.clone(), model.value(k).unwrap_or_default()))
                     .collect(),
-                step: p.step,
             }
         }));
     }
@@ -611,10 +904,10 @@ pub struct Linearisation {
     own: OnceLock<OwnJob>,
 }
 
-/// The model's own traces as the measured ones: their split, bins and sensitivities.
+/// The model's own traces as the measured ones: their rows, bins and sensitivities.
 struct OwnJob {
     bin_deg: f64,
-    split: Split,
+    rows: Rows,
     grid: Grid,
     sensitivities: Vec<Vec<Vec<f64>>>,
 }
@@ -627,7 +920,7 @@ impl Linearisation {
             let values: Vec<(String, f64)> = p
                 .keys
                 .iter()
-                .map(|(k, v)| (k.clone(), v + p.step))
+                .map(|(k, v)| (k.clone(), v + p.param.step))
                 .collect();
             model.sensitivity_traces(&values)
         };
@@ -663,6 +956,11 @@ impl Linearisation {
         1 + self.stepped.len()
     }
 
+    /// The model's traces as given.
+    pub fn base(&self) -> &[Trace] {
+        &self.base
+    }
+
     /// Per parameter, per measured trace: the model's binned sensitivity at the measured angles.
     fn sensitivities(
         &self,
@@ -682,16 +980,14 @@ impl Linearisation {
                     .map(|(b0, b1)| {
                         b0.iter()
                             .zip(b1)
-                            .map(|((_, x), y)| (x - y) / p.step)
+                            .map(|((_, x), y)| (x - y) / p.param.step)
                             .collect()
                     })
                     .collect())
             })
             .collect()
     }
-}
 
-impl Linearisation {
     fn own_job(&self, o: &Options) -> Result<OwnJob, GapError> {
         let split = Split::automatic(&self.base)?;
         let (pairs, _) = residuals(&self.base, &self.base, o.bin_deg, None)?;
@@ -699,7 +995,7 @@ impl Linearisation {
         let sensitivities = self.sensitivities(&self.base, &grid, o)?;
         Ok(OwnJob {
             bin_deg: o.bin_deg,
-            split,
+            rows: Rows::new(&split, &grid, o.bin_deg),
             grid,
             sensitivities,
         })
@@ -707,14 +1003,70 @@ impl Linearisation {
 
     /// How far offsets of the model's parameters (`(key, offset)`, keys the model cannot
     /// express ignored; a parameter of several keys takes its first key's offset) stand out on
-    /// the model's own job: the RMS change of the held-out runs, µm, that the linearisation
-    /// predicts once the baseline (the bar's set-up) is fitted to the calibration runs, as the
-    /// selection fits it. Below [`Options::min_effect_um`] no selection can attribute them.
+    /// the model's own job: the RMS change, µm, that the linearisation predicts once the
+    /// baseline (the bar's set-up) is fitted to the fit bins, as the selection fits it, on the
+    /// select bins and on the judge bins, whichever is less (the select bins alone when the
+    /// judge bins are too few). Below [`Options::min_effect_um`] no selection can attribute
+    /// them: it gates on the select bins and the judgement reads the judge bins.
     pub fn visibility(
         &self,
         library: &[Effect],
         offsets: &[(String, f64)],
         o: &Options,
+    ) -> Result<f64, GapError> {
+        let signature = |sens: &[Vec<Vec<f64>>], grid: &Grid| -> Vec<Vec<f64>> {
+            let offset = |p: &Available| {
+                offsets
+                    .iter()
+                    .find(|(k, _)| *k == p.keys[0].0)
+                    .map_or(0.0, |(_, v)| *v)
+            };
+            (0..grid.len())
+                .map(|t| {
+                    (0..grid[t].len())
+                        .map(|b| {
+                            self.available
+                                .iter()
+                                .zip(sens)
+                                .map(|(p, s)| s[t][b] * offset(p))
+                                .sum()
+                        })
+                        .collect()
+                })
+                .collect()
+        };
+        self.own_visibility(library, o, &signature)
+    }
+
+    /// How far a change of the model's traces stands out on its own job, as
+    /// [`Linearisation::visibility`] measures it: `changed` are the model's traces with the
+    /// change (simulated noise-free), read as the selection reads a measurement.
+    pub fn visibility_of(
+        &self,
+        library: &[Effect],
+        changed: &[Trace],
+        o: &Options,
+    ) -> Result<f64, GapError> {
+        let (_, bins) = residuals(changed, &self.base, o.bin_deg, None)?;
+        let signature = |_: &[Vec<Vec<f64>>], grid: &Grid| -> Vec<Vec<f64>> {
+            // The change on the own job's grid; a bin the changed run lacks changes nothing.
+            grid.iter()
+                .zip(&bins)
+                .map(|(g, b)| {
+                    (0..g.len())
+                        .map(|i| b.get(i).copied().unwrap_or(0.0))
+                        .collect()
+                })
+                .collect()
+        };
+        self.own_visibility(library, o, &signature)
+    }
+
+    fn own_visibility(
+        &self,
+        library: &[Effect],
+        o: &Options,
+        signature: Signature<'_>,
     ) -> Result<f64, GapError> {
         if self.own.get().is_none() {
             let _ = self.own.set(self.own_job(o)?);
@@ -727,40 +1079,31 @@ impl Linearisation {
                 &fresh
             }
         };
-        let (split, grid, sens) = (&own.split, &own.grid, &own.sensitivities);
-        let offset = |p: &Available| {
-            offsets
-                .iter()
-                .find(|(k, _)| *k == p.keys[0].0)
-                .map_or(0.0, |(_, v)| *v)
-        };
-        let signature: Vec<Vec<f64>> = (0..self.base.len())
-            .map(|t| {
-                (0..grid[t].len())
-                    .map(|b| {
-                        self.available
-                            .iter()
-                            .zip(sens)
-                            .map(|(p, s)| s[t][b] * offset(p))
-                            .sum()
-                    })
-                    .collect()
-            })
-            .collect();
+        let (rows, sens) = (&own.rows, &own.sensitivities);
+        let signature = signature(sens, &own.grid);
         let baseline: Vec<usize> = (0..self.available.len())
             .filter(|i| library[self.available[*i].effect].baseline)
             .collect();
-        let columns = |rows: &[usize]| -> Vec<Vec<f64>> {
+        let columns = |rows: &[(usize, usize)]| -> Vec<Vec<f64>> {
             baseline.iter().map(|p| stack(&sens[*p], rows)).collect()
         };
-        let (cal, held) = (columns(&split.calibration), columns(&split.held_out));
-        let cal: Vec<&[f64]> = cal.iter().map(Vec::as_slice).collect();
-        let held: Vec<&[f64]> = held.iter().map(Vec::as_slice).collect();
-        let y_cal = stack(&signature, &split.calibration);
-        let y_held = stack(&signature, &split.held_out);
-        let beta = solve(&cal, &y_cal).unwrap_or_else(|| vec![0.0; cal.len()]);
-        let left = minus(&y_held, &held, &beta);
-        Ok((rss(&left) / left.len().max(1) as f64).sqrt())
+        let fit = columns(&rows.fit);
+        let beta = solve(&slices(&fit), &stack(&signature, &rows.fit))
+            .unwrap_or_else(|| vec![0.0; fit.len()]);
+        let left = |rows: &[(usize, usize)]| {
+            rms(&minus(
+                &stack(&signature, rows),
+                &slices(&columns(rows)),
+                &beta,
+            ))
+        };
+        // The selection gates on the select bins and the judgement reads the judge bins: an
+        // effect is seen only as far as it stands out on both.
+        Ok(if rows.can_judge() {
+            left(&rows.select).min(left(&rows.judge))
+        } else {
+            left(&rows.select)
+        })
     }
 }
 
@@ -790,57 +1133,75 @@ pub fn select_without(
 ) -> Result<Selection, GapError> {
     let (given_pairs, base_bins) = residuals(measured, &lin.base, o.bin_deg, None)?;
     let grid: Grid = given_pairs.iter().map(|p| bin(p, o.bin_deg)).collect();
+    let rows = Rows::new(&split, &grid, o.bin_deg);
+    if rows.fit.is_empty() || rows.select.is_empty() {
+        return Err(GapError::Model(
+            "the measured runs hold no bins to fit or none to select with: give longer arcs, \
+             two directions or more tests"
+                .into(),
+        ));
+    }
     let sensitivities = lin.sensitivities(measured, &grid, o)?;
+    let given = [Role::Fit, Role::Select, Role::Judge].map(|r| stack(&base_bins, rows.of(r)));
     let mut sel = Selector {
         model,
         measured,
         library,
-        split: &split,
+        rows,
         o,
         simulations: 0,
         available: lin.available.clone(),
         sensitivities,
         grid,
-        cal0: stack(&base_bins, &split.calibration),
-        held0: stack(&base_bins, &split.held_out),
+        given,
     };
-    let n_cal = sel.cal0.len();
-    let (baseline, (initial_pairs, initial_bins)) = sel.baseline(given_pairs)?;
-    let mut cur_held = rss(&stack(&initial_bins, &split.held_out));
-    let cur_cal = rss(&stack(&initial_bins, &split.calibration));
-    let mut cur_bic = bic(cur_cal, n_cal, baseline.len());
-    let calibration_before_um = (cur_cal / n_cal as f64).sqrt();
-    let held_out_before_um = (cur_held / sel.held0.len() as f64).sqrt();
-    let (mut chosen, mut steps, mut last_round) = (Vec::new(), Vec::new(), Vec::new());
-    let (mut final_pairs, mut held_bins) =
-        (initial_pairs.clone(), stack(&initial_bins, &split.held_out));
+    let n_fit = sel.rows.fit.len();
+    let (base, (initial_pairs, initial_bins)) = sel.baseline(given_pairs)?;
+    let baseline = sel.fitted(&base, |_| true);
+    let select_of = |bins: &[Vec<f64>], rows: &Rows| stack(bins, &rows.select);
+    let mut cur_select = rss(&select_of(&initial_bins, &sel.rows));
+    let cur_fit = rss(&stack(&initial_bins, &sel.rows.fit));
+    let mut cur_bic = bic(cur_fit, n_fit, base.params.len());
+    let fit_before_um = (cur_fit / n_fit as f64).sqrt();
+    let n_select = sel.rows.select.len();
+    let select_before_um = (cur_select / n_select as f64).sqrt();
+    let judge_before = sel.judge_rms(&initial_bins);
+    let (mut chosen, mut steps, mut last_round, mut rejected) =
+        (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    let (mut final_pairs, mut final_bins, mut best_so_far) =
+        (initial_pairs.clone(), initial_bins.clone(), base);
     // A gap already at the explained floor needs no effect: the model as given explains the
     // measurement to the level of its small mismatches.
     while chosen.len() < o.max_effects
-        && held_out_before_um > o.explained_floor_um
-        && can_change(cur_held, sel.held0.len(), o)
+        && select_before_um > o.explained_floor_um
+        && can_change(cur_select, n_select, o)
     {
-        let candidates: Vec<Candidate> = sel
-            .candidates(&chosen, cur_bic)
-            .into_iter()
-            .filter(|c| !hidden.contains(&library[c.effect].key.as_str()))
-            .collect();
+        let pool = sel.pool(&chosen, hidden);
+        let candidates = sel.candidates(&chosen, &pool, cur_bic);
         last_round = candidates.iter().map(|c| sel.score(c)).collect();
-        last_round.sort_by(|a, b| a.held_out_rms_um.total_cmp(&b.held_out_rms_um));
+        last_round.sort_by(|a, b| a.select_rms_um.total_cmp(&b.select_rms_um));
         let mut ranked: Vec<Candidate> = candidates
             .into_iter()
             .filter(|c| c.bic_change < -o.min_bic_drop)
             .collect();
-        ranked.sort_by(|a, b| a.held_rss.total_cmp(&b.held_rss));
-        // The best candidate the model accepts: a fitted value the scenario refuses (a
-        // negative friction force, say) is not a physical explanation.
+        ranked.sort_by(|a, b| a.select_rss.total_cmp(&b.select_rss));
+        // The best candidate a machine can have and the model accepts: a fitted value the
+        // scenario refuses (a negative friction force, say) or one beyond the class's range is
+        // not a physical explanation.
         let mut verified = None;
         for mut c in ranked {
+            if let Some(r) = sel.implausible(&c) {
+                rejected.push(r);
+                continue;
+            }
             match sel.verify(&mut c) {
-                Ok(simulated) => {
-                    verified = Some((c, simulated));
-                    break;
-                }
+                Ok(simulated) => match sel.implausible(&c) {
+                    Some(r) => rejected.push(r),
+                    None => {
+                        verified = Some((c, simulated));
+                        break;
+                    }
+                },
                 Err(GapError::Model(_)) => continue,
                 Err(e) => return Err(e),
             }
@@ -848,72 +1209,72 @@ pub fn select_without(
         let Some((best, (pairs, bins))) = verified else {
             break;
         };
-        let cal = rss(&stack(&bins, &split.calibration));
-        let held_new = stack(&bins, &split.held_out);
-        let held = rss(&held_new);
-        let new_bic = bic(cal, n_cal, best.params.len());
-        let shrink = 1.0 - held / cur_held;
-        let change = (rss(&held_bins
+        let fit = rss(&stack(&bins, &sel.rows.fit));
+        let select_new = select_of(&bins, &sel.rows);
+        let select = rss(&select_new);
+        let new_bic = bic(fit, n_fit, best.params.len());
+        let shrink = 1.0 - select / cur_select;
+        let before = select_of(&final_bins, &sel.rows);
+        let change = rms(&before
             .iter()
-            .zip(&held_new)
+            .zip(&select_new)
             .map(|(a, b)| a - b)
-            .collect::<Vec<_>>())
-            / held_new.len() as f64)
-            .sqrt();
+            .collect::<Vec<_>>());
         if new_bic > cur_bic - o.min_bic_drop
-            || shrink < o.min_held_out_shrink
+            || shrink < o.min_select_shrink
             || change < o.min_effect_um
         {
             break;
         }
-        steps.push(sel.step(&best, cal, held, shrink));
-        chosen.push(best.effect);
-        (cur_held, cur_bic, final_pairs, held_bins) = (held, new_bic, pairs, held_new);
+        steps.push(sel.step(&best, &bins, shrink));
+        chosen.push(best.effects[0]);
+        (cur_select, cur_bic, final_pairs, final_bins) = (select, new_bic, pairs, bins);
+        best_so_far = best;
     }
+    let judged = judge_before.map(|before_um| Judged {
+        bins: sel.rows.judge.len(),
+        segments: sel.rows.judge_segments.len(),
+        before_um,
+        after_um: sel.judge_rms(&final_bins).unwrap_or(before_um),
+    });
+    let alternatives = sel.alternatives(&chosen, &final_bins, hidden)?;
+    let final_values = sel.edits(&best_so_far);
+    let alternatives_judged_on = if sel.rows.can_judge() {
+        "judge"
+    } else {
+        "select"
+    };
     Ok(Selection {
-        held_out_before_um,
-        calibration_before_um,
+        bins: [
+            sel.rows.fit.len(),
+            sel.rows.select.len(),
+            sel.rows.judge.len(),
+        ],
+        fit_before_um,
+        select_before_um,
+        judged,
         baseline,
         steps,
+        rejected,
+        alternatives,
+        alternatives_judged_on,
         unavailable: lin.unavailable.clone(),
         last_round,
         final_pairs,
         initial_pairs,
+        final_values,
         simulations: sel.simulations,
         split,
     })
 }
 
-/// Whether an effect could still pass: its change `c` of the held-out residual `r` (RMS) must
-/// reach [`Options::min_effect_um`] while leaving at most `1 − s` of the mean square, and
+/// Whether an effect could still pass: its change `c` of the select bins' residual `r` (RMS)
+/// must reach [`Options::min_effect_um`] while leaving at most `1 − s` of the mean square, and
 /// `c ≤ rms(r) + rms(r_new) ≤ rms(r)·(1 + sqrt(1 − s))`; a residual below that bound needs no
 /// candidate simulated.
-fn can_change(held_rss: f64, n: usize, o: &Options) -> bool {
-    let now = (held_rss / n.max(1) as f64).sqrt();
-    now * (1.0 + (1.0 - o.min_held_out_shrink).max(0.0).sqrt()) >= o.min_effect_um
-}
-
-fn simulate_at(
-    model: &dyn Forward,
-    measured: &[Trace],
-    available: &[Available],
-    params: &[usize],
-    beta: &[f64],
-    grid: &Grid,
-    o: &Options,
-) -> Result<Simulated, GapError> {
-    let values: Vec<(String, f64)> = params
-        .iter()
-        .zip(beta)
-        .flat_map(|(p, b)| {
-            available[*p]
-                .keys
-                .iter()
-                .map(move |(k, v)| (k.clone(), v + b))
-        })
-        .collect();
-    let traces = model.traces(&values)?;
-    residuals(measured, &traces, o.bin_deg, Some(grid))
+fn can_change(select_rss: f64, n: usize, o: &Options) -> bool {
+    let now = (select_rss / n.max(1) as f64).sqrt();
+    now * (1.0 + (1.0 - o.min_select_shrink).max(0.0).sqrt()) >= o.min_effect_um
 }
 
 #[cfg(test)]
@@ -946,5 +1307,27 @@ mod tests {
             let expected = if (3..97).contains(key) { r - 1.0 } else { *r };
             assert!((v - expected).abs() < 1e-12, "bin {key}: {v} vs {expected}");
         }
+    }
+
+    /// The paired test against a closed form: segments whose excess is a constant c plus
+    /// alternating ±e have mean c and sample sd e·sqrt(S/(S−1)), so t = c·sqrt(S−1)/e.
+    #[test]
+    fn the_paired_excess_is_students_t_of_the_segments() {
+        let (c, e, s): (f64, f64, usize) = (0.02, 0.01, 6);
+        let segments: Vec<Vec<usize>> = (0..s).map(|i| vec![2 * i, 2 * i + 1]).collect();
+        let chosen = vec![0.1; 2 * s];
+        let rival: Vec<f64> = (0..2 * s)
+            .map(|i| {
+                let sign: f64 = if (i / 2) % 2 == 0 { 1.0 } else { -1.0 };
+                (0.01 + c + sign * e).sqrt()
+            })
+            .collect();
+        let (t, p) = paired_excess(&rival, &chosen, &segments);
+        let expected = c * ((s - 1) as f64).sqrt() / e;
+        assert!((t - expected).abs() < 1e-9, "t {t} vs {expected}");
+        // Student's t with 5 dof: P(T > 4.472) = 0.00329 (tables).
+        assert!((p - 0.00329).abs() < 2e-4, "p {p}");
+        let (t, p) = paired_excess(&chosen, &chosen, &segments);
+        assert_eq!((t, p), (0.0, 0.5));
     }
 }

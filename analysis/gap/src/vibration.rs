@@ -7,21 +7,28 @@
 //!   sensor noise and `N_b = σ sqrt(bw / (f_s/2))` is the band share of the instrument's white
 //!   noise σ (the scenario's `instruments.accelerometer.noise_m_s2`): a band where both hold
 //!   only noise has no gap.
-//! - Split: with several logs, every other log is held out (another depth of cut when the logs
-//!   are runs of ours at other depths); with one log, its first half fits and its second half
-//!   judges (and a drift between them shows).
+//! - Split: every log is cut into thirds in time, and third `k` of log `i` plays the role
+//!   `(k + i) mod 3` of fit, select and judge, as the ball bar's segments do
+//!   ([`crate::split`]): the candidates are fitted on the fit pieces, ranked and gated on the
+//!   select pieces, and the held-out figures and the confirmation that the chosen effects
+//!   explain the gap are read from the judge pieces, used for neither.
 //! - Candidates: each tool-point mode (stiffness, natural frequency, damping ratio: the
 //!   spindle's and holder's compliance is part of the tool-point mode, as an impact test
 //!   measures it) and the radial cutting coefficient Kr (the tangential one scales the forced
-//!   response as the stiffness does, so it is left to the stiffness). Each is fitted on the calibration
+//!   response as the stiffness does, so it is left to the stiffness). Each is fitted on the fit
 //!   pieces by Levenberg–Marquardt through the milling simulator (forward-difference Jacobian in
-//!   units of each parameter's step, damping `λ·diag(JᵀJ)`), and judged on the held-out pieces;
-//!   effects are added by forward selection while the calibration BIC drops and the held-out
-//!   mean square shrinks, as for the ball bar ([`crate::select`]).
-//! - How much: the held-out RMS of the band residuals, dB, before and after each effect.
+//!   units of each parameter's step, damping `λ·diag(JᵀJ)`), and scored on the select pieces;
+//!   effects are added by forward selection while the fit BIC drops and the select mean square
+//!   shrinks, as for the ball bar ([`crate::select`]); a fit whose values a tool and holder of
+//!   the class cannot have ([`crate::effects::Plausible`]) is set aside as implausible.
+//! - How much: the RMS of the band residuals on the untouched judge pieces, dB, before and
+//!   after the chosen effects.
+//! - Where: by band, axis, tooth-passing harmonic or not, piece, and in time: the band levels
+//!   of windows of [`WINDOW_S`] along each log against the model's, and the (window, band)
+//!   cells where the residual peaks.
 
 use crate::align::GapError;
-use crate::effects::{Effect, Param};
+use crate::effects::{Effect, Implausible, Param, Plausible};
 use crate::select::{bic, explained, rss};
 use crate::spectrum::{Band, band_levels, bands};
 use crate::whiteness::{Whiteness, ljung_box};
@@ -201,7 +208,11 @@ impl MillingModel {
                     break;
                 };
                 let up = axis.to_ascii_uppercase();
-                let scaled = |name: &str, unit: &'static str, field: &str, step: f64, typ: f64| {
+                let scaled = |name: &str,
+                              unit: &'static str,
+                              field: &str,
+                              (step, typ): (f64, f64),
+                              plausible: Plausible| {
                     let v = self.value(&key(field)).unwrap_or(0.0).abs();
                     Param {
                         name: format!("{name} {up}{}", i + 1),
@@ -210,6 +221,7 @@ impl MillingModel {
                         step: step * v,
                         typical: typ * v,
                         increase_only: false,
+                        plausible,
                     }
                 };
                 out.push(Effect {
@@ -219,9 +231,9 @@ impl MillingModel {
                         i + 1
                     ),
                     params: vec![
-                        scaled("stiffness", "N/um", "stiffness_n_per_um", 0.02, 0.2),
-                        scaled("natural frequency", "Hz", "frequency_hz", 0.005, 0.03),
-                        scaled("damping ratio", "", "damping_ratio", 0.05, 0.3),
+                        scaled("stiffness", "N/um", "stiffness_n_per_um", (0.02, 0.2), MODE_STIFFNESS),
+                        scaled("natural frequency", "Hz", "frequency_hz", (0.005, 0.03), MODE_FREQUENCY),
+                        scaled("damping ratio", "", "damping_ratio", (0.05, 0.3), MODE_DAMPING),
                     ],
                     baseline: false,
                 });
@@ -244,6 +256,7 @@ impl MillingModel {
                 step: 0.02 * kr,
                 typical: 0.25 * kr,
                 increase_only: false,
+                plausible: RADIAL_COEFFICIENT,
             }],
             baseline: false,
         });
@@ -251,17 +264,47 @@ impl MillingModel {
     }
 }
 
+/// Stiffness of a tool-point mode, N/µm.
+const MODE_STIFFNESS: Plausible = Plausible {
+    absolute: (0.1, 1000.0),
+    relative: Some((1.0 / 3.0, 3.0)),
+    reason: "tool-point stiffness of end mills in their holders: 1-100 N/um by impact tests; \
+             the same tool held or worn otherwise differs by up to 3 times",
+};
+/// Natural frequency of a tool-point mode, Hz.
+const MODE_FREQUENCY: Plausible = Plausible {
+    absolute: (50.0, 20000.0),
+    relative: Some((0.7, 1.4)),
+    reason: "tool-point modes move with the stick-out, the clamping and the spindle's speed \
+             (gyroscopic and centrifugal softening) by up to 30 %",
+};
+/// Damping ratio of a tool-point mode.
+const MODE_DAMPING: Plausible = Plausible {
+    absolute: (0.002, 0.2),
+    relative: Some((0.25, 4.0)),
+    reason: "tool-point damping ratios of 0.5-10 % by impact tests; joints and the cut's \
+             process damping move them by up to 4 times",
+};
+/// Radial cutting coefficient, N/mm².
+const RADIAL_COEFFICIENT: Plausible = Plausible {
+    absolute: (0.0, 5000.0),
+    relative: Some((1.0 / 3.0, 3.0)),
+    reason: "radial cutting coefficients are 0.2-0.8 of the tangential one (Altintas, \
+             Manufacturing Automation); the material's state and the edge's wear change them by \
+             up to 3 times",
+};
+
 /// Settings of the vibration gap.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Options {
-    /// Least drop of the calibration BIC for an effect to be added.
+    /// Least drop of the fit pieces' BIC for an effect to be added.
     pub min_bic_drop: f64,
-    /// Least shrink of the held-out mean square, as a fraction of what is left.
-    pub min_held_out_shrink: f64,
-    /// Least RMS change an effect must make to the held-out residual, dB (above the scatter
-    /// of Welch band levels of a 0.5 s piece, about 0.3 dB).
+    /// Least shrink of the select pieces' mean square, as a fraction of what is left.
+    pub min_select_shrink: f64,
+    /// Least RMS change an effect must make to the select pieces' residual, dB (above the
+    /// scatter of Welch band levels of a third of a log, about 0.3 dB).
     pub min_effect_db: f64,
-    /// The gap counts as explained at or below this held-out RMS, dB…
+    /// The gap counts as explained at or below this RMS, dB…
     pub explained_floor_db: f64,
     /// …or this fraction of the gap before.
     pub explained_fraction: f64,
@@ -269,48 +312,98 @@ pub struct Options {
     pub max_effects: usize,
     /// Most Levenberg–Marquardt iterations per fit.
     pub max_iterations: usize,
+    /// Significance level of the paired test that calls a rival worse than the chosen effect.
+    pub ambiguity_level: f64,
 }
 
 impl Default for Options {
     fn default() -> Self {
         Self {
             min_bic_drop: 10.0,
-            min_held_out_shrink: 0.3,
+            min_select_shrink: 0.3,
             min_effect_db: 0.5,
             explained_floor_db: 1.0,
             explained_fraction: 0.25,
             max_effects: 3,
             max_iterations: 8,
+            ambiguity_level: 0.05,
         }
     }
 }
 
-/// A piece of a measured log: the whole log, or one half of it.
+/// A third of a measured log in time.
 #[derive(Clone, Copy, Debug, PartialEq)]
 struct Piece {
     log: usize,
-    half: Option<usize>,
+    third: usize,
 }
 
 impl Piece {
     fn samples<'a>(&self, x: &'a [f64]) -> &'a [f64] {
-        match self.half {
-            None => x,
-            Some(h) => {
-                let mid = x.len() / 2;
-                if h == 0 { &x[..mid] } else { &x[mid..] }
-            }
-        }
+        let n = x.len();
+        &x[self.third * n / 3..(self.third + 1) * n / 3]
     }
 
     fn label(&self, logs: &[Log]) -> String {
         let name = &logs[self.log].name;
-        match self.half {
-            None => name.clone(),
-            Some(0) => format!("{name} (first half)"),
-            Some(_) => format!("{name} (second half)"),
-        }
+        let which = ["first", "second", "last"][self.third];
+        format!("{name} ({which} third)")
     }
+
+    /// Its role: 0 fit, 1 select, 2 judge.
+    fn role(&self) -> usize {
+        (self.third + self.log) % 3
+    }
+}
+
+/// Length of the windows of the time localisation, s.
+pub const WINDOW_S: f64 = 0.25;
+
+/// A (window, axis, band) cell of a log where the residual peaks.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct TimePeak {
+    /// The log.
+    pub log: String,
+    /// Start and end of the window, s from the log's start.
+    pub from_s: f64,
+    /// End of the window, s.
+    pub to_s: f64,
+    /// The axis.
+    pub axis: String,
+    /// The band.
+    pub band: String,
+    /// The residual there, dB (measured over the model).
+    pub residual_db: f64,
+}
+
+/// A candidate that explains the judge pieces as well as a chosen effect.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct Alternative {
+    /// The chosen effect.
+    pub instead_of: String,
+    /// The rival.
+    pub effect: String,
+    /// Its fitted values.
+    pub values: Vec<Fitted>,
+    /// RMS of the judge pieces with it, dB.
+    pub judge_rms_db: f64,
+    /// With the chosen effect, dB.
+    pub chosen_judge_rms_db: f64,
+    /// Paired t of its excess mean square over the judge cells.
+    pub t: f64,
+    /// One-sided p-value of that excess.
+    pub p_value: f64,
+    /// When a value it needs is beyond the class's range.
+    pub implausible: Option<Implausible>,
+}
+
+/// A candidate set aside because its fitted values are beyond the class's range.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct Rejected {
+    /// Effect key.
+    pub effect: String,
+    /// What it would need.
+    pub implausible: Implausible,
 }
 
 /// One free parameter with its model value.
@@ -322,6 +415,7 @@ struct Free {
     key: String,
     base: f64,
     step: f64,
+    param: Param,
 }
 
 /// A fitted parameter.
@@ -346,12 +440,14 @@ pub struct Step {
     pub description: String,
     /// Its parameters and those of the effects before it, refitted.
     pub values: Vec<Fitted>,
-    /// Calibration RMS of the band residuals after it, dB.
-    pub calibration_rms_db: f64,
-    /// Held-out RMS after it, dB.
-    pub held_out_rms_db: f64,
-    /// Shrink of the held-out mean square from before it.
-    pub held_out_shrink: f64,
+    /// RMS of the fit pieces' band residuals after it, dB.
+    pub fit_rms_db: f64,
+    /// RMS of the select pieces' after it, dB.
+    pub select_rms_db: f64,
+    /// Shrink of the select pieces' mean square from before it.
+    pub select_shrink: f64,
+    /// RMS of the judge pieces' after it, dB.
+    pub judge_rms_db: f64,
 }
 
 /// A candidate's fit in the round that stopped the selection.
@@ -359,9 +455,9 @@ pub struct Step {
 pub struct Score {
     /// Effect key.
     pub effect: String,
-    /// Held-out RMS with it, dB.
-    pub held_out_rms_db: f64,
-    /// Change of the calibration BIC.
+    /// RMS of the select pieces with it, dB.
+    pub select_rms_db: f64,
+    /// Change of the fit pieces' BIC.
     pub bic_change: f64,
 }
 
@@ -381,10 +477,14 @@ pub struct Share {
 pub struct VibrationGap {
     /// How the logs were split.
     pub split: String,
-    /// Pieces that fit and pieces that judge.
-    pub calibration: Vec<String>,
-    /// Held-out pieces.
-    pub held_out: Vec<String>,
+    /// Pieces that fit.
+    pub fit: Vec<String>,
+    /// Pieces that select.
+    pub select: Vec<String>,
+    /// Pieces that judge, used neither to fit nor to select.
+    pub judge: Vec<String>,
+    /// The index (into the levels) of the first judge piece, for plots.
+    pub first_judge_piece: usize,
     /// The bands.
     pub bands: Vec<Band>,
     /// The axes compared.
@@ -397,12 +497,21 @@ pub struct VibrationGap {
     pub model_before: Vec<Vec<Vec<f64>>>,
     /// The model's levels after the chosen effects.
     pub model_after: Vec<Vec<Vec<f64>>>,
-    /// Calibration RMS before, dB.
-    pub calibration_before_db: f64,
-    /// Held-out RMS before, dB.
-    pub held_out_before_db: f64,
+    /// RMS of the fit pieces before, dB.
+    pub fit_before_db: f64,
+    /// RMS of the select pieces before, dB.
+    pub select_before_db: f64,
+    /// RMS of the judge pieces before, dB.
+    pub judge_before_db: f64,
+    /// RMS of the judge pieces after the chosen effects, dB.
+    pub judge_after_db: f64,
     /// Effects added, in order.
     pub steps: Vec<Step>,
+    /// Candidates set aside as implausible.
+    pub rejected: Vec<Rejected>,
+    /// Candidates that explain the judge pieces as well as a chosen effect did in its round
+    /// (paired test over the judge cells; see [`crate::select`]).
+    pub alternatives: Vec<Alternative>,
     /// Scores of the round that stopped the selection.
     pub last_round: Vec<Score>,
     /// Where the residual sits before: by band, by axis, harmonic or not, by piece.
@@ -411,8 +520,10 @@ pub struct VibrationGap {
     pub before_by_axis: Vec<Share>,
     /// Tooth-passing harmonics against the rest.
     pub before_by_kind: Vec<Share>,
-    /// By piece (in time, with one log).
+    /// By piece (in time).
     pub before_by_piece: Vec<Share>,
+    /// The (window, axis, band) cells where the residual before peaks, largest first.
+    pub before_in_time: Vec<TimePeak>,
     /// The same places after.
     pub after_by_band: Vec<Share>,
     /// Ljung–Box test of what is left, per piece and axis over the bands in frequency order
@@ -423,22 +534,26 @@ pub struct VibrationGap {
 }
 
 impl VibrationGap {
-    /// Held-out RMS after the chosen effects, dB.
-    pub fn held_out_after_db(&self) -> f64 {
+    /// RMS of the select pieces after the chosen effects, dB.
+    pub fn select_after_db(&self) -> f64 {
         self.steps
             .last()
-            .map_or(self.held_out_before_db, |s| s.held_out_rms_db)
+            .map_or(self.select_before_db, |s| s.select_rms_db)
     }
 
-    /// Whether the chosen effects explain the gap.
+    /// Whether the chosen effects explain the gap: on the select pieces and, untouched, on the
+    /// judge pieces.
     pub fn explained(&self, o: &Options) -> bool {
+        let by =
+            |before, after| explained(before, after, o.explained_floor_db, o.explained_fraction);
         !self.steps.is_empty()
-            && explained(
-                self.held_out_before_db,
-                self.held_out_after_db(),
-                o.explained_floor_db,
-                o.explained_fraction,
-            )
+            && by(self.select_before_db, self.select_after_db())
+            && by(self.judge_before_db, self.judge_after_db)
+    }
+
+    /// The fraction of the judge pieces' mean square the chosen effects remove.
+    pub fn judge_shrink(&self) -> f64 {
+        1.0 - (self.judge_after_db / self.judge_before_db).powi(2)
     }
 }
 
@@ -450,8 +565,8 @@ struct Problem<'a> {
     model: &'a MillingModel,
     logs: &'a [Log],
     pieces: Vec<Piece>,
-    calibration: Vec<usize>,
-    held_out: Vec<usize>,
+    /// The pieces of each role: fit, select, judge.
+    roles: [Vec<usize>; 3],
     channels: Vec<String>,
     bands: Vec<Band>,
     /// The instrument's noise per band, m/s².
@@ -477,19 +592,14 @@ impl<'a> Problem<'a> {
         for log in logs {
             check(model, log)?;
         }
-        let pieces: Vec<Piece> = if logs.len() == 1 {
-            (0..2)
-                .map(|h| Piece {
-                    log: 0,
-                    half: Some(h),
-                })
+        let pieces: Vec<Piece> = (0..logs.len())
+            .flat_map(|log| (0..3).map(move |third| Piece { log, third }))
+            .collect();
+        let roles = [0, 1, 2].map(|r| {
+            (0..pieces.len())
+                .filter(|i| pieces[*i].role() == r)
                 .collect()
-        } else {
-            (0..logs.len())
-                .map(|log| Piece { log, half: None })
-                .collect()
-        };
-        let (calibration, held_out) = (0..pieces.len()).partition(|i| i % 2 == 0);
+        });
         let channels: Vec<String> = first
             .channels
             .iter()
@@ -522,8 +632,7 @@ impl<'a> Problem<'a> {
             model,
             logs,
             pieces,
-            calibration,
-            held_out,
+            roles,
             channels,
             bands,
             noise,
@@ -720,23 +829,31 @@ impl Selector<'_> {
     }
 
     fn cal_rss(&self, r: &[Vec<f64>]) -> f64 {
-        rss(&self.problem.stack(r, &self.problem.calibration))
+        rss(&self.problem.stack(r, &self.problem.roles[0]))
     }
 
-    /// Levenberg–Marquardt on the calibration pieces from `theta`.
+    /// The first fitted value beyond what the class allows.
+    fn implausible(&self, f: &Fit) -> Option<Implausible> {
+        f.free.iter().zip(&f.theta).find_map(|(i, t)| {
+            let p = &self.free[*i];
+            p.param.check(&[p.base], t * p.step).err()
+        })
+    }
+
+    /// Levenberg–Marquardt on the fit pieces from `theta`.
     fn fit(&self, free: Vec<usize>, mut theta: Vec<f64>) -> Result<Fit, GapError> {
         let (mut levels, mut residuals) = self.problem.evaluate(&self.values(&free, &theta))?;
         let mut cost = self.cal_rss(&residuals);
         let mut lambda: f64 = 1e-2;
         for _ in 0..self.o.max_iterations {
-            let r0 = self.problem.stack(&residuals, &self.problem.calibration);
+            let r0 = self.problem.stack(&residuals, &self.problem.roles[0]);
             let columns: Vec<Vec<f64>> = (0..free.len())
                 .into_par_iter()
                 .map(|j| {
                     let mut t = theta.clone();
                     t[j] += 1.0;
                     let (_, r) = self.problem.evaluate(&self.values(&free, &t))?;
-                    let r = self.problem.stack(&r, &self.problem.calibration);
+                    let r = self.problem.stack(&r, &self.problem.roles[0]);
                     Ok(r.iter().zip(&r0).map(|(a, b)| a - b).collect())
                 })
                 .collect::<Result<_, GapError>>()?;
@@ -821,7 +938,7 @@ pub fn visibility(model: &MillingModel, offsets: &[(String, f64)]) -> Result<f64
     let logs = [model.log(&values)?];
     let p = Problem::new(model, &logs, true)?;
     let (_, r) = p.evaluate(&[])?;
-    Ok(rms(&p.stack(&r, &p.held_out)))
+    Ok(rms(&p.stack(&r, &p.roles[2])))
 }
 
 /// [`analyse`] with the effects named in `hidden` left out of the candidates.
@@ -846,6 +963,7 @@ pub fn analyse_without(
                     base: model.value(&key)?,
                     key,
                     step: p.step,
+                    param: p.clone(),
                 })
             })
         })
@@ -859,14 +977,21 @@ pub fn analyse_without(
     };
     let p = &sel.problem;
     let (before_levels, before) = p.evaluate(&[])?;
-    let n_cal = p.stack(&before, &p.calibration).len();
-    let held = |r: &[Vec<f64>]| p.stack(r, &p.held_out);
+    let n_cal = p.stack(&before, &p.roles[0]).len();
+    let held = |r: &[Vec<f64>]| p.stack(r, &p.roles[1]);
+    let judge = |r: &[Vec<f64>]| rms(&p.stack(r, &p.roles[2]));
     let mut cur_held = rss(&held(&before));
     let mut cur_bic = bic(sel.cal_rss(&before), n_cal, 0);
-    let held_out_before_db = rms(&held(&before));
-    let (mut chosen, mut current, mut steps, mut last_round) =
-        (Vec::<usize>::new(), None::<Fit>, Vec::new(), Vec::new());
-    while chosen.len() < o.max_effects && held_out_before_db > o.explained_floor_db {
+    let select_before_db = rms(&held(&before));
+    let (mut chosen, mut current, mut steps, mut last_round, mut rejected, mut alternatives) = (
+        Vec::<usize>::new(),
+        None::<Fit>,
+        Vec::new(),
+        Vec::new(),
+        Vec::new(),
+        Vec::new(),
+    );
+    while chosen.len() < o.max_effects && select_before_db > o.explained_floor_db {
         let fits: Vec<(usize, Fit)> = (0..sel.library.len())
             .filter(|e| !chosen.contains(e) && !hidden.contains(&sel.library[*e].key.as_str()))
             .collect::<Vec<_>>()
@@ -889,18 +1014,65 @@ pub fn analyse_without(
             .collect();
         let score = |(e, f): &(usize, Fit)| Score {
             effect: sel.library[*e].key.clone(),
-            held_out_rms_db: rms(&held(&f.residuals)),
+            select_rms_db: rms(&held(&f.residuals)),
             bic_change: bic(sel.cal_rss(&f.residuals), n_cal, f.free.len()) - cur_bic,
         };
         last_round = fits.iter().map(score).collect();
-        last_round.sort_by(|a, b| a.held_out_rms_db.total_cmp(&b.held_out_rms_db));
-        let best = fits
-            .into_iter()
-            .filter(|x| score(x).bic_change < -o.min_bic_drop)
-            .min_by(|a, b| rss(&held(&a.1.residuals)).total_cmp(&rss(&held(&b.1.residuals))));
-        let Some((e, fit)) = best else {
+        last_round.sort_by(|a, b| a.select_rms_db.total_cmp(&b.select_rms_db));
+        let passing: Vec<usize> = (0..fits.len())
+            .filter(|i| score(&fits[*i]).bic_change < -o.min_bic_drop)
+            .collect();
+        let best = passing
+            .iter()
+            .copied()
+            .filter(|i| sel.implausible(&fits[*i].1).is_none())
+            .min_by(|a, b| {
+                rss(&held(&fits[*a].1.residuals)).total_cmp(&rss(&held(&fits[*b].1.residuals)))
+            });
+        // Fits that would have ranked first but need what the class cannot have.
+        let best_rss = best.map_or(f64::INFINITY, |b| rss(&held(&fits[b].1.residuals)));
+        rejected.extend(passing.iter().filter_map(|i| {
+            let (e, f) = &fits[*i];
+            (rss(&held(&f.residuals)) < best_rss).then_some(())?;
+            Some(Rejected {
+                effect: sel.library[*e].key.clone(),
+                implausible: sel.implausible(f)?,
+            })
+        }));
+        let Some(best) = best else {
             break;
         };
+        let judge_cells = |f: &Fit| p.stack(&f.residuals, &p.roles[2]);
+        let chosen_judge = judge_cells(&fits[best].1);
+        let cells: Vec<Vec<usize>> = (0..chosen_judge.len()).map(|i| vec![i]).collect();
+        let judge_before = judge(&before);
+        for (i, (other, f)) in fits.iter().enumerate() {
+            if i == best {
+                continue;
+            }
+            let r = judge_cells(f);
+            let (t, p_value) = crate::select::paired_excess(&r, &chosen_judge, &cells);
+            if p_value > o.ambiguity_level
+                && explained(
+                    judge_before,
+                    rms(&r),
+                    o.explained_floor_db,
+                    o.explained_fraction,
+                )
+            {
+                alternatives.push(Alternative {
+                    instead_of: sel.library[fits[best].0].key.clone(),
+                    effect: sel.library[*other].key.clone(),
+                    values: sel.fitted(f),
+                    judge_rms_db: rms(&r),
+                    chosen_judge_rms_db: rms(&chosen_judge),
+                    t,
+                    p_value,
+                    implausible: sel.implausible(f),
+                });
+            }
+        }
+        let (e, fit) = fits.into_iter().nth(best).expect("an index into the fits");
         let held_new = held(&fit.residuals);
         let prev = current
             .as_ref()
@@ -911,16 +1083,17 @@ pub fn analyse_without(
             .map(|(a, b)| a - b)
             .collect::<Vec<_>>());
         let shrink = 1.0 - rss(&held_new) / cur_held;
-        if shrink < o.min_held_out_shrink || change < o.min_effect_db {
+        if shrink < o.min_select_shrink || change < o.min_effect_db {
             break;
         }
         steps.push(Step {
             effect: sel.library[e].key.clone(),
             description: sel.library[e].description.clone(),
             values: sel.fitted(&fit),
-            calibration_rms_db: rms(&p.stack(&fit.residuals, &p.calibration)),
-            held_out_rms_db: rms(&held_new),
-            held_out_shrink: shrink,
+            fit_rms_db: rms(&p.stack(&fit.residuals, &p.roles[0])),
+            select_rms_db: rms(&held_new),
+            select_shrink: shrink,
+            judge_rms_db: judge(&fit.residuals),
         });
         cur_held = rss(&held_new);
         cur_bic = bic(sel.cal_rss(&fit.residuals), n_cal, fit.free.len());
@@ -931,26 +1104,27 @@ pub fn analyse_without(
         (f.levels, f.residuals)
     });
     let f_tp = model.tooth_passing_hz();
+    let labels = |r: usize| -> Vec<String> {
+        p.roles[r]
+            .iter()
+            .map(|i| p.pieces[*i].label(logs))
+            .collect()
+    };
     Ok(VibrationGap {
-        split: if logs.len() == 1 {
-            "one log: its first half fits, its second half judges".into()
-        } else {
-            "every other log held out".into()
-        },
-        calibration: p
-            .calibration
-            .iter()
-            .map(|i| p.pieces[*i].label(logs))
-            .collect(),
-        held_out: p
-            .held_out
-            .iter()
-            .map(|i| p.pieces[*i].label(logs))
-            .collect(),
+        split: "each log in thirds of its time, in turn fit, select and judge, turning by one \
+                from log to log; the judge thirds are used neither to fit nor to choose"
+            .into(),
+        fit: labels(0),
+        select: labels(1),
+        judge: labels(2),
+        first_judge_piece: p.roles[2].first().copied().unwrap_or(0),
+        judge_before_db: judge(&before),
+        judge_after_db: judge(&after),
         before_by_band: by_band(p, &before),
         before_by_axis: by_axis(p, &before),
         before_by_kind: by_kind(p, &before, f_tp),
         before_by_piece: by_piece(p, &before),
+        before_in_time: in_time(p, &p.simulate(&[])?)?,
         after_by_band: by_band(p, &after),
         whiteness_after: whiteness(p, &after),
         bands: p.bands.clone(),
@@ -959,12 +1133,66 @@ pub fn analyse_without(
         measured: p.measured.clone(),
         model_before: before_levels,
         model_after: after_levels,
-        calibration_before_db: rms(&p.stack(&before, &p.calibration)),
-        held_out_before_db,
+        fit_before_db: rms(&p.stack(&before, &p.roles[0])),
+        select_before_db,
         steps,
+        rejected,
+        alternatives,
         last_round,
         simulations: p.simulations.load(std::sync::atomic::Ordering::Relaxed),
     })
+}
+
+/// Most (window, axis, band) cells listed by the time localisation.
+const TIME_PEAKS: usize = 5;
+
+/// The band levels of windows of [`WINDOW_S`] along each measured log against the model's
+/// log (`model`, one per measured log), and the cells where the residual's magnitude peaks
+/// (only cells whose measured or model level stands above the instrument's noise).
+fn in_time(p: &Problem, model: &[Log]) -> Result<Vec<TimePeak>, GapError> {
+    let mut cells = Vec::new();
+    for (log, sim) in p.logs.iter().zip(model) {
+        let fs = log.sample_rate_hz;
+        let n = ((WINDOW_S * fs) as usize).max(crate::spectrum::SEGMENT);
+        for (c, name) in p.channels.iter().enumerate() {
+            let find = |l: &Log| {
+                l.channels
+                    .iter()
+                    .find(|(k, _)| k == name)
+                    .map(|(_, x)| x.clone())
+            };
+            let (Some(x), Some(y)) = (find(log), find(sim)) else {
+                continue;
+            };
+            for (w, (a, b)) in x.chunks_exact(n).zip(y.chunks_exact(n)).enumerate() {
+                let (Some(la), Some(lb)) = (
+                    band_levels(a, fs, &p.bands),
+                    band_levels(b, sim.sample_rate_hz, &p.bands),
+                ) else {
+                    continue;
+                };
+                for (k, band) in p.bands.iter().enumerate() {
+                    let noise = p.noise[k];
+                    if la[k].max(lb[k]) < ABOVE_NOISE * noise {
+                        continue;
+                    }
+                    let meas = (la[k] * la[k] + TINY * TINY).sqrt();
+                    let modl = (lb[k] * lb[k] + noise * noise + TINY * TINY).sqrt();
+                    cells.push(TimePeak {
+                        log: log.name.clone(),
+                        from_s: (w * n) as f64 / fs,
+                        to_s: ((w + 1) * n) as f64 / fs,
+                        axis: p.channels[c].clone(),
+                        band: band_name(band),
+                        residual_db: 20.0 * (meas / modl).log10(),
+                    });
+                }
+            }
+        }
+    }
+    cells.sort_by(|a, b| b.residual_db.abs().total_cmp(&a.residual_db.abs()));
+    cells.truncate(TIME_PEAKS);
+    Ok(cells)
 }
 
 /// Lags of the whiteness test over the bands.

@@ -151,7 +151,7 @@ pub fn run(
                 visibility(model, &c.offsets)?
             } else {
                 // The run-out is no key of the model: its size is what the log shows.
-                g.held_out_before_db
+                g.judge_before_db
             };
             progress();
             Ok(outcome(c, &g, o, visible))
@@ -161,8 +161,8 @@ pub fn run(
 
 fn outcome(c: &Case, g: &VibrationGap, o: &Options, visible: f64) -> Outcome {
     let chosen = g.steps.iter().map(|s| s.effect.clone()).collect();
-    let held = (g.held_out_before_db, g.held_out_after_db());
-    Outcome::new(
+    let held = (g.judge_before_db, g.judge_after_db);
+    let mut out = Outcome::new(
         &c.name,
         &c.withheld,
         chosen,
@@ -170,5 +170,14 @@ fn outcome(c: &Case, g: &VibrationGap, o: &Options, visible: f64) -> Outcome {
         held,
         visible,
         "dB",
-    )
+    );
+    if let Some(first) = out.found.first() {
+        out.ambiguous = g
+            .alternatives
+            .iter()
+            .filter(|a| &a.instead_of == first && a.implausible.is_none())
+            .map(|a| a.effect.clone())
+            .collect();
+    }
+    out
 }

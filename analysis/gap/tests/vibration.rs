@@ -59,7 +59,14 @@ fn a_shifted_tool_mode_is_found_sized_and_closes_the_held_out_gap() {
         "fitted {f} Hz, truth {truth} Hz"
     );
     assert!(g.explained(&Options::default()));
-    assert!(g.steps[0].held_out_shrink > 0.9, "{:#?}", g.steps);
+    assert!(g.steps[0].select_shrink > 0.9, "{:#?}", g.steps);
+    // The judge pieces, used neither to fit nor to choose, confirm it.
+    assert!(
+        g.judge_shrink() > 0.9,
+        "judge {} -> {} dB",
+        g.judge_before_db,
+        g.judge_after_db
+    );
     // The gap sits where the mode moved: near 900 Hz, between the tooth-passing harmonics.
     let top = g
         .before_by_band
@@ -74,7 +81,7 @@ fn a_model_that_matches_gets_no_effect() {
     let model = MillingModel::new(&stable(), "model.toml", dir()).unwrap();
     let g = analyse(&model, &[measured(&[])], &Options::default()).unwrap();
     assert!(g.steps.is_empty(), "{:#?}", g.steps);
-    assert!(g.held_out_before_db < Options::default().explained_floor_db);
+    assert!(g.select_before_db < Options::default().explained_floor_db);
 }
 
 #[test]

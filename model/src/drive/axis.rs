@@ -315,7 +315,25 @@ impl Drive {
     /// that their independent friction chains overlap in the pipeline.
     #[inline]
     pub fn step_all<const N: usize>(
+        axes: [(&mut Drive, &mut CarriageState); N],
+        external_n: [f64; N],
+        h: f64,
+    ) -> [f64; N] {
+        let mut nut = [(0.0, 0.0); N];
+        for ((x, v), (_, c)) in nut.iter_mut().zip(&axes) {
+            (*x, *v) = (c.position_m, c.velocity_m_s);
+        }
+        Self::step_all_at_nut(axes, nut, external_n, h)
+    }
+
+    /// [`Drive::step_all`] for carriages whose ball nut is not where their guideway friction
+    /// acts (a carriage that tilts on its guide blocks): the screw stretches to the nut's
+    /// position and velocity `nut` (m, m/s, axis coordinates), the friction slides at the
+    /// carriage's velocity.
+    #[inline]
+    pub fn step_all_at_nut<const N: usize>(
         mut axes: [(&mut Drive, &mut CarriageState); N],
+        nut: [(f64, f64); N],
         external_n: [f64; N],
         h: f64,
     ) -> [f64; N] {
@@ -326,7 +344,11 @@ impl Drive {
         let (mut screw, mut guide_slip, mut screw_slip) =
             ([0.0; N], [(0.0, 0.0); N], [(0.0, 0.0); N]);
         for (i, (d, c)) in axes.iter().enumerate() {
-            screw[i] = d.screw_force(c);
+            let (x, v) = nut[i];
+            screw[i] = d
+                .params
+                .screw
+                .force(d.motor_position_m, d.motor_velocity_m_s, x, v);
             guide_slip[i] = d.step.guide_friction.slip(c.velocity_m_s);
             screw_slip[i] = d.step.screw_friction.slip(d.motor_velocity_m_s);
         }

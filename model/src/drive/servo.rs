@@ -151,6 +151,30 @@ pub fn sampled_loop_radius(p: &ServoParams, drive: &DriveParams, period_s: f64) 
     }
 }
 
+/// The least damped oscillating pole of the sampled loops of `p` on `drive` at `period_s`
+/// (linearised as for [`sampled_loop_radius`]): its frequency (Hz) and damping ratio, from the
+/// discrete eigenvalue `z` as `s = ln(z)/T`, `ζ = −Re s/|s|` (negative: it grows). A loop
+/// rings there when disturbed, and with `ζ < 0` it rings on until a nonlinearity (the force
+/// limit, friction) bounds it. `None` when nothing oscillates or the matrix is beyond
+/// evaluation.
+pub fn least_damped_pole(
+    p: &ServoParams,
+    drive: &DriveParams,
+    period_s: f64,
+) -> Option<(f64, f64)> {
+    let a = sampled_loop_matrix(p, drive, period_s).filter(|a| a.iter().all(|v| v.is_finite()))?;
+    let schur = Schur::try_new(a, f64::EPSILON, 1000)?;
+    schur
+        .complex_eigenvalues()
+        .iter()
+        .filter(|z| z.im > 1e-12 && z.norm() > 0.0)
+        .map(|z| {
+            let s = z.ln() / period_s;
+            (s.im / std::f64::consts::TAU, -s.re / s.norm())
+        })
+        .min_by(|a, b| a.1.total_cmp(&b.1))
+}
+
 /// Whether the loops of `p` on `drive` at `period_s` are stable: no eigenvalue beyond the unit
 /// circle, rounding allowed for (1e-9, far below any growth that shows in a run).
 pub fn loops_are_stable(p: &ServoParams, drive: &DriveParams, period_s: f64) -> bool {

@@ -80,6 +80,19 @@ impl AxisState {
     }
 }
 
+/// What an axis' carriage adds to its geometric errors while it deflects on its guide blocks
+/// (the dynamic part of its ISO 230-1 errors: straightness, positioning, pitch, yaw, roll), in
+/// the form of the joint's errors: a translation δ (m) and a rotation vector ε (rad) of the tool
+/// relative to the workpiece, added to the geometric ones (`Trans(q·u + δ_g + δ_d)·R(ε_g +
+/// ε_d)`: first order in the µrad-sized rotations, whose products are below 1e-10).
+#[derive(Clone, Copy, Debug, PartialEq, Default)]
+pub struct Deflection {
+    /// Translation, m.
+    pub translation: Vector3<f64>,
+    /// Rotation vector, rad.
+    pub rotation: Vector3<f64>,
+}
+
 /// Geometric errors on a kinematic chain: the machine's quasi-static error model.
 #[derive(Clone, Debug, PartialEq)]
 pub struct VolumetricModel {
@@ -195,7 +208,7 @@ impl VolumetricModel {
 impl VolumetricEvaluator<'_> {
     /// The joint matrix of `axis` at `state`.
     pub fn joint(&self, axis: Axis, state: &AxisState) -> Htm {
-        let (geometric, thermal) = self.joint_parts(axis, state);
+        let (geometric, thermal) = self.joint_parts(axis, state, None);
         match (thermal, self.model.kinematics.topology.axis_side(axis)) {
             (None, _) => geometric,
             (Some(r), Side::Tool) => Htm {
@@ -212,7 +225,12 @@ impl VolumetricEvaluator<'_> {
     /// The joint matrix as `geometric · R(±ε_j)`: the geometric part `Trans(q·u + δ) · R(ε)`
     /// and the thermal rotation, if any, kept apart so a point can go through them in turn.
     #[inline]
-    fn joint_parts(&self, axis: Axis, state: &AxisState) -> (Htm, Option<&Matrix3<f64>>) {
+    fn joint_parts(
+        &self,
+        axis: Axis,
+        state: &AxisState,
+        deflection: Option<&Deflection>,
+    ) -> (Htm, Option<&Matrix3<f64>>) {
         let i = axis.index();
         let q = state.position[i];
         let mut motion = self.model.errors.axis(axis).motion(q, state.direction[i]);
@@ -220,6 +238,10 @@ impl VolumetricEvaluator<'_> {
             let local = g.error_motion(q, self.moves_tool[i]);
             motion.translation += local.translation;
             motion.rotation += local.rotation;
+        }
+        if let Some(d) = deflection {
+            motion.translation += d.translation;
+            motion.rotation += d.rotation;
         }
         let u = self.axis_lines[direction_index(&state.direction)][i];
         let jt = &self.thermal.joints[i];
@@ -237,6 +259,26 @@ impl VolumetricEvaluator<'_> {
     /// The actual tool point relative to the workpiece, m.
     #[inline]
     pub fn tool_point(&self, state: &AxisState) -> Vector3<f64> {
+        self.tool_point_with(state, None)
+    }
+
+    /// The actual tool point relative to the workpiece with the carriages deflected by
+    /// `deflections` (X, Y, Z; see [`Deflection`]), m.
+    #[inline]
+    pub fn tool_point_deflected(
+        &self,
+        state: &AxisState,
+        deflections: &[Deflection; 3],
+    ) -> Vector3<f64> {
+        self.tool_point_with(state, Some(deflections))
+    }
+
+    #[inline]
+    fn tool_point_with(
+        &self,
+        state: &AxisState,
+        deflections: Option<&[Deflection; 3]>,
+    ) -> Vector3<f64> {
         let chain = self.model.kinematics.topology.chain();
         let mut p = self.model.kinematics.tool_offset;
         for k in (0..5).rev() {
@@ -246,7 +288,8 @@ impl VolumetricEvaluator<'_> {
             if k > 0
                 && let Element::Axis(a) = chain[k]
             {
-                let (geometric, thermal) = self.joint_parts(a, state);
+                let d = deflections.map(|d| &d[a.index()]);
+                let (geometric, thermal) = self.joint_parts(a, state, d);
                 p = match (thermal, self.model.kinematics.topology.axis_side(a)) {
                     (None, _) => geometric.transform_point(&p),
                     (Some(r), Side::Tool) => geometric.transform_point(&(r * p)),

@@ -4,6 +4,6 @@ pub mod chain;
 pub mod htm;
 pub mod topology;
 
-pub use chain::{AxisState, Kinematics, VolumetricEvaluator, VolumetricModel};
+pub use chain::{AxisState, Deflection, Kinematics, VolumetricEvaluator, VolumetricModel};
 pub use htm::{Htm, rotation_matrix};
 pub use topology::{Element, Side, Topology, TopologyError};

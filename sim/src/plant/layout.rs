@@ -41,8 +41,30 @@ pub enum PlantError {
         outer_kg: f64,
     },
     /// rapier refused a joint of the multibody.
-    #[error("the multibody refused the prismatic joint of axis {0}")]
+    #[error("the multibody refused the joint of axis {0}")]
     Joint(Axis),
+    /// A carriage of the structure is no rigid body on guide blocks.
+    #[error(transparent)]
+    Structure(#[from] vmt_model::structure::StructureError),
+    /// The compliant plant needs the carriages' description.
+    #[error(
+        "the compliant plant needs each axis' carriage: [machine.axes.<axis>.carriage] with its box, nut and guide blocks"
+    )]
+    NoStructure,
+    /// The plant step is too coarse for the stiffest mode of the carriages on their blocks.
+    #[error(
+        "a plant step of {step_us:.2} µs is too coarse for the stiffest mode of the carriages on their guide blocks ({mode_hz:.0} Hz, mostly the {axis} carriage): up to {accepted_us:.2} µs is accepted, where semi-implicit Euler keeps the mode's frequency within 5 %; raise plant_substeps (scenario key controller.plant_substeps)"
+    )]
+    StepTooCoarse {
+        /// The carriage moving most in the mode.
+        axis: Axis,
+        /// Its frequency, Hz.
+        mode_hz: f64,
+        /// The step, µs.
+        step_us: f64,
+        /// The largest accepted step, µs.
+        accepted_us: f64,
+    },
 }
 
 /// The layout of the three axes of `topology` with moving masses `moving_kg` (X, Y, Z).

@@ -68,6 +68,8 @@ pub struct MultibodyPlant {
     impulse_n_s: [f64; 3],
     /// Macro steps rapier has taken since the plant was built.
     macro_steps: u64,
+    /// Process force along each axis (axis coordinates), N.
+    process_n: [f64; 3],
 }
 
 impl MultibodyPlant {
@@ -162,6 +164,7 @@ impl MultibodyPlant {
             elapsed_s: 0.0,
             impulse_n_s: [0.0; 3],
             macro_steps: 0,
+            process_n: [0.0; 3],
         };
         let (q, v) = plant.read_joints();
         for (l, (q, v)) in plant.links.iter_mut().zip(q.into_iter().zip(v)) {
@@ -306,7 +309,7 @@ impl Plant for MultibodyPlant {
             (d1, &mut l1.carriage),
             (d2, &mut l2.carriage),
         ];
-        let net = Drive::step_all(axes, [0.0; 3], h);
+        let net = Drive::step_all(axes, self.process_n, h);
         for (i, l) in self.links.iter_mut().enumerate() {
             let m = &self.inv_mass[i];
             let a = m[0] * net[0] + m[1] * net[1] + m[2] * net[2] + self.bias_m_s2[i];
@@ -327,5 +330,9 @@ impl Plant for MultibodyPlant {
 
     fn carriages(&self) -> [CarriageState; 3] {
         std::array::from_fn(|i| self.links[i].carriage)
+    }
+
+    fn set_tool_force(&mut self, force_n: nalgebra::Vector3<f64>) {
+        self.process_n = [force_n.x, force_n.y, force_n.z];
     }
 }

@@ -8,6 +8,8 @@ use vmt_model::drive::{AxisCommand, CarriageState, Drive, ReducedAxis};
 pub struct ReducedPlant {
     axes: [ReducedAxis; 3],
     gravity_n: [f64; 3],
+    /// Process force along each axis (axis coordinates), N.
+    process_n: [f64; 3],
 }
 
 impl ReducedPlant {
@@ -24,6 +26,7 @@ impl ReducedPlant {
         Self {
             axes,
             gravity_n: layout.map(|l| l.gravity_n),
+            process_n: [0.0; 3],
         }
     }
 }
@@ -36,7 +39,8 @@ impl Plant for ReducedPlant {
     }
 
     fn step(&mut self, h: f64) {
-        ReducedAxis::step_all(&mut self.axes, h, self.gravity_n);
+        let external = std::array::from_fn(|i| self.gravity_n[i] + self.process_n[i]);
+        ReducedAxis::step_all(&mut self.axes, h, external);
     }
 
     fn drive(&self, i: usize) -> &Drive {
@@ -45,5 +49,9 @@ impl Plant for ReducedPlant {
 
     fn carriages(&self) -> [CarriageState; 3] {
         std::array::from_fn(|i| self.axes[i].carriage)
+    }
+
+    fn set_tool_force(&mut self, force_n: nalgebra::Vector3<f64>) {
+        self.process_n = [force_n.x, force_n.y, force_n.z];
     }
 }

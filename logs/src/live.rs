@@ -11,7 +11,7 @@
 use super::mcap::McapFile;
 use super::rerun::RrdFile;
 use super::{Partial, RunFile};
-use crate::error::CliError;
+use crate::error::FileError;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::sync::mpsc::{Receiver, SyncSender, sync_channel};
@@ -31,7 +31,7 @@ enum Message {
 }
 
 /// The complete file under its partial name, or none if the run ended without finishing.
-type Outcome = Result<Option<Partial>, CliError>;
+type Outcome = Result<Option<Partial>, FileError>;
 
 /// One file's thread and the way to it.
 struct Writer {
@@ -57,7 +57,7 @@ impl Writer {
         drop(self.queue);
         self.thread
             .join()
-            .unwrap_or_else(|_| Err(CliError::output_message(&self.path, "its writer failed")))
+            .unwrap_or_else(|_| Err(FileError::output_message(&self.path, "its writer failed")))
     }
 }
 
@@ -103,11 +103,11 @@ impl RunFiles {
     /// Completes the files with the finished `run` (whose `servo` rows went to the files as it
     /// ran), renames them to their names once both are complete, and returns the run and the
     /// files' paths.
-    pub fn finish(mut self, run: Run) -> Result<(Run, Vec<PathBuf>), CliError> {
+    pub fn finish(mut self, run: Run) -> Result<(Run, Vec<PathBuf>), FileError> {
         let run = Arc::new(run);
         let sent = self.send(Message::Finish(Arc::clone(&run)));
         let made = self.join_all()?;
-        sent.map_err(|e| CliError::output_message(&self.dir, e))?;
+        sent.map_err(|e| FileError::output_message(&self.dir, e))?;
         let mut files = Vec::new();
         for p in made.into_iter().flatten() {
             let path = p.target().to_path_buf();
@@ -125,12 +125,12 @@ impl RunFiles {
 
     /// Ends the files of a run that failed, removing them; a writer's error if one had failed
     /// (which would explain the run's).
-    pub fn abandon(mut self) -> Result<(), CliError> {
+    pub fn abandon(mut self) -> Result<(), FileError> {
         self.join_all().map(drop)
     }
 
     /// Waits for every writer: what each made, or the first error.
-    fn join_all(&mut self) -> Result<Vec<Option<Partial>>, CliError> {
+    fn join_all(&mut self) -> Result<Vec<Option<Partial>>, FileError> {
         let outcomes: Vec<Outcome> = self.writers.drain(..).map(Writer::join).collect();
         outcomes.into_iter().collect()
     }

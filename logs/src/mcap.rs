@@ -60,7 +60,7 @@
 //! | `ground_truth` | `json` (the ground truth as compact JSON, as on `/ground_truth`) |
 
 use super::{Partial, RunFile, check_stream, check_trace, time_ns, unique_slugs, write_whole};
-use crate::error::CliError;
+use crate::error::FileError;
 use ::mcap::records::{MessageHeader, Metadata};
 use ::mcap::{Compression, WriteOptions, Writer};
 use serde_json::{Value, json};
@@ -73,7 +73,8 @@ use vmt_sim::run::{BallbarTrace, LaserRun, Run, Stream};
 /// Name and version of the file layout, in the `run` metadata record.
 pub const FORMAT: &str = "vmt-mcap/1";
 
-/// The `library` string of the MCAP header.
+/// The `library` string of the MCAP header: `vmt-tools`, the crate that wrote these files
+/// before the writers had a crate of their own, so that a run's file keeps its bytes.
 const LIBRARY: &str = concat!(
     "vmt-tools/",
     env!("CARGO_PKG_VERSION"),
@@ -93,7 +94,7 @@ type McapWriter = Writer<BufWriter<File>>;
 /// Fails when a stream or trace is inconsistent (a channel with more or fewer values than sample
 /// times), when a sample time is negative or not finite, or when the file cannot be written.
 /// The file is the one [`McapFile`] writes block by block while the job runs, byte for byte.
-pub fn write_mcap(run: &Run, path: &Path) -> Result<(), CliError> {
+pub fn write_mcap(run: &Run, path: &Path) -> Result<(), FileError> {
     write_whole::<McapFile>(run, path)
 }
 
@@ -115,10 +116,10 @@ pub struct McapFile {
 
 impl RunFile for McapFile {
     /// Creates the file and adds the channels of the streams and traces of `opening`.
-    fn create(path: &Path, opening: &Run) -> Result<Self, CliError> {
+    fn create(path: &Path, opening: &Run) -> Result<Self, FileError> {
         let partial = Partial::new(path);
-        let err = |e: ::mcap::McapError| CliError::output(path, e);
-        let file = File::create(partial.path()).map_err(|e| CliError::output(path, e))?;
+        let err = |e: ::mcap::McapError| FileError::output(path, e);
+        let file = File::create(partial.path()).map_err(|e| FileError::output(path, e))?;
         let mut writer = WriteOptions::new()
             .compression(Some(Compression::Zstd))
             // One thread: zstd's multithreaded frames differ from single-threaded ones, and a
@@ -145,7 +146,7 @@ impl RunFile for McapFile {
     }
 
     /// Writes the messages of the block merged in time order.
-    fn block(&mut self, streams: &[Stream], traces: &[BallbarTrace]) -> Result<(), CliError> {
+    fn block(&mut self, streams: &[Stream], traces: &[BallbarTrace]) -> Result<(), FileError> {
         let path = self.partial.target().to_path_buf();
         let path = path.as_path();
         streams.iter().try_for_each(|s| check_stream(s, path))?;
@@ -184,9 +185,9 @@ impl RunFile for McapFile {
 
     /// Writes the laser readings and the ground truth of the finished `run` and the metadata
     /// records and completes the file.
-    fn complete(mut self, run: &Run) -> Result<Partial, CliError> {
+    fn complete(mut self, run: &Run) -> Result<Partial, FileError> {
         let path = self.partial.target().to_path_buf();
-        let err = |e: ::mcap::McapError| CliError::output(&path, e);
+        let err = |e: ::mcap::McapError| FileError::output(&path, e);
         if let Some(l) = &run.laser {
             let id = self
                 .writer
@@ -198,7 +199,8 @@ impl RunFile for McapFile {
                 .map_err(err)?;
             for (i, r) in l.readings.iter().enumerate() {
                 let time = time_ns(r.time_s, &|| format!("laser reading {i}"), &path)?;
-                serde_json::to_writer(&mut self.data, r).map_err(|e| CliError::output(&path, e))?;
+                serde_json::to_writer(&mut self.data, r)
+                    .map_err(|e| FileError::output(&path, e))?;
                 self.message(channel, time)?;
             }
         }
@@ -216,7 +218,7 @@ impl RunFile for McapFile {
             .add_channel(id, "/ground_truth", "json", &meta)
             .map_err(err)?;
         serde_json::to_writer(&mut self.data, &run.ground_truth)
-            .map_err(|e| CliError::output(&path, e))?;
+            .map_err(|e| FileError::output(&path, e))?;
         self.message(channel, 0)?;
         let truth = metadata("ground_truth", vec![("json", run.ground_truth.to_string())]);
         self.writer.write_metadata(&truth).map_err(err)?;
@@ -227,14 +229,14 @@ impl RunFile for McapFile {
         writer
             .into_inner()
             .into_inner()
-            .map_err(|e| CliError::output(&path, e.error()))?;
+            .map_err(|e| FileError::output(&path, e.error()))?;
         Ok(partial)
     }
 }
 
 impl McapFile {
     /// Writes the message in the data buffer on `channel_id` at `time` (ns) and empties it.
-    fn message(&mut self, channel_id: u16, time: u64) -> Result<(), CliError> {
+    fn message(&mut self, channel_id: u16, time: u64) -> Result<(), FileError> {
         let seq = self.sequence.entry(channel_id).or_insert(0);
         let header = MessageHeader {
             channel_id,
@@ -245,7 +247,7 @@ impl McapFile {
         *seq = seq.wrapping_add(1);
         self.writer
             .write_to_known_channel(&header, &self.data)
-            .map_err(|e| CliError::output(self.partial.target(), e))?;
+            .map_err(|e| FileError::output(self.partial.target(), e))?;
         self.data.clear();
         Ok(())
     }
@@ -452,7 +454,7 @@ fn message_order(
     traces: &[BallbarTrace],
     first: &[Vec<usize>; 2],
     path: &Path,
-) -> Result<Vec<(u64, Source)>, CliError> {
+) -> Result<Vec<(u64, Source)>, FileError> {
     let total = streams.iter().map(|s| s.times_s.len()).sum::<usize>()
         + traces.iter().map(|t| t.times_s.len()).sum::<usize>();
     let mut events = Vec::with_capacity(total);

@@ -2,7 +2,7 @@
 //! mcap crate's `io::MessageReader`, memory of about one chunk, whatever the run's length: a
 //! 277 MB Kwon run had been read whole into memory), any other file (a CSV) is read whole.
 
-use crate::error::CliError;
+use crate::error::FileError;
 use mcap::sans_io::LinearReaderOptions;
 use mcap::sans_io::summary_reader::{SummaryReadEvent, SummaryReader, SummaryReaderOptions};
 use std::fs::File;
@@ -10,7 +10,7 @@ use std::io::{BufReader, Read, Seek};
 use std::path::Path;
 
 /// A file as the analysis commands take it.
-pub(crate) enum Input {
+pub enum Input {
     /// An MCAP file (by its magic bytes), to be read with [`messages`].
     Mcap,
     /// Any other file, whole.
@@ -18,8 +18,8 @@ pub(crate) enum Input {
 }
 
 /// Whether `path` is an MCAP file, or its bytes if it is not; errors name `file`.
-pub(crate) fn open(path: &Path, file: &str) -> Result<Input, CliError> {
-    let err = |e: std::io::Error| CliError::input(file, None, e.to_string());
+pub fn open(path: &Path, file: &str) -> Result<Input, FileError> {
+    let err = |e: std::io::Error| FileError::input(file, None, e.to_string());
     let mut f = File::open(path).map_err(err)?;
     let mut head = Vec::with_capacity(mcap::MAGIC.len());
     f.by_ref()
@@ -40,11 +40,11 @@ const RECORD_LENGTH_LIMIT: usize = 1 << 30;
 
 /// The messages of the MCAP file `path`, streamed in file order and linked to their channels;
 /// a damaged record is an error naming `file`, with its causes.
-pub(crate) fn messages(
+pub fn messages(
     path: &Path,
     file: &str,
-) -> Result<impl Iterator<Item = Result<mcap::Message<'static>, CliError>>, CliError> {
-    let f = File::open(path).map_err(|e| CliError::input(file, None, e.to_string()))?;
+) -> Result<impl Iterator<Item = Result<mcap::Message<'static>, FileError>>, FileError> {
+    let f = File::open(path).map_err(|e| FileError::input(file, None, e.to_string()))?;
     let file = file.to_string();
     Ok(mcap::io::MessageReader::new_with_options(
         BufReader::new(f),
@@ -53,14 +53,14 @@ pub(crate) fn messages(
     .map(move |m| {
         m.map_err(|e| {
             let why = crate::error::with_causes(&e);
-            CliError::input(&file, None, format!("a damaged MCAP record: {why}"))
+            FileError::input(&file, None, format!("a damaged MCAP record: {why}"))
         })
     }))
 }
 
 /// The summary section of the MCAP file `path`, if it has one (read with a few seeks, not
 /// through the file); `None` also when it cannot be read.
-pub(crate) fn summary(path: &Path) -> Option<mcap::Summary> {
+pub fn summary(path: &Path) -> Option<mcap::Summary> {
     let mut f = File::open(path).ok()?;
     let size = f.metadata().ok()?.len();
     let mut reader = SummaryReader::new_with_options(

@@ -1,21 +1,27 @@
-//! Run writers: a simulated [`Run`] as files that other tools open.
+//! vmt-logs: a run's log files. A simulated [`Run`] written as files that other tools open,
+//! and read back as the analysis takes a real instrument's log.
 //!
 //! - [`mcap`]: an MCAP file of JSON messages with JSON-Schema schemas, for Foxglove and the
 //!   `mcap` readers (Python, C++, Rust, Go, ...).
 //! - [`rerun`]: a Rerun recording (`.rrd`) with the machine in 3D, the tool path, ball-bar polar
 //!   traces, time series and a viewer layout, for the Rerun viewer 0.36.
 //! - [`live`]: both written while the job runs, from the simulator's blocks of records.
+//! - [`input`]: an MCAP file streamed back, message by message; [`ballbar`]: its ball-bar
+//!   traces grouped into circular tests; [`truth`]: the figures of the ground truth it carries.
 //!
 //! Both use the simulation time of the run as their clock; nothing in them comes from the wall
 //! clock of the computer that wrote them (see each module for what that means for its format).
 //! The topics and entity paths are documented in the modules and in `docs/formats.md`.
 
-pub(crate) mod input;
+pub mod ballbar;
+pub mod error;
+pub mod input;
 pub mod live;
 pub mod mcap;
 pub mod rerun;
+pub mod truth;
 
-use crate::error::CliError;
+pub use error::{FileError, with_causes};
 use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
 use vmt_sim::run::{BallbarTrace, Run, Stream};
@@ -30,24 +36,24 @@ pub use self::rerun::write_rrd;
 pub trait RunFile: Sized {
     /// Creates the file `path` for the run `opening`: its streams' channels and its traces,
     /// with or without their samples.
-    fn create(path: &Path, opening: &Run) -> Result<Self, CliError>;
+    fn create(path: &Path, opening: &Run) -> Result<Self, FileError>;
 
     /// Writes every row of `streams` and every sample of `traces` (the run's streams and
     /// traces, in the order of the opening run's, holding just the records of this block).
-    fn block(&mut self, streams: &[Stream], traces: &[BallbarTrace]) -> Result<(), CliError>;
+    fn block(&mut self, streams: &[Stream], traces: &[BallbarTrace]) -> Result<(), FileError>;
 
     /// Writes what needs the finished `run` and completes the file, still under its partial
     /// name.
-    fn complete(self, run: &Run) -> Result<Partial, CliError>;
+    fn complete(self, run: &Run) -> Result<Partial, FileError>;
 
     /// [`RunFile::complete`], then renamed to its path.
-    fn finish(self, run: &Run) -> Result<(), CliError> {
+    fn finish(self, run: &Run) -> Result<(), FileError> {
         self.complete(run)?.commit()
     }
 }
 
 /// `run` written whole to `path` as a file of kind `F`: all its records in one block.
-fn write_whole<F: RunFile>(run: &Run, path: &Path) -> Result<(), CliError> {
+fn write_whole<F: RunFile>(run: &Run, path: &Path) -> Result<(), FileError> {
     let mut file = F::create(path, run)?;
     file.block(&run.streams, &run.ballbar)?;
     file.finish(run)
@@ -58,12 +64,12 @@ fn write_whole<F: RunFile>(run: &Run, path: &Path) -> Result<(), CliError> {
 /// file asked for.
 pub(crate) fn atomically(
     path: &Path,
-    write: impl FnOnce(&Path) -> Result<(), CliError>,
-) -> Result<(), CliError> {
+    write: impl FnOnce(&Path) -> Result<(), FileError>,
+) -> Result<(), FileError> {
     let partial = Partial::new(path);
     write(partial.path()).map_err(|e| match e {
-        CliError::Output { path: p, message } if Path::new(&p) == partial.path() => {
-            CliError::output_message(path, message)
+        FileError::Output { path: p, message } if Path::new(&p) == partial.path() => {
+            FileError::output_message(path, message)
         }
         e => e,
     })?;
@@ -103,9 +109,9 @@ impl Partial {
     }
 
     /// Renames the complete partial file to its path.
-    pub(crate) fn commit(mut self) -> Result<(), CliError> {
+    pub(crate) fn commit(mut self) -> Result<(), FileError> {
         std::fs::rename(&self.partial, &self.target)
-            .map_err(|e| CliError::output(&self.target, e))?;
+            .map_err(|e| FileError::output(&self.target, e))?;
         self.committed = true;
         Ok(())
     }
@@ -121,7 +127,7 @@ impl Drop for Partial {
 
 /// `text` as a lower-case name of ASCII letters, digits and single underscores, e.g.
 /// `XY 150 mm 1000 mm/min CCW` -> `xy_150_mm_1000_mm_min_ccw`; `unnamed` if nothing is left.
-pub(crate) fn slug(text: &str) -> String {
+pub fn slug(text: &str) -> String {
     let chars: Vec<char> = text.chars().collect();
     let mut out = String::with_capacity(text.len());
     for (i, &c) in chars.iter().enumerate() {
@@ -163,12 +169,12 @@ pub(crate) fn unique_slugs<'a>(names: impl Iterator<Item = &'a str>) -> Vec<Stri
 
 /// Simulation time `t_s` (s) as integer nanoseconds, or an error naming `what` when the time is
 /// negative, not finite or beyond about 584 years.
-pub(crate) fn time_ns(t_s: f64, what: &dyn Fn() -> String, path: &Path) -> Result<u64, CliError> {
+pub(crate) fn time_ns(t_s: f64, what: &dyn Fn() -> String, path: &Path) -> Result<u64, FileError> {
     let ns = (t_s * 1e9).round();
     if ns.is_finite() && ns >= 0.0 && ns < u64::MAX as f64 {
         Ok(ns as u64)
     } else {
-        Err(CliError::output_message(
+        Err(FileError::output_message(
             path,
             format!(
                 "{}: time {t_s} s is not a finite, non-negative simulation time",
@@ -179,10 +185,10 @@ pub(crate) fn time_ns(t_s: f64, what: &dyn Fn() -> String, path: &Path) -> Resul
 }
 
 /// Checks that every channel of `stream` has one value per sample time.
-pub(crate) fn check_stream(stream: &Stream, path: &Path) -> Result<(), CliError> {
+pub(crate) fn check_stream(stream: &Stream, path: &Path) -> Result<(), FileError> {
     let n = stream.times_s.len();
     match stream.channels.iter().find(|c| c.values.len() != n) {
-        Some(c) => Err(CliError::output_message(
+        Some(c) => Err(FileError::output_message(
             path,
             format!(
                 "stream `{}`: channel `{}` has {} values for {n} sample times",
@@ -196,12 +202,12 @@ pub(crate) fn check_stream(stream: &Stream, path: &Path) -> Result<(), CliError>
 }
 
 /// Checks that a ball-bar trace has as many angles and deviations as sample times.
-pub(crate) fn check_trace(trace: &BallbarTrace, path: &Path) -> Result<(), CliError> {
+pub(crate) fn check_trace(trace: &BallbarTrace, path: &Path) -> Result<(), FileError> {
     let n = trace.times_s.len();
     if trace.angle_deg.len() == n && trace.deviation_um.len() == n {
         Ok(())
     } else {
-        Err(CliError::output_message(
+        Err(FileError::output_message(
             path,
             format!(
                 "ball-bar trace `{}`: {} times, {} angles and {} deviations (they must match)",

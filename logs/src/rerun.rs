@@ -77,7 +77,7 @@
 use super::{
     Partial, RunFile, atomically, check_stream, check_trace, slug, unique_slugs, write_whole,
 };
-use crate::error::CliError;
+use crate::error::FileError;
 use rerun::blueprint::{
     Blueprint, ContainerLike, Horizontal, Spatial2DView, Spatial3DView, Tabs, TextDocumentView,
     TimePanel, TimeSeriesView, Vertical,
@@ -111,7 +111,7 @@ const SERIES_BLOCK: usize = 8192;
 ///
 /// Fails when the topology is not one of the 24, when a stream or trace is inconsistent, when a
 /// sample time is not finite or beyond ±292 years, or when the file cannot be written.
-pub fn write_rrd(run: &Run, path: &Path) -> Result<(), CliError> {
+pub fn write_rrd(run: &Run, path: &Path) -> Result<(), FileError> {
     write_whole::<RrdFile>(run, path)
 }
 
@@ -176,12 +176,12 @@ fn other_series(streams: &[Stream]) -> Vec<OtherSeries> {
 
 impl RunFile for RrdFile {
     /// Creates the recording with its blueprint, information, machine and series styles.
-    fn create(path: &Path, opening: &Run) -> Result<Self, CliError> {
+    fn create(path: &Path, opening: &Run) -> Result<Self, FileError> {
         let topology: Topology = opening
             .machine
             .topology
             .parse()
-            .map_err(|e| CliError::output(path, e))?;
+            .map_err(|e| FileError::output(path, e))?;
         let partial = Partial::new(path);
         let groups = polar_groups(&opening.ballbar);
         let others = other_series(&opening.streams);
@@ -201,7 +201,7 @@ impl RunFile for RrdFile {
                 opening.laser.is_some(),
             ))
             .save(partial.path())
-            .map_err(|e| CliError::output(path, e))?;
+            .map_err(|e| FileError::output(path, e))?;
         rec.set_log_time_enabled(false);
         rec.set_log_tick_enabled(false);
         let file = Self {
@@ -243,7 +243,7 @@ impl RunFile for RrdFile {
     }
 
     /// Sends the block's rows and samples and waits for them to be written.
-    fn block(&mut self, streams: &[Stream], traces: &[BallbarTrace]) -> Result<(), CliError> {
+    fn block(&mut self, streams: &[Stream], traces: &[BallbarTrace]) -> Result<(), FileError> {
         if let Some(servo) = servo(streams) {
             extend_tool_path(&mut self.tool_path, servo);
         }
@@ -290,7 +290,7 @@ impl RunFile for RrdFile {
 
     /// Logs what needs the finished `run` (the tool path, the polar plots of its traces, its
     /// laser readings and ground truth) and completes the file.
-    fn complete(self, run: &Run) -> Result<Partial, CliError> {
+    fn complete(self, run: &Run) -> Result<Partial, FileError> {
         let log = self.logger();
         if !self.tool_path.is_empty() {
             let strip = LineStrips3D::new([&self.tool_path])
@@ -381,9 +381,9 @@ struct PolarGroup {
 }
 
 /// One group per circular test, the tests numbered as `vmt diagnose` and the polar PNGs
-/// number them ([`crate::traces::run_tests`]); a single test keeps the plain name.
+/// number them ([`crate::ballbar::run_tests`]); a single test keeps the plain name.
 fn polar_groups(traces: &[BallbarTrace]) -> Vec<PolarGroup> {
-    let tests = crate::traces::run_tests(traces);
+    let tests = crate::ballbar::run_tests(traces);
     let several = tests.len() > 1;
     let mut first = 0;
     let mut groups = Vec::with_capacity(tests.len());
@@ -524,20 +524,20 @@ fn flush(rec: &rerun::RecordingStream) -> Result<(), FlushError> {
 }
 
 impl Logger<'_> {
-    fn err(&self, e: impl std::error::Error) -> CliError {
-        CliError::output(self.path, e)
+    fn err(&self, e: impl std::error::Error) -> FileError {
+        FileError::output(self.path, e)
     }
 
     fn log_static(
         &self,
         entity: impl Into<rerun::EntityPath>,
         what: &dyn rerun::AsComponents,
-    ) -> Result<(), CliError> {
+    ) -> Result<(), FileError> {
         self.rec.log_static(entity, what).map_err(|e| self.err(e))
     }
 
     /// The run's and the scenario's text documents.
-    fn info(&self, run: &Run) -> Result<(), CliError> {
+    fn info(&self, run: &Run) -> Result<(), FileError> {
         let m = &run.machine;
         let text = format!(
             "# {}\n\n| | |\n|---|---|\n| scenario | {} |\n| seed | {} |\n| fidelity | {} |\n\
@@ -562,7 +562,7 @@ impl Logger<'_> {
         )
     }
 
-    fn ground_truth(&self, truth: &serde_json::Value) -> Result<(), CliError> {
+    fn ground_truth(&self, truth: &serde_json::Value) -> Result<(), FileError> {
         let truth = serde_json::to_string_pretty(truth).unwrap_or_default();
         self.log_static(
             "/info/ground_truth",
@@ -571,7 +571,7 @@ impl Logger<'_> {
     }
 
     /// The machine's assemblies as static boxes.
-    fn machine(&self, layout: &Layout) -> Result<(), CliError> {
+    fn machine(&self, layout: &Layout) -> Result<(), FileError> {
         self.log_static("/machine", &ViewCoordinates::RIGHT_HAND_Z_UP())?;
         for part in &layout.parts {
             let boxes = Boxes3D::from_centers_and_sizes([part.centre], [part.size])
@@ -591,7 +591,7 @@ impl Logger<'_> {
         first_row: usize,
         axis: Axis,
         sign: f64,
-    ) -> Result<(), CliError> {
+    ) -> Result<(), FileError> {
         let a = axis.letter().to_ascii_lowercase();
         let Some(ch) = servo
             .channel(&format!("position_{a}"))
@@ -622,7 +622,7 @@ impl Logger<'_> {
         (times_s, first_row): (&[f64], usize),
         what: &str,
         columns: impl Fn(Range<usize>) -> SerializationResult<C>,
-    ) -> Result<(), CliError> {
+    ) -> Result<(), FileError> {
         for first in (0..times_s.len()).step_by(SERIES_BLOCK) {
             let rows = first..(first + SERIES_BLOCK).min(times_s.len());
             let time = self.time_column(&times_s[rows.clone()], first_row + first, what)?;
@@ -640,13 +640,13 @@ impl Logger<'_> {
         times_s: &[f64],
         first: usize,
         what: &str,
-    ) -> Result<TimeColumn, CliError> {
+    ) -> Result<TimeColumn, FileError> {
         let mut nanos = Vec::with_capacity(times_s.len());
         for (i, &t) in (first..).zip(times_s) {
             let ns = (t * 1e9).round();
             // i64::MIN is reserved by Rerun; keep well inside the range.
             if !(ns.is_finite() && ns.abs() < 9.2e18) {
-                return Err(CliError::output_message(
+                return Err(FileError::output_message(
                     self.path,
                     format!("`{what}`, sample {i}: time {t} s is not a finite simulation time"),
                 ));
@@ -657,7 +657,7 @@ impl Logger<'_> {
     }
 
     /// The name and colour of the series `entity`.
-    fn style(&self, entity: &str, name: &str, colour: Color) -> Result<(), CliError> {
+    fn style(&self, entity: &str, name: &str, colour: Color) -> Result<(), FileError> {
         self.log_static(
             entity,
             &SeriesLines::new().with_names([name]).with_colors([colour]),
@@ -672,7 +672,7 @@ impl Logger<'_> {
         colour: Color,
         times_s: &[f64],
         value: impl Fn(usize) -> f64,
-    ) -> Result<(), CliError> {
+    ) -> Result<(), FileError> {
         self.style(entity, name, colour)?;
         self.send_blocks(entity, (times_s, 0), entity, |rows| {
             Scalars::new(rows.map(&value)).columns_of_unit_batches()
@@ -706,7 +706,7 @@ impl Logger<'_> {
         out
     }
 
-    fn servo_styles(&self, servo: &Stream) -> Result<(), CliError> {
+    fn servo_styles(&self, servo: &Stream) -> Result<(), FileError> {
         for (entity, name, colour, _) in Self::servo_channels(servo) {
             self.style(&entity, &name, colour)?;
         }
@@ -715,7 +715,7 @@ impl Logger<'_> {
 
     /// The following errors (µm) and friction forces (N) of the rows of `servo`, the first of
     /// them row `first_row` of the run.
-    fn servo_series(&self, servo: &Stream, first_row: usize) -> Result<(), CliError> {
+    fn servo_series(&self, servo: &Stream, first_row: usize) -> Result<(), FileError> {
         for (entity, _, _, c) in Self::servo_channels(servo) {
             let k = if entity.starts_with("/series/following_error_um") {
                 1e6
@@ -730,7 +730,7 @@ impl Logger<'_> {
     }
 
     /// The laser deviations over time, one series per direction of approach.
-    fn laser_series(&self, l: &LaserRun) -> Result<(), CliError> {
+    fn laser_series(&self, l: &LaserRun) -> Result<(), FileError> {
         for (dir, colour) in [
             ("forward", Color::from_rgb(30, 80, 200)),
             ("backward", Color::from_rgb(200, 30, 30)),
@@ -754,7 +754,7 @@ impl Logger<'_> {
         g: &PolarGroup,
         traces: &[BallbarTrace],
         slugs: &[String],
-    ) -> Result<(), CliError> {
+    ) -> Result<(), FileError> {
         let scale = PolarScale::new(g.radius_mm, group_deviation_um(g, traces));
         let base = format!("/ballbar/{}", g.name);
         let nominal = circle(g.radius_mm);
@@ -799,7 +799,7 @@ impl Logger<'_> {
 /// transients at their ends, as the PNG plots are scaled (a run without overshoot, as in
 /// Kwon's steps, starts with 150 µm of lag that had set a scale hiding errors of a few µm).
 fn group_deviation_um(g: &PolarGroup, traces: &[BallbarTrace]) -> f64 {
-    crate::plot::largest_deviations(g.traces.iter().map(|&i| &traces[i]))
+    crate::ballbar::largest_deviations(g.traces.iter().map(|&i| &traces[i]))
         .map_or(0.0, |(all, inner)| inner.unwrap_or(all))
 }
 
@@ -1120,7 +1120,7 @@ pub fn write_band_rrd(
     recording_id: &str,
     report: &str,
     axes: &[AxisBands<'_>],
-) -> Result<(), CliError> {
+) -> Result<(), FileError> {
     atomically(path, |partial| {
         write_band_file(partial, recording_id, report, axes)
     })
@@ -1132,8 +1132,8 @@ fn write_band_file(
     recording_id: &str,
     report: &str,
     axes: &[AxisBands<'_>],
-) -> Result<(), CliError> {
-    let err = |e: &dyn std::error::Error| CliError::output(path, e);
+) -> Result<(), FileError> {
+    let err = |e: &dyn std::error::Error| FileError::output(path, e);
     let rec = rerun::RecordingStreamBuilder::new(APPLICATION_ID)
         .recording_id(recording_id)
         .enabled(true)
