@@ -9,8 +9,8 @@ use vmt_model::drive::gms::GmsParams;
 use vmt_model::drive::motor::MotorPulsation;
 use vmt_model::drive::nut::PreloadedNut;
 use vmt_model::drive::{
-    AxisCommand, Drive, DriveEffects, DriveParams, Feedback, LuGreParams, ReducedAxis,
-    ScrewParams, ServoParams,
+    AxisCommand, Drive, DriveEffects, DriveParams, Feedback, LuGreParams, ReducedAxis, ScrewParams,
+    ServoParams,
 };
 
 const SERVO: f64 = 125e-6;
@@ -65,7 +65,9 @@ fn table_drive(friction: LuGreParams, feedback: Feedback) -> (DriveParams, Servo
 
 fn axis(params: DriveParams, servo: ServoParams, effects: &DriveEffects) -> ReducedAxis {
     ReducedAxis {
-        drive: Drive::new(params, servo, 0.0).with_effects(effects).unwrap(),
+        drive: Drive::new(params, servo, 0.0)
+            .with_effects(effects)
+            .unwrap(),
         carriage: Default::default(),
     }
 }
@@ -85,7 +87,12 @@ fn cruise(axis: &mut ReducedAxis, v: f64, skip: f64, duration: f64) -> Vec<[f64;
         axis.control(&cmd, SERVO);
         axis.step(SERVO, 0.0);
         if t >= skip {
-            out.push([t, v * t, axis.carriage.position_m, axis.drive.motor_position_m]);
+            out.push([
+                t,
+                v * t,
+                axis.carriage.position_m,
+                axis.drive.motor_position_m,
+            ]);
         }
     }
     out
@@ -189,7 +196,10 @@ fn a_loop_on_distorted_signals_carries_minus_their_error() {
         error += e * e;
     }
     let ratio = (residual / error).sqrt();
-    assert!(ratio < 0.05, "the carriage departs from −e by {ratio} of e's RMS");
+    assert!(
+        ratio < 0.05,
+        "the carriage departs from −e by {ratio} of e's RMS"
+    );
     // And the error is the micrometres it should be: λ/2π · 1.3 % ≈ 2 µm RMS or so.
     let rms = (error / samples.len() as f64).sqrt();
     assert!(rms > 1e-6 && rms < 4e-6, "{rms}");
@@ -241,7 +251,10 @@ fn a_nut_without_preload_adds_an_elastic_lost_motion() {
     );
     let intact = stretch(&DriveEffects::default(), v) - stretch(&DriveEffects::default(), -v);
     let linear = 2.0 * f / params.screw.stiffness_n_per_m;
-    assert!((intact / linear - 1.0).abs() < 0.01, "{intact:e} {linear:e}");
+    assert!(
+        (intact / linear - 1.0).abs() < 0.01,
+        "{intact:e} {linear:e}"
+    );
     // A micrometre more than the intact nut's at the built-in machine's friction.
     assert!(lost - intact > 0.8e-6, "{lost:e} {intact:e}");
 }
@@ -266,7 +279,13 @@ fn the_gms_law_carries_the_same_sliding_friction_as_lugre() {
         };
         let (lugre, with_gms) = (stretch(&DriveEffects::default()), stretch(&gms));
         let expected = params.guide_friction.steady_state_force(v) / params.screw.stiffness_n_per_m;
-        assert!((lugre / expected - 1.0).abs() < 1e-3, "{v}: LuGre {lugre:e} {expected:e}");
-        assert!((with_gms / expected - 1.0).abs() < 1e-3, "{v}: GMS {with_gms:e} {expected:e}");
+        assert!(
+            (lugre / expected - 1.0).abs() < 1e-3,
+            "{v}: LuGre {lugre:e} {expected:e}"
+        );
+        assert!(
+            (with_gms / expected - 1.0).abs() < 1e-3,
+            "{v}: GMS {with_gms:e} {expected:e}"
+        );
     }
 }

@@ -5,11 +5,11 @@
 
 use nalgebra::Vector3;
 use vmt_model::Axis;
+use vmt_model::Direction;
 use vmt_model::geometric::{DefectShape, GeometricErrors, Guideway, RailDefect};
 use vmt_model::kinematics::{AxisState, Kinematics, VolumetricModel};
 use vmt_model::thermal::screw::{ScrewThermal, ScrewThermalParams};
 use vmt_model::thermal_deformation::ThermalDeformation;
-use vmt_model::Direction;
 
 const H: f64 = 2e-6;
 const L: f64 = 0.3;
@@ -85,14 +85,23 @@ fn one_rail_rolls_and_a_block_averages_a_step() {
     let on_rail = H / 2.0 * (1.0 + (std::f64::consts::PI * L / 1.2).cos());
     assert!(close(t, Vector3::z() * on_rail / 2.0, 1e-18), "{t}");
     // Roll about w × n = y × z = +x.
-    assert!(close(theta, Vector3::x() * on_rail / (2.0 * a), 1e-18), "{theta}");
+    assert!(
+        close(theta, Vector3::x() * on_rail / (2.0 * a), 1e-18),
+        "{theta}"
+    );
 
     let step = RailDefect {
         shape: DefectShape::Step,
         ..bump(1.0, at, Axis::Y)
     };
     let b = 0.1;
-    for (s, expected) in [(0.0, 0.5), (b / 4.0, 0.75), (-b / 4.0, 0.25), (b, 1.0), (-b, 0.0)] {
+    for (s, expected) in [
+        (0.0, 0.5),
+        (b / 4.0, 0.75),
+        (-b / 4.0, 0.25),
+        (b, 1.0),
+        (-b, 0.0),
+    ] {
         assert!((step.under_block(s, b) - expected * H).abs() < 1e-18, "{s}");
     }
 }
@@ -126,8 +135,14 @@ fn the_chain_carries_the_tilt_with_its_abbe_offsets() {
     let tool_point = Vector3::new(0.0, 0.0, qz) + tool;
     let expected = -t - theta.cross(&(tool_point - (b0 + table_shift)));
     let second_order = (H / L).powi(2);
-    assert!(close(error, expected, second_order), "{error} against {expected}");
-    assert!(error.x.abs() > 1e-6, "an Abbe error of micrometres: {error}");
+    assert!(
+        close(error, expected, second_order),
+        "{error} against {expected}"
+    );
+    assert!(
+        error.x.abs() > 1e-6,
+        "an Abbe error of micrometres: {error}"
+    );
     // The head: the tool side moves +q, the front block on the top at q = at − L/2, lifted
     // along Y (away from the column face), pitching about z × y = −x.
     let z_state = AxisState::new(Vector3::new(0.1, 0.1, at - L / 2.0), Direction::Forward);
@@ -136,7 +151,10 @@ fn the_chain_carries_the_tilt_with_its_abbe_offsets() {
     let error = z.volumetric_error(&z_state, &ThermalDeformation::default());
     let (t, theta) = (Vector3::y() * H / 2.0, -Vector3::x() * H / L);
     let expected = t + theta.cross(&(tool - c0));
-    assert!(close(error, expected, second_order), "{error} against {expected}");
+    assert!(
+        close(error, expected, second_order),
+        "{error} against {expected}"
+    );
 }
 
 /// Through the chain, against `α ΔT (q − q_f)` of a uniformly warm screw and, for a screw warm
@@ -175,6 +193,9 @@ fn a_screw_warm_in_part_grows_the_axis_there() {
         let state = AxisState::new(Vector3::new(q, 0.2, 0.2), Direction::Forward);
         let error = model.volumetric_error(&state, &d);
         let grown = 11.5e-6 * 3.0 * (q.min(0.3) - 0.1).max(0.0);
-        assert!(close(error, Vector3::x() * grown, 1e-15), "{q}: {error} against {grown}");
+        assert!(
+            close(error, Vector3::x() * grown, 1e-15),
+            "{q}: {error} against {grown}"
+        );
     }
 }

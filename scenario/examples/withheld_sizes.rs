@@ -57,7 +57,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                     peak * 1e3
                 );
                 if !markdown && effect.key == "cogging" && axis == places[0].0 {
-                    for (table, toml) in fragments(&template, effect.key, axis, effect.typical, None)? {
+                    for (table, toml) in
+                        fragments(&template, effect.key, axis, effect.typical, None)?
+                    {
                         eprintln!("[{table}]\n{toml}");
                     }
                 }
@@ -70,7 +72,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
 /// The bar's readings (µm) of every trace of the scenario `text`, and the wall time, s.
 fn readings(text: &str) -> Result<(Vec<Vec<f64>>, f64), Box<dyn std::error::Error>> {
     let scenario = vmt_scenario::parse(text, "vmc500.toml", None)?;
-    let exec = scenario.execution.as_ref().ok_or("the scenario has no job")?;
+    let exec = scenario
+        .execution
+        .as_ref()
+        .ok_or("the scenario has no job")?;
     let start = std::time::Instant::now();
     let run = exec.simulate(&scenario.machine, text, &mut |_| {})?;
     let seconds = start.elapsed().as_secs_f64();

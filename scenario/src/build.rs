@@ -462,7 +462,10 @@ fn machine(m: &MachineToml, base_dir: Option<&Path>) -> Result<Machine> {
     };
     for (axis, a) in Axis::ALL.into_iter().zip([&m.axes.x, &m.axes.y, &m.axes.z]) {
         if let Some(g) = &a.guideway {
-            let p = root.key("axes").key(&axis.to_string().to_lowercase()).key("guideway");
+            let p = root
+                .key("axes")
+                .key(&axis.to_string().to_lowercase())
+                .key("guideway");
             errors.guideways[axis.index()] = Some(crate::effects::guideway(g, axis, &p)?);
         }
     }

@@ -115,9 +115,9 @@ impl Template {
     /// a scenario text for [`crate::parse`], which checks it.
     pub fn with_fragment(&self, table: &str, fragment: &str) -> Result<String, ScenarioError> {
         let key = if table.is_empty() { "<root>" } else { table };
-        let part: DocumentMut = fragment
-            .parse()
-            .map_err(|e: toml_edit::TomlError| self.error(key, format!("the fragment is not TOML: {}", e.message())))?;
+        let part: DocumentMut = fragment.parse().map_err(|e: toml_edit::TomlError| {
+            self.error(key, format!("the fragment is not TOML: {}", e.message()))
+        })?;
         let mut doc = self.doc.clone();
         let mut at: &mut dyn TableLike = doc.as_table_mut();
         if !table.is_empty() {
@@ -133,7 +133,7 @@ impl Template {
             }
         }
         for (k, item) in part.as_table().iter() {
-            merge(at, k, item).map_err(|m| self.error(key, m))?;
+            merge(at, table, k, item).map_err(|m| self.error(key, m))?;
         }
         Ok(doc.to_string())
     }
@@ -159,8 +159,14 @@ impl Template {
     }
 }
 
-/// Merges `item` into `dst` at `key` (see [`Template::with_fragment`]).
-fn merge(dst: &mut dyn TableLike, key: &str, item: &Item) -> Result<(), String> {
+/// Merges `item` into `dst` at `key` (see [`Template::with_fragment`]); `path` is the dotted
+/// key of `dst`, for the error that names where a table meets a value.
+fn merge(dst: &mut dyn TableLike, path: &str, key: &str, item: &Item) -> Result<(), String> {
+    let here = if path.is_empty() {
+        key.to_string()
+    } else {
+        format!("{path}.{key}")
+    };
     if let Some(existing) = dst.get_mut(key) {
         let entries: Option<Vec<(String, Item)>> = match item {
             Item::Table(t) => Some(t.iter().map(|(k, v)| (k.to_string(), v.clone())).collect()),
@@ -171,17 +177,28 @@ fn merge(dst: &mut dyn TableLike, key: &str, item: &Item) -> Result<(), String> 
             ),
             _ => None,
         };
-        if let (Some(entries), Some(table)) = (&entries, existing.as_table_like_mut()) {
-            for (k, v) in entries {
-                merge(table, k, v)?;
+        if let (Item::ArrayOfTables(more), Item::ArrayOfTables(have)) = (item, &mut *existing) {
+            for t in more.iter() {
+                // The fragment's own document position would print it before the scenario's.
+                let mut t = t.clone();
+                t.set_position(None);
+                have.push(t);
             }
             return Ok(());
         }
-        if let (Item::ArrayOfTables(more), Item::ArrayOfTables(have)) = (item, &mut *existing) {
-            for t in more.iter() {
-                have.push(t.clone());
+        match (entries, existing.as_table_like_mut()) {
+            (Some(entries), Some(table)) => {
+                for (k, v) in &entries {
+                    merge(table, &here, k, v)?;
+                }
+                return Ok(());
             }
-            return Ok(());
+            (None, None) => {}
+            _ => {
+                return Err(format!(
+                    "`{here}`: the fragment sets a table where the scenario has a value, or the reverse"
+                ));
+            }
         }
     }
     // An inline table takes a table or an array of tables as its inline form.
@@ -200,7 +217,10 @@ mod tests {
         let text = "[a]\nx = 1.0\nf = { c = 4.0 }\n\n[[list]]\nn = 1\n";
         let t = Template::parse(text, "t.toml").unwrap();
         let out = t
-            .with_merged("[a]\ny = 2.0\n[a.f]\nd = 5.0\n[a.g]\nz = 3.0\n[[list]]\nn = 2\n")
+            .with_fragment(
+                "",
+                "[a]\ny = 2.0\n[a.f]\nd = 5.0\n[a.g]\nz = 3.0\n[[list]]\nn = 2\n",
+            )
             .unwrap();
         let merged = Template::parse(&out, "out.toml").unwrap();
         for (key, v) in [
@@ -214,7 +234,7 @@ mod tests {
         ] {
             assert_eq!(merged.value(key).unwrap(), Some(v), "{key} in\n{out}");
         }
-        let e = t.with_merged("[a.x]\nq = 1.0\n").unwrap_err();
+        let e = t.with_fragment("", "[a.x]\nq = 1.0\n").unwrap_err();
         assert!(e.to_string().contains("a.x"), "{e}");
         let swapped = t.with_table("a", "z = 9.0\n").unwrap();
         let swapped = Template::parse(&swapped, "swapped.toml").unwrap();
@@ -251,14 +271,18 @@ mod tests {
     fn fragments_add_tables_array_elements_and_inline_keys() {
         let text = "[a]\nx = 1.0\nf = { c = 4.0 }\n\n[[a.list]]\nn = 1\n";
         let t = Template::parse(text, "t.toml").unwrap();
-        let out = t.with_fragment("a", "y = \"s\"\n[b]\nz = [1.0, 2.0]\n").unwrap();
+        let out = t
+            .with_fragment("a", "y = \"s\"\n[b]\nz = [1.0, 2.0]\n")
+            .unwrap();
         let doc: toml::Table = toml::from_str(&out).unwrap();
         assert_eq!(doc["a"]["x"].as_float(), Some(1.0));
         assert_eq!(doc["a"]["y"].as_str(), Some("s"));
         assert_eq!(doc["a"]["b"]["z"][1].as_float(), Some(2.0));
         // Into an inline table, and a new nested table on the way.
         let out = t.with_fragment("a.f", "law = \"gms\"").unwrap();
-        assert!(out.contains("f = { c = 4.0, law = \"gms\" }"), "{out}");
+        let doc: toml::Table = toml::from_str(&out).unwrap();
+        assert_eq!(doc["a"]["f"]["c"].as_float(), Some(4.0), "{out}");
+        assert_eq!(doc["a"]["f"]["law"].as_str(), Some("gms"), "{out}");
         let out = t.with_fragment("a.g.h", "k = 2").unwrap();
         let doc: toml::Table = toml::from_str(&out).unwrap();
         assert_eq!(doc["a"]["g"]["h"]["k"].as_integer(), Some(2));

@@ -224,8 +224,20 @@ fn gcd(a: u32, b: u32) -> u32 {
 }
 
 fn motor(m: &MotorToml, p: &KeyPath) -> R<MotorPulsation> {
-    let slots = count_in_range(m.slots as usize, 3, 1000, &p.key("slots"), "a number of slots")?;
-    let poles = count_in_range(m.poles as usize, 2, 1000, &p.key("poles"), "a number of poles")?;
+    let slots = count_in_range(
+        m.slots as usize,
+        3,
+        1000,
+        &p.key("slots"),
+        "a number of slots",
+    )?;
+    let poles = count_in_range(
+        m.poles as usize,
+        2,
+        1000,
+        &p.key("poles"),
+        "a number of poles",
+    )?;
     if poles % 2 != 0 {
         return Err(Invalid::new(
             p.key("poles"),
@@ -235,7 +247,13 @@ fn motor(m: &MotorToml, p: &KeyPath) -> R<MotorPulsation> {
     let (slots, poles) = (slots as u32, poles as u32);
     Ok(MotorPulsation {
         // Up to a whole motor's peak torque: beyond, a wrong unit.
-        cogging_n_m: in_range(m.cogging_n_m, 0.0, 1000.0, &p.key("cogging_n_m"), "a torque (N·m)")?,
+        cogging_n_m: in_range(
+            m.cogging_n_m,
+            0.0,
+            1000.0,
+            &p.key("cogging_n_m"),
+            "a torque (N·m)",
+        )?,
         cogging_periods_per_rev: slots / gcd(slots, poles) * poles,
         cogging_phase_rad: phase(m.cogging_phase_deg, &p.key("cogging_phase_deg"))?,
         pole_pairs: poles / 2,
@@ -266,10 +284,22 @@ fn phase(deg: f64, p: &KeyPath) -> R<f64> {
 fn signals(s: &SignalsToml, lead: Option<f64>, p: &KeyPath) -> R<EncoderSignals> {
     let period_m = match (lead, s.periods_per_rev, s.signal_period_um) {
         (Some(lead), Some(n), None) => {
-            lead / in_range(n, 1.0, 1e6, &p.key("periods_per_rev"), "sin/cos periods per revolution")?
+            lead / in_range(
+                n,
+                1.0,
+                1e6,
+                &p.key("periods_per_rev"),
+                "sin/cos periods per revolution",
+            )?
         }
         (None, None, Some(um)) => {
-            in_range(um, 0.1, 10_000.0, &p.key("signal_period_um"), "a signal period (µm)")? * 1e-6
+            in_range(
+                um,
+                0.1,
+                10_000.0,
+                &p.key("signal_period_um"),
+                "a signal period (µm)",
+            )? * 1e-6
         }
         (Some(_), _, _) => {
             return Err(Invalid::new(
@@ -381,7 +411,9 @@ fn law(f: &FrictionToml, lugre: &LuGreParams, p: &KeyPath) -> R<Option<GmsParams
         }
         Some(other) => Err(Invalid::new(
             p.key("law"),
-            format!("`{other}` is not accepted; law is \"lugre\" (the default) or \"gms\" (Generalized Maxwell-Slip)"),
+            format!(
+                "`{other}` is not accepted; law is \"lugre\" (the default) or \"gms\" (Generalized Maxwell-Slip)"
+            ),
         )),
     }
 }
@@ -465,7 +497,9 @@ fn defect(d: &DefectToml, axis: Axis, p: &KeyPath) -> R<RailDefect> {
         (other, _) => {
             return Err(Invalid::new(
                 p.key("shape"),
-                format!("`{other}` is not accepted; shape is \"bump\" (raised cosine) or \"step\" (rail joint)"),
+                format!(
+                    "`{other}` is not accepted; shape is \"bump\" (raised cosine) or \"step\" (rail joint)"
+                ),
             ));
         }
     };
@@ -485,10 +519,20 @@ fn defect(d: &DefectToml, axis: Axis, p: &KeyPath) -> R<RailDefect> {
     Ok(RailDefect {
         shape,
         direction,
-        at_m: in_range(d.at_mm, -10_000.0, 10_000.0, &p.key("at_mm"), "an axis position (mm)")?
-            * 1e-3,
-        height_m: in_range(d.height_um, -1000.0, 1000.0, &p.key("height_um"), "a height (µm)")?
-            * 1e-6,
+        at_m: in_range(
+            d.at_mm,
+            -10_000.0,
+            10_000.0,
+            &p.key("at_mm"),
+            "an axis position (mm)",
+        )? * 1e-3,
+        height_m: in_range(
+            d.height_um,
+            -1000.0,
+            1000.0,
+            &p.key("height_um"),
+            "a height (µm)",
+        )? * 1e-6,
         rail_offset_m,
     })
 }
@@ -521,7 +565,9 @@ pub fn screw(s: &ScrewToml, axis: Axis, spec: &AxisSpec, p: &KeyPath) -> R<Screw
         other => {
             return Err(Invalid::new(
                 p.key("fixed_end"),
-                format!("`{other}` is not accepted; the thrust bearing's end is \"low\" or \"high\""),
+                format!(
+                    "`{other}` is not accepted; the thrust bearing's end is \"low\" or \"high\""
+                ),
             ));
         }
     };
@@ -539,8 +585,20 @@ pub fn screw(s: &ScrewToml, axis: Axis, spec: &AxisSpec, p: &KeyPath) -> R<Screw
         (Some(rise), Some(span)) => {
             let sp = p.key("warm_span_mm");
             let (a, b) = (
-                in_range(span[0], -10_000.0, 10_000.0, &sp.index(0), "a position (mm)")?,
-                in_range(span[1], -10_000.0, 10_000.0, &sp.index(1), "a position (mm)")?,
+                in_range(
+                    span[0],
+                    -10_000.0,
+                    10_000.0,
+                    &sp.index(0),
+                    "a position (mm)",
+                )?,
+                in_range(
+                    span[1],
+                    -10_000.0,
+                    10_000.0,
+                    &sp.index(1),
+                    "a position (mm)",
+                )?,
             );
             if a >= b {
                 return Err(Invalid::new(
@@ -569,7 +627,12 @@ pub fn screw(s: &ScrewToml, axis: Axis, spec: &AxisSpec, p: &KeyPath) -> R<Screw
     let out = ScrewThermalParams {
         span_m: [lo * 1e-3, hi * 1e-3],
         fixed_at_high_end,
-        diameter_m: positive(s.diameter_mm, 500.0, &p.key("diameter_mm"), "a diameter (mm)")? * 1e-3,
+        diameter_m: positive(
+            s.diameter_mm,
+            500.0,
+            &p.key("diameter_mm"),
+            "a diameter (mm)",
+        )? * 1e-3,
         conductivity_w_per_m_k: positive(
             s.conductivity_w_per_m_k,
             1000.0,
@@ -590,10 +653,20 @@ pub fn screw(s: &ScrewToml, axis: Axis, spec: &AxisSpec, p: &KeyPath) -> R<Screw
             "a convection coefficient (W/(m²·K))",
         )?,
         end_conductance_w_per_k: [end(0)?, end(1)?],
-        nut_w_per_m_s: in_range(s.nut_w_per_mm_s, 0.0, 1000.0, &p.key("nut_w_per_mm_s"), "W per mm/s")?
-            * 1e3,
-        nut_length_m: in_range(s.nut_length_mm, 0.0, 1000.0, &p.key("nut_length_mm"), "a length (mm)")?
-            * 1e-3,
+        nut_w_per_m_s: in_range(
+            s.nut_w_per_mm_s,
+            0.0,
+            1000.0,
+            &p.key("nut_w_per_mm_s"),
+            "W per mm/s",
+        )? * 1e3,
+        nut_length_m: in_range(
+            s.nut_length_mm,
+            0.0,
+            1000.0,
+            &p.key("nut_length_mm"),
+            "a length (mm)",
+        )? * 1e-3,
         bearing_w_per_m_s: in_range(
             s.bearing_w_per_mm_s,
             0.0,
@@ -608,7 +681,13 @@ pub fn screw(s: &ScrewToml, axis: Axis, spec: &AxisSpec, p: &KeyPath) -> R<Screw
             &p.key("alpha_per_k"),
             "an expansion coefficient in 1/K",
         )?,
-        cells: count_in_range(s.cells, 2, MAX_SCREW_CELLS, &p.key("cells"), "a number of cells")?,
+        cells: count_in_range(
+            s.cells,
+            2,
+            MAX_SCREW_CELLS,
+            &p.key("cells"),
+            "a number of cells",
+        )?,
         warm,
     };
     out.check().map_err(|m| Invalid::new(p.clone(), m))?;

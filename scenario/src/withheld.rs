@@ -202,7 +202,8 @@ pub fn fragments(
             }
         }
         "rail_bump" | "rail_step" => {
-            let at = at_mm.ok_or_else(|| fail("a rail defect needs its axis position, at_mm".into()))?;
+            let at =
+                at_mm.ok_or_else(|| fail("a rail defect needs its axis position, at_mm".into()))?;
             let (spacing, length, [cx, cy, cz], direction) = blocks(axis);
             let shape = if key == "rail_bump" {
                 "shape = \"bump\"\nwidth_mm = 30.0\n"

@@ -23,7 +23,14 @@ fn the_builtin_machine_has_none_of_them() {
     for a in &exec.axes {
         assert!(!a.effects.any(), "{:?}", a.effects);
     }
-    assert!(s.machine.volumetric.errors.guideways.iter().all(Option::is_none));
+    assert!(
+        s.machine
+            .volumetric
+            .errors
+            .guideways
+            .iter()
+            .all(Option::is_none)
+    );
     let thermal = s.machine.thermal.unwrap();
     assert!(thermal.screws.iter().all(Option::is_none));
 }
@@ -74,7 +81,10 @@ fn each_withheld_effect_switches_its_physics_on() {
                 }
                 "screw_warming" => {
                     let sc = screw.unwrap();
-                    assert!(!sc.fixed_at_high_end, "fixed at reference_mm = 0, the low end");
+                    assert!(
+                        !sc.fixed_at_high_end,
+                        "fixed at reference_mm = 0, the low end"
+                    );
                     assert!((sc.warm.unwrap().rise_k - 2.0).abs() < 1e-15);
                     assert!((sc.nut_w_per_m_s - 300.0).abs() < 1e-9);
                 }
@@ -93,7 +103,10 @@ fn each_withheld_effect_switches_its_physics_on() {
                 other => panic!("no check for {other}"),
             }
             assert_eq!(
-                WithheldEffect::named(e.key).unwrap().like_for(axis).is_some(),
+                WithheldEffect::named(e.key)
+                    .unwrap()
+                    .like_for(axis)
+                    .is_some(),
                 e.like.is_some()
             );
         }

@@ -15,9 +15,13 @@ use vmt_sim::simulate::simulate;
 
 fn bench(c: &mut Criterion) {
     let builtin = Template::parse(vmt_scenario::BUILTIN_DEFAULT, "vmc500.toml").expect("parses");
-    let mut cases = vec![("none".to_string(), vmt_scenario::BUILTIN_DEFAULT.to_string())];
+    let mut cases = vec![(
+        "none".to_string(),
+        vmt_scenario::BUILTIN_DEFAULT.to_string(),
+    )];
     for e in &WITHHELD {
-        let text = switch_on(&builtin, e.key, Axis::X, e.typical, Some(330.0)).expect("switches on");
+        let text =
+            switch_on(&builtin, e.key, Axis::X, e.typical, Some(330.0)).expect("switches on");
         cases.push((e.key.to_string(), text));
     }
     let mut group = c.benchmark_group("withheld_physics");

@@ -228,7 +228,10 @@ fn physics(machine: &Machine, d: &AxisDynamics, a: Axis) -> Option<Value> {
             }),
         );
     }
-    for (key, gms) in [("guide_friction_law", &e.guide_gms), ("screw_friction_law", &e.screw_gms)] {
+    for (key, gms) in [
+        ("guide_friction_law", &e.guide_gms),
+        ("screw_friction_law", &e.screw_gms),
+    ] {
         if let Some(g) = gms {
             out.insert(key.into(), json!({"law": "gms", "elements": g.elements}));
         }
@@ -239,7 +242,9 @@ fn physics(machine: &Machine, d: &AxisDynamics, a: Axis) -> Option<Value> {
             .iter()
             .map(|d| {
                 let (shape, width) = match d.shape {
-                    vmt_model::geometric::DefectShape::Bump { width_m } => ("bump", Some(width_m * 1e3)),
+                    vmt_model::geometric::DefectShape::Bump { width_m } => {
+                        ("bump", Some(width_m * 1e3))
+                    }
                     vmt_model::geometric::DefectShape::Step => ("step", None),
                 };
                 json!({

@@ -32,7 +32,13 @@ fn traces(text: &str) -> Vec<Vec<(f64, f64)>> {
     let run = exec.simulate(&s.machine, text, &mut |_| {}).unwrap();
     run.ballbar
         .iter()
-        .map(|t| t.angle_deg.iter().copied().zip(t.deviation_um.iter().copied()).collect())
+        .map(|t| {
+            t.angle_deg
+                .iter()
+                .copied()
+                .zip(t.deviation_um.iter().copied())
+                .collect()
+        })
         .collect()
 }
 
@@ -77,7 +83,10 @@ fn a_rail_bump_reaches_the_bar_as_the_tilt_of_the_table() {
             let q = centre + radial * 0.1 - tool;
             // The table moves −q: its blocks' centre is at rail coordinate −(q_x − at).
             let centre_on_rail = -(q.x - at);
-            let (front, rear) = (rail(centre_on_rail + l / 2.0), rail(centre_on_rail - l / 2.0));
+            let (front, rear) = (
+                rail(centre_on_rail + l / 2.0),
+                rail(centre_on_rail - l / 2.0),
+            );
             let lift = Vector3::z() * 0.5 * (front + rear);
             let pitch = Vector3::x().cross(&Vector3::z()) * ((front - rear) / l);
             let tool_point = Vector3::new(0.0, 0.0, q.z) + tool;

@@ -461,7 +461,7 @@ pub fn run(
     let visible_physics: BTreeMap<&str, f64> = physics
         .par_iter()
         .map(|toml| {
-            let with = template.with_merged(toml).map_err(scenario_error)?;
+            let with = template.with_fragment("", toml).map_err(scenario_error)?;
             let changed = ScenarioModel::new(&with, "physics", None)?.traces(&[])?;
             Ok((*toml, lin.visibility_of(library, &changed, o)?))
         })
@@ -476,7 +476,7 @@ pub fn run(
             let mut measured_text = template.with(&edits).map_err(scenario_error)?;
             if let Some(toml) = &c.physics {
                 measured_text = Template::parse(&measured_text, &c.name)
-                    .and_then(|t| t.with_merged(toml))
+                    .and_then(|t| t.with_fragment("", toml))
                     .map_err(scenario_error)?;
             }
             let measured =

@@ -345,10 +345,11 @@ impl Drive {
             ([0.0; N], [(0.0, 0.0); N], [(0.0, 0.0); N]);
         for (i, (d, c)) in axes.iter().enumerate() {
             let (x, v) = nut[i];
-            screw[i] = d
-                .params
-                .screw
-                .force(d.motor_position_m, d.motor_velocity_m_s, x, v);
+            let (x_m, v_m) = (d.motor_position_m, d.motor_velocity_m_s);
+            screw[i] = match &d.effects.nut {
+                None => d.params.screw.force(x_m, v_m, x, v),
+                Some(n) => d.params.screw.force_through(n, x_m, v_m, x, v),
+            };
             guide_slip[i] = d.step.guide_friction.slip(c.velocity_m_s);
             screw_slip[i] = d.step.screw_friction.slip(d.motor_velocity_m_s);
         }

@@ -46,7 +46,8 @@ impl DriveEffects {
             m.check().map_err(|e| format!("motor: {e}"))?;
         }
         if let Some(s) = &self.motor_encoder_signals {
-            s.check().map_err(|e| format!("motor encoder signals: {e}"))?;
+            s.check()
+                .map_err(|e| format!("motor encoder signals: {e}"))?;
         }
         if let Some(s) = &self.scale_signals {
             s.check().map_err(|e| format!("scale signals: {e}"))?;
@@ -96,9 +97,7 @@ impl ActiveEffects {
             motor: e.motor.map(|m| m.on_lead(params.screw.lead_m)),
             motor_encoder: e.motor_encoder_signals,
             scale: e.scale_signals,
-            nut: e
-                .nut
-                .map(|n| n.in_series(params.screw.stiffness_n_per_m)),
+            nut: e.nut.map(|n| n.in_series(params.screw.stiffness_n_per_m)),
             guide_gms: e.guide_gms.map(Gms::new),
             screw_gms: e.screw_gms.map(Gms::new),
         }

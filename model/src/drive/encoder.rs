@@ -160,8 +160,14 @@ mod tests {
                 .fold(0.0_f64, |m, v| m.max(v.abs()));
             // Second-order remainder: ε² λ/2π (a second-order term of the expansion).
             let tol = 2.0 * size * size * e.period_m / TAU + 1e-15;
-            assert!((harmonic(&f, 1) - a1).abs() < tol, "{oc} {os} {r} {beta}: first");
-            assert!((harmonic(&f, 2) - a2).abs() < tol, "{oc} {os} {r} {beta}: second");
+            assert!(
+                (harmonic(&f, 1) - a1).abs() < tol,
+                "{oc} {os} {r} {beta}: first"
+            );
+            assert!(
+                (harmonic(&f, 2) - a2).abs() < tol,
+                "{oc} {os} {r} {beta}: second"
+            );
             // And the mean (a constant offset) is of second order too.
             let mean = f.iter().sum::<f64>() / n as f64;
             assert!(mean.abs() < tol, "mean {mean}");

@@ -66,7 +66,11 @@ impl GmsParams {
     /// N elements matching the LuGre contact `p` (module docs): its Stribeck curve and
     /// viscous term, its pre-sliding stiffness σ0 and its saturation at Fs. `attraction`: C
     /// in N/s, or `None` for σ0·vs.
-    pub fn matching(p: &LuGreParams, elements: usize, attraction: Option<f64>) -> Result<Self, String> {
+    pub fn matching(
+        p: &LuGreParams,
+        elements: usize,
+        attraction: Option<f64>,
+    ) -> Result<Self, String> {
         if !(1..=MAX_GMS_ELEMENTS).contains(&elements) {
             return Err(format!(
                 "{elements} elements are not accepted; 1 to {MAX_GMS_ELEMENTS}"
@@ -75,7 +79,9 @@ impl GmsParams {
         p.check()?;
         let c = attraction.unwrap_or(p.sigma0_n_per_m * p.stribeck_m_s);
         if !(c.is_finite() && c > 0.0) {
-            return Err(format!("an attraction of {c} N/s is not accepted; a finite number > 0"));
+            return Err(format!(
+                "an attraction of {c} N/s is not accepted; a finite number > 0"
+            ));
         }
         let n = elements as f64;
         let mut out = Self {
@@ -285,7 +291,10 @@ mod tests {
                 f = g.advance(v, h);
             }
             let expected = lugre.steady_state_force(v);
-            assert!((f - expected).abs() < 1e-6 * expected.abs(), "{v}: {f} {expected}");
+            assert!(
+                (f - expected).abs() < 1e-6 * expected.abs(),
+                "{v}: {f} {expected}"
+            );
         }
     }
 }

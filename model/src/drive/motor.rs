@@ -74,10 +74,7 @@ impl MotorPulsation {
         if self.cogging_n_m < 0.0 || self.ripple_fraction < 0.0 {
             return Err("the cogging amplitude and the ripple fraction must be >= 0".into());
         }
-        if self.cogging_periods_per_rev == 0
-            || self.pole_pairs == 0
-            || self.ripple_harmonic == 0
-        {
+        if self.cogging_periods_per_rev == 0 || self.pole_pairs == 0 || self.ripple_harmonic == 0 {
             return Err(
                 "the cogging periods per revolution, pole pairs and ripple harmonic must be >= 1"
                     .into(),
@@ -127,7 +124,9 @@ impl LinearPulsation {
     #[inline]
     pub fn force_n(&self, x_m: f64, force_n: f64) -> f64 {
         self.cogging_n * (self.cogging_per_m * x_m + self.cogging_phase_rad).sin()
-            + self.ripple_fraction * force_n * (self.ripple_per_m * x_m + self.ripple_phase_rad).sin()
+            + self.ripple_fraction
+                * force_n
+                * (self.ripple_per_m * x_m + self.ripple_phase_rad).sin()
     }
 }
 
@@ -168,7 +167,9 @@ mod tests {
         }
         .on_lead(lead);
         let period = lead / 72.0;
-        assert!((cog_only.force_n(0.1234, 0.0) - cog_only.force_n(0.1234 + period, 0.0)).abs() < 1e-9);
+        assert!(
+            (cog_only.force_n(0.1234, 0.0) - cog_only.force_n(0.1234 + period, 0.0)).abs() < 1e-9
+        );
         // The amplitude: 0.05 N·m on 10 mm is 31.4 N.
         let peak = (0..10_000)
             .map(|i| cog_only.force_n(i as f64 * period / 10_000.0, 0.0).abs())

@@ -253,7 +253,10 @@ mod tests {
             for guess in [-1e-5, 0.0, 3e-7, 1e-5] {
                 let (f, x) = s.force(d, guess);
                 let (fn_, _) = s.nut_force(x);
-                assert!((f - fn_).abs() < 1e-6 * (1.0 + f.abs()), "{d} {guess}: {f} {fn_}");
+                assert!(
+                    (f - fn_).abs() < 1e-6 * (1.0 + f.abs()),
+                    "{d} {guess}: {f} {fn_}"
+                );
             }
         }
         assert!(nut(2000.0).check(180e6).is_ok());

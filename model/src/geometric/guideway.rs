@@ -149,8 +149,12 @@ impl Guideway {
             {
                 return Err(format!("defect {i}: a bump's width must be > 0"));
             }
-            if d.rail_offset_m.is_some_and(|a| !(a.is_finite() && a != 0.0)) {
-                return Err(format!("defect {i}: a rail's offset must be finite and not 0"));
+            if d.rail_offset_m
+                .is_some_and(|a| !(a.is_finite() && a != 0.0))
+            {
+                return Err(format!(
+                    "defect {i}: a rail's offset must be finite and not 0"
+                ));
             }
         }
         Ok(())

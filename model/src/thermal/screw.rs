@@ -104,7 +104,9 @@ impl ScrewThermalParams {
     pub fn check(&self) -> Result<(), String> {
         let [lo, hi] = self.span_m;
         if !(lo.is_finite() && hi.is_finite() && hi > lo) {
-            return Err(format!("the span [{lo}, {hi}] must be an increasing pair of finite positions"));
+            return Err(format!(
+                "the span [{lo}, {hi}] must be an increasing pair of finite positions"
+            ));
         }
         let positive = [
             ("diameter", self.diameter_m),
@@ -133,7 +135,10 @@ impl ScrewThermalParams {
             return Err("the expansion coefficient must be a finite number".into());
         }
         if !(2..=MAX_SCREW_CELLS).contains(&self.cells) {
-            return Err(format!("{} cells: 2 to {MAX_SCREW_CELLS} are accepted", self.cells));
+            return Err(format!(
+                "{} cells: 2 to {MAX_SCREW_CELLS} are accepted",
+                self.cells
+            ));
         }
         if self.convection_w_per_m2_k == 0.0 && self.end_conductance_w_per_k == [0.0, 0.0] {
             return Err(
@@ -144,7 +149,10 @@ impl ScrewThermalParams {
         if let Some(w) = &self.warm {
             let [a, b] = w.from_to_m;
             if !(w.rise_k.is_finite() && a.is_finite() && b.is_finite() && b > a) {
-                return Err("the warm section needs a finite rise and an increasing pair of positions".into());
+                return Err(
+                    "the warm section needs a finite rise and an increasing pair of positions"
+                        .into(),
+                );
             }
         }
         Ok(())
@@ -180,11 +188,25 @@ impl ScrewThermal {
         let axial = p.conductivity_w_per_m_k * area / ds;
         let air = p.convection_w_per_m2_k * PI * p.diameter_m * ds;
         // An end's bearings in series with the half cell between the end and the centre.
-        let end = |g: f64| if g > 0.0 { 1.0 / (1.0 / g + 0.5 / axial) } else { 0.0 };
+        let end = |g: f64| {
+            if g > 0.0 {
+                1.0 / (1.0 / g + 0.5 / axial)
+            } else {
+                0.0
+            }
+        };
         let nodes = (0..n)
             .map(|i| {
-                let low = if i == 0 { end(p.end_conductance_w_per_k[0]) } else { 0.0 };
-                let high = if i + 1 == n { end(p.end_conductance_w_per_k[1]) } else { 0.0 };
+                let low = if i == 0 {
+                    end(p.end_conductance_w_per_k[0])
+                } else {
+                    0.0
+                };
+                let high = if i + 1 == n {
+                    end(p.end_conductance_w_per_k[1])
+                } else {
+                    0.0
+                };
                 ThermalNode {
                     name: format!("cell {i}"),
                     capacity_j_per_k: p.heat_capacity_j_per_m3_k * area * ds,
@@ -360,7 +382,10 @@ mod tests {
             for (i, ti) in t.iter().enumerate() {
                 let s = p.centre_m(i) + 0.1;
                 let expected = 20.0 + q_per_m / ka * (length * s - s * s / 2.0) + shift;
-                assert!((ti - expected).abs() < 1e-9 * expected, "{cells} {i}: {ti} {expected}");
+                assert!(
+                    (ti - expected).abs() < 1e-9 * expected,
+                    "{cells} {i}: {ti} {expected}"
+                );
             }
         }
     }
@@ -398,7 +423,11 @@ mod tests {
             for i in 0..=70 {
                 let q = -0.1 + i as f64 * 0.01;
                 let expected = 11.5e-6 * 3.5 * (q - p.fixed_m());
-                assert!((g.at(q) - expected).abs() < 1e-15, "{q}: {} {expected}", g.at(q));
+                assert!(
+                    (g.at(q) - expected).abs() < 1e-15,
+                    "{q}: {} {expected}",
+                    g.at(q)
+                );
             }
         }
     }
