@@ -4,12 +4,12 @@
 //! axis of the test's plane. The bar reads without noise and rounding (both runs otherwise the
 //! same, same seed), so the difference is the effect alone; the servo log is thinned to 10 Hz.
 //!
-//! Run: `cargo run --release -p vmt-scenario --example withheld_sizes [-- --markdown]`
+//! Run: `cargo run --release -p vmt-scenario --example withheld_sizes`
 //! (docs/withheld_physics.md holds its table).
 
 use vmt_model::Axis;
 use vmt_scenario::edit::Template;
-use vmt_scenario::withheld::{WITHHELD, fragments, switch_on};
+use vmt_scenario::withheld::{WITHHELD, switch_on};
 
 /// The tests: plane, radius (mm), feed (mm/min), and where a rail defect sits on each of the
 /// plane's axes (mm): inside the circle's sweep of that axis, off its middle.
@@ -20,7 +20,6 @@ const TESTS: [(&str, f64, f64, [(Axis, f64); 2]); 3] = [
 ];
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
-    let markdown = std::env::args().any(|a| a == "--markdown");
     println!(
         "| test | effect | axis | size | RMS change (nm) | peak change (nm) | run time, s (base {}) |",
         "s"
@@ -56,13 +55,6 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                     rms * 1e3,
                     peak * 1e3
                 );
-                if !markdown && effect.key == "cogging" && axis == places[0].0 {
-                    for (table, toml) in
-                        fragments(&template, effect.key, axis, effect.typical, None)?
-                    {
-                        eprintln!("[{table}]\n{toml}");
-                    }
-                }
             }
         }
     }

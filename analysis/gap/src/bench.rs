@@ -63,10 +63,14 @@ pub enum Answer {
         /// Its key.
         effect: String,
     },
-    /// Outside the library: left unexplained, with a peak of the residual within
-    /// [`WHERE_TOLERANCE_DEG`] of one of these angles (deg).
+    /// Outside the library: left unexplained, with a peak of the residual whose span (its
+    /// angle ± half its width) comes within [`WHERE_TOLERANCE_DEG`] of one of these angles
+    /// (deg) where the physics has a place: a defect under a carriage's block is felt over the
+    /// block's length and more, tens of degrees of a 100 mm circle, and the peak of what the
+    /// bar reads within that stretch leans to where the bar lies along the axis.
     Unexplained {
-        /// Where the circle passes the physics' place.
+        /// Where the circle passes the physics' place; empty for physics spread over the
+        /// travel (then unexplained is the whole answer).
         angles_deg: Vec<f64>,
     },
 }
@@ -82,8 +86,9 @@ pub struct Physics {
     pub name: String,
     /// The physics, e.g. `rail_bump_x`.
     pub effect: String,
-    /// TOML merged into the measured machine's scenario (tables no candidate edits).
-    pub toml: String,
+    /// TOML fragments merged into the measured machine's scenario, as `(table key, fragment)`
+    /// for [`Template::with_fragment`] (tables no candidate edits).
+    pub fragments: Vec<(String, String)>,
     /// The right answer.
     pub answer: Answer,
 }
@@ -112,8 +117,9 @@ pub struct Case {
     pub seed: u64,
     /// The effect left out of the candidates (out-of-library cases).
     pub hidden: Option<String>,
-    /// TOML merged into the measured machine (withheld-physics cases).
-    pub physics: Option<String>,
+    /// TOML fragments merged into the measured machine (withheld-physics cases), as
+    /// [`Physics::fragments`].
+    pub physics: Option<Vec<(String, String)>>,
 }
 
 /// Settings of the bench.
@@ -190,8 +196,9 @@ fn cases_once(
     let effects: Vec<&Effect> = available.iter().copied().filter(|e| !e.baseline).collect();
     let mut out = Vec::new();
     let mut seed = s.seed;
+    type Fragments = Option<Vec<(String, String)>>;
     let mut push =
-        |name: String, withheld: Withheld, offsets: Vec<(String, f64)>, physics: Option<String>| {
+        |name: String, withheld: Withheld, offsets: Vec<(String, f64)>, physics: Fragments| {
             let hidden = match &withheld {
                 Withheld::Outside(e) => Some(e.clone()),
                 _ => None,
@@ -245,7 +252,12 @@ fn cases_once(
     }
     for p in physics {
         let withheld = Withheld::Physics(p.effect.clone(), p.answer.clone());
-        push(p.name.clone(), withheld, Vec::new(), Some(p.toml.clone()));
+        push(
+            p.name.clone(),
+            withheld,
+            Vec::new(),
+            Some(p.fragments.clone()),
+        );
     }
     out
 }
@@ -319,6 +331,8 @@ pub struct Outcome {
     pub implausible_accepted: Vec<String>,
     /// Angles of the peaks of the residual before any effect, deg.
     pub peaks_deg: Vec<f64>,
+    /// Their widths (where their energy stays above half their height), deg.
+    pub peak_widths_deg: Vec<f64>,
 }
 
 impl Outcome {
@@ -356,6 +370,7 @@ impl Outcome {
         out.implausible_accepted = implausible_values(&s.final_values, &accepted, library, model);
         let before = Localisation::of(&s.initial_pairs, &localise::Options::default())?;
         out.peaks_deg = before.peaks.iter().map(|p| p.angle_deg).collect();
+        out.peak_widths_deg = before.peaks.iter().map(|p| p.width_deg).collect();
         Ok(out)
     }
 
@@ -389,6 +404,7 @@ impl Outcome {
             ambiguous: Vec::new(),
             implausible_accepted: Vec::new(),
             peaks_deg: Vec::new(),
+            peak_widths_deg: Vec::new(),
         }
     }
 
@@ -404,11 +420,17 @@ impl Outcome {
             }
             Answer::Unexplained { angles_deg } => {
                 self.found.is_empty()
-                    && self.peaks_deg.iter().any(|p| {
-                        angles_deg.iter().any(|t| {
-                            ((p - t + 180.0).rem_euclid(360.0) - 180.0).abs() <= WHERE_TOLERANCE_DEG
-                        })
-                    })
+                    && (angles_deg.is_empty()
+                        || self
+                            .peaks_deg
+                            .iter()
+                            .zip(&self.peak_widths_deg)
+                            .any(|(p, w)| {
+                                angles_deg.iter().any(|t| {
+                                    ((p - t + 180.0).rem_euclid(360.0) - 180.0).abs()
+                                        <= 0.5 * w + WHERE_TOLERANCE_DEG
+                                })
+                            }))
             }
         })
     }
@@ -455,15 +477,18 @@ pub fn run(
     let scenario_error = |e: vmt_scenario::ScenarioError| GapError::Model(e.to_string());
     // The physics' visibility: the model with it, noise-free, against the model as given; the
     // same for every draw of a case.
-    let mut physics: Vec<&str> = cases.iter().filter_map(|c| c.physics.as_deref()).collect();
-    physics.sort_unstable();
-    physics.dedup();
-    let visible_physics: BTreeMap<&str, f64> = physics
+    let mut physics: Vec<&[(String, String)]> = Vec::new();
+    for f in cases.iter().filter_map(|c| c.physics.as_deref()) {
+        if !physics.contains(&f) {
+            physics.push(f);
+        }
+    }
+    let visible_physics: Vec<(&[(String, String)], f64)> = physics
         .par_iter()
-        .map(|toml| {
-            let with = template.with_fragment("", toml).map_err(scenario_error)?;
+        .map(|fragments| {
+            let with = with_physics(text, fragments).map_err(scenario_error)?;
             let changed = ScenarioModel::new(&with, "physics", None)?.traces(&[])?;
-            Ok((*toml, lin.visibility_of(library, &changed, o)?))
+            Ok((*fragments, lin.visibility_of(library, &changed, o)?))
         })
         .collect::<Result<_, GapError>>()?;
     cases
@@ -474,10 +499,8 @@ pub fn run(
             let seed = c.seed as f64;
             edits.push(("simulation.seed", seed));
             let mut measured_text = template.with(&edits).map_err(scenario_error)?;
-            if let Some(toml) = &c.physics {
-                measured_text = Template::parse(&measured_text, &c.name)
-                    .and_then(|t| t.with_fragment("", toml))
-                    .map_err(scenario_error)?;
+            if let Some(fragments) = &c.physics {
+                measured_text = with_physics(&measured_text, fragments).map_err(scenario_error)?;
             }
             let measured =
                 ScenarioModel::instrumented(&measured_text, &c.name, None)?.traces(&[])?;
@@ -485,13 +508,28 @@ pub fn run(
             let hidden: Vec<&str> = c.hidden.iter().map(String::as_str).collect();
             let s = select_without(model, &lin, &measured, library, &hidden, split, o)?;
             let visible = match &c.physics {
-                Some(toml) => visible_physics.get(toml.as_str()).copied().unwrap_or(0.0),
+                Some(f) => visible_physics
+                    .iter()
+                    .find(|(g, _)| *g == f.as_slice())
+                    .map_or(0.0, |(_, v)| *v),
                 None => lin.visibility(library, &c.withheld_offsets, o)?,
             };
             progress();
             Outcome::of(c, &s, o, visible, library, model)
         })
         .collect()
+}
+
+/// Scenario `text` with the withheld physics' `fragments` merged in, in turn.
+fn with_physics(
+    text: &str,
+    fragments: &[(String, String)],
+) -> Result<String, vmt_scenario::ScenarioError> {
+    let mut out = text.to_string();
+    for (table, fragment) in fragments {
+        out = Template::parse(&out, "<withheld physics>")?.with_fragment(table, fragment)?;
+    }
+    Ok(out)
 }
 
 /// The bench's figures, with cases below the visibility floor `floor` set apart.

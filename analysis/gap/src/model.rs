@@ -96,6 +96,11 @@ impl ScenarioModel {
         Self::instrumented(&text, &self.file, self.base_dir.clone())
     }
 
+    /// The model's scenario.
+    pub fn template(&self) -> &Template {
+        &self.template
+    }
+
     /// How many evaluations were replays of the recorded motion rather than simulations.
     pub fn replays(&self) -> usize {
         self.replays.load(Ordering::Relaxed)
