@@ -11,9 +11,14 @@ use vmt_model::Axis;
 use vmt_scenario::edit::Template;
 use vmt_scenario::withheld::{WITHHELD, switch_on};
 
+type Test = (&'static str, f64, f64, [(Axis, f64); 2]);
+
+/// The bar's readings of each trace (µm) and the run's wall time (s).
+type Readings = (Vec<Vec<f64>>, f64);
+
 /// The tests: plane, radius (mm), feed (mm/min), and where a rail defect sits on each of the
 /// plane's axes (mm): inside the circle's sweep of that axis, off its middle.
-const TESTS: [(&str, f64, f64, [(Axis, f64); 2]); 3] = [
+const TESTS: [Test; 3] = [
     ("XY", 150.0, 1000.0, [(Axis::X, 330.0), (Axis::Y, 250.0)]),
     ("XY", 100.0, 2000.0, [(Axis::X, 330.0), (Axis::Y, 250.0)]),
     ("ZX", 100.0, 2000.0, [(Axis::Z, 250.0), (Axis::X, 330.0)]),
@@ -21,8 +26,7 @@ const TESTS: [(&str, f64, f64, [(Axis, f64); 2]); 3] = [
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     println!(
-        "| test | effect | axis | size | RMS change (nm) | peak change (nm) | run time, s (base {}) |",
-        "s"
+        "| test | effect | axis | size | RMS change (nm) | peak change (nm) | run time, s (base s) |"
     );
     println!("|---|---|---|---|---:|---:|---:|");
     for (plane, radius, feed, places) in TESTS {
@@ -62,7 +66,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
 }
 
 /// The bar's readings (µm) of every trace of the scenario `text`, and the wall time, s.
-fn readings(text: &str) -> Result<(Vec<Vec<f64>>, f64), Box<dyn std::error::Error>> {
+fn readings(text: &str) -> Result<Readings, Box<dyn std::error::Error>> {
     let scenario = vmt_scenario::parse(text, "vmc500.toml", None)?;
     let exec = scenario
         .execution
