@@ -301,10 +301,7 @@ fn check_run(run: &Path, seed: u64) -> Result<(), String> {
         ));
     }
     let mcap = run.join("run.mcap");
-    let head = std::fs::read(&mcap)
-        .map(|b| b.starts_with(mcap::MAGIC) && b.ends_with(mcap::MAGIC))
-        .unwrap_or(false);
-    if !head || vmt_logs::input::summary(&mcap).is_none() {
+    if !framed_by_magic(&mcap).unwrap_or(false) || vmt_logs::input::summary(&mcap).is_none() {
         return Err(format!(
             "{}: not a whole MCAP file (its start, end or summary is missing or damaged)",
             mcap.display()
@@ -316,6 +313,20 @@ fn check_run(run: &Path, seed: u64) -> Result<(), String> {
     text.parse::<toml::Table>()
         .map_err(|e| format!("{}: not TOML: {e}", toml_path.display()))?;
     Ok(())
+}
+
+/// Whether file `path` starts and ends with the MCAP magic bytes, as a whole MCAP file does
+/// (read without reading the file between them).
+fn framed_by_magic(path: &Path) -> std::io::Result<bool> {
+    use std::io::{Read, Seek, SeekFrom};
+    let mut f = std::fs::File::open(path)?;
+    let n = mcap::MAGIC.len();
+    let mut head = vec![0; n];
+    let mut tail = vec![0; n];
+    f.read_exact(&mut head)?;
+    f.seek(SeekFrom::End(-(n as i64)))?;
+    f.read_exact(&mut tail)?;
+    Ok(head == mcap::MAGIC && tail == mcap::MAGIC)
 }
 
 /// The error of a merge with runs missing or damaged: by shard, the missing runs' ids and the
