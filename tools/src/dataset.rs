@@ -8,18 +8,11 @@ use vmt_dataset::launch::{self, Launch, Scheduler};
 use vmt_dataset::shard::{self, Shard};
 use vmt_dataset::{Request, build};
 
-/// What `vmt dataset` was asked to make.
+/// What `vmt dataset` was asked to make: the request (its shard still to be found) and the
+/// shard's options.
 pub struct Make<'a> {
-    /// The dataset scenario.
-    pub scenario: &'a Path,
-    /// Runs.
-    pub count: u64,
-    /// The dataset's seed.
-    pub seed: u64,
-    /// Output folder.
-    pub out: &'a Path,
-    /// No progress bar.
-    pub quiet: bool,
+    /// The dataset, every run.
+    pub request: Request<'a>,
     /// `--shard I/N`.
     pub shard: Option<&'a str>,
     /// `--shards N`.
@@ -39,13 +32,13 @@ fn which_shard(m: &Make) -> Result<Option<(Shard, String)>, CliError> {
 /// `vmt dataset`: builds the dataset (or a shard of it) and prints what was done.
 pub fn command(m: &Make) -> Result<(), CliError> {
     let start = std::time::Instant::now();
+    let count = m.request.count;
     let shard = match which_shard(m)? {
         Some((s, from)) => {
-            let s = s.check(m.count, &from)?;
+            let s = s.check(count, &from)?;
             crate::outln!(
-                "shard {s} from {from}: its {} of the {} runs (run i for i mod {} = {})",
-                s.len(m.count),
-                m.count,
+                "shard {s} from {from}: its {} of the {count} runs (run i for i mod {} = {})",
+                s.len(count),
                 s.count,
                 s.index
             )?;
@@ -53,14 +46,8 @@ pub fn command(m: &Make) -> Result<(), CliError> {
         }
         None => None,
     };
-    let o = build(&Request {
-        scenario: m.scenario,
-        count: m.count,
-        seed: m.seed,
-        out: m.out,
-        quiet: m.quiet,
-        shard,
-    })?;
+    let out = m.request.out;
+    let o = build(&Request { shard, ..m.request })?;
     for note in &o.notes {
         crate::errln!("note: {note}");
     }
@@ -83,13 +70,13 @@ pub fn command(m: &Make) -> Result<(), CliError> {
         (Some(s), _) => crate::outln!(
             "{done}; shard {s} is complete in {}. Once every shard is, merge them: `vmt dataset \
              merge {}` (a folder all shards wrote into) or `vmt dataset merge PART... --out DIR`",
-            m.out.display(),
-            m.out.display()
+            out.display(),
+            out.display()
         )?,
         (None, rows) => crate::outln!(
             "{done}; manifest of {} runs: {}",
             rows.unwrap_or_default(),
-            m.out.join("manifest.{csv,parquet}").display()
+            out.join("manifest.{csv,parquet}").display()
         )?,
     }
     Ok(())
@@ -112,7 +99,7 @@ pub struct Emit<'a> {
 /// `vmt dataset --emit slurm|k8s`: prints the scheduler's launcher of the dataset; simulates
 /// nothing.
 pub fn emit(e: &Emit) -> Result<(), CliError> {
-    let m = &e.make;
+    let (m, r) = (&e.make, &e.make.request);
     if m.shard.is_some() {
         return Err(CliError::Argument(
             "--shard with --emit: the launcher runs every shard; give --shards N for their \
@@ -120,10 +107,10 @@ pub fn emit(e: &Emit) -> Result<(), CliError> {
                 .into(),
         ));
     }
-    if !(1..=vmt_dataset::MAX_RUNS).contains(&m.count) {
+    if !(1..=vmt_dataset::MAX_RUNS).contains(&r.count) {
         return Err(CliError::Argument(format!(
             "--count {}: a dataset holds from 1 to {} runs (ids of six digits)",
-            m.count,
+            r.count,
             vmt_dataset::MAX_RUNS
         )));
     }
@@ -134,22 +121,22 @@ pub fn emit(e: &Emit) -> Result<(), CliError> {
             "a task needs at least 1 core",
         ));
     }
-    let template = vmt_dataset::generate::read_template(m.scenario)?;
-    let (shards, parallel) = launch::plan(e.scheduler, m.count, m.shards, e.parallel)?;
+    let template = vmt_dataset::generate::read_template(r.scenario)?;
+    let (shards, parallel) = launch::plan(e.scheduler, r.count, m.shards, e.parallel)?;
     let here = |p: std::io::Result<PathBuf>, what: &str| {
         p.map(|p| p.display().to_string())
             .map_err(|err| CliError::Argument(format!("{what}: {err}")))
     };
-    let file_name = m.scenario.file_name().map_or_else(
+    let file_name = r.scenario.file_name().map_or_else(
         || "scenario.toml".into(),
         |n| n.to_string_lossy().into_owned(),
     );
     let l = Launch {
         scenario: template.file,
         scenario_file: (file_name, template.text),
-        count: m.count,
-        seed: m.seed,
-        out: m.out.display().to_string(),
+        count: r.count,
+        seed: r.seed,
+        out: r.out.display().to_string(),
         shards,
         parallel,
         cpus: e.cpus,

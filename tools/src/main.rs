@@ -569,11 +569,14 @@ fn dataset(a: DatasetArgs) -> Result<(), CliError> {
         ));
     };
     let make = vmt_tools::dataset::Make {
-        scenario,
-        count,
-        seed,
-        out,
-        quiet: a.quiet,
+        request: vmt_dataset::Request {
+            scenario,
+            count,
+            seed,
+            out,
+            quiet: a.quiet,
+            shard: None,
+        },
         shard: a.shard.as_deref(),
         shards: a.shards,
     };
