@@ -202,11 +202,12 @@ jobs+=("$faults")
 
 # The pid of the vmt of task $1 of the fault array, once it runs (its environment says which).
 task_pid() {
-    local pid
-    for pid in $(pgrep -f -- "^$vmt dataset" || true); do
-        if tr '\0' '\n' <"/proc/$pid/environ" 2>/dev/null | grep -qx "SLURM_ARRAY_JOB_ID=$faults" &&
-            tr '\0' '\n' <"/proc/$pid/environ" 2>/dev/null | grep -qx "SLURM_ARRAY_TASK_ID=$1"; then
-            echo "$pid"
+    local exe p env
+    for exe in $(find /proc -mindepth 2 -maxdepth 2 -name exe -lname "$vmt" 2>/dev/null); do
+        p=${exe%/exe}
+        env=$(tr '\0' '\n' <"$p/environ" 2>/dev/null) || continue
+        if grep -qx "SLURM_ARRAY_JOB_ID=$faults" <<<"$env" && grep -qx "SLURM_ARRAY_TASK_ID=$1" <<<"$env"; then
+            echo "${p#/proc/}"
             return 0
         fi
     done
@@ -224,20 +225,24 @@ shard_runs() {
 }
 
 # Waits until task $1 runs and has finished at least one run of its shard, but not all; prints
-# its vmt's pid.
+# its vmt's pid (found once, then only the runs are watched: a scan of /proc is slow).
 caught() {
-    local pid n
+    local pid= n
     for _ in $(seq 2400); do
-        if pid=$(task_pid "$1"); then
-            n=$(shard_runs "$1")
-            if [ "$n" -ge 1 ] && [ "$n" -lt $((count / fshards)) ]; then
-                echo "$pid"
-                return 0
-            fi
-        fi
+        pid=$(task_pid "$1") && break
         sleep 0.05
     done
-    fail "task $1 was never caught running between its first and last run"
+    [ -n "$pid" ] || fail "task $1 never ran"
+    for _ in $(seq 2400); do
+        n=$(shard_runs "$1")
+        if [ "$n" -ge 1 ]; then
+            [ "$n" -lt $((count / fshards)) ] || fail "task $1 finished before it was caught"
+            echo "$pid"
+            return 0
+        fi
+        sleep 0.02
+    done
+    fail "task $1 made no run"
 }
 
 pid=$(caught 0)
