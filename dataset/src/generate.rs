@@ -3,9 +3,9 @@
 
 use crate::Error;
 use crate::folder::{
-    FAILED_DIR, Identity, LABELS_FORMAT, MAX_RUNS, SHARDS_DIR, TMP_PREFIX, claim, complete_runs,
-    fnv1a64, lock_shard, lock_whole, name_of, record_shard, remove_leftovers, remove_stale_reports,
-    run_id, sync, write_synced,
+    FAILED_DIR, FolderLock, Identity, LABELS_FORMAT, MAX_RUNS, SHARDS_DIR, TMP_PREFIX, claim,
+    complete_runs, fnv1a64, lock_shard, lock_whole, name_of, record_shard, remove_leftovers,
+    remove_stale_reports, run_id, sync, write_synced,
 };
 use crate::manifest::write_manifest;
 use crate::shard::Shard;
@@ -122,27 +122,8 @@ pub fn build(req: &Request) -> Result<Outcome, Error> {
         BTreeSet::new()
     };
     check_draws(&ds, &file, base, req, &done_before)?;
-    let _lock = match req.shard {
-        None => lock_whole(req.out)?,
-        Some(s) => lock_shard(req.out, s)?,
-    };
-    claim(
-        req.out,
-        &Identity {
-            seed: req.seed,
-            scenario: file.clone(),
-            scenario_fnv1a64: fnv1a64(&text),
-            count: req.count,
-            labels_format: LABELS_FORMAT,
-        },
-        req.shard,
-    )?;
-    if let Some(s) = req.shard {
-        record_shard(req.out, s)?;
-    }
+    let _lock = take_folder(req, &file, &text)?;
     let runs = req.out.join("runs");
-    std::fs::create_dir_all(&runs).map_err(|e| Error::output(&runs, e))?;
-    remove_leftovers(req.out, req.shard)?;
     let done: BTreeSet<String> = complete_runs(req.out)?
         .iter()
         .filter_map(|p| p.file_name().map(|n| n.to_string_lossy().into_owned()))
@@ -196,6 +177,31 @@ pub fn build(req: &Request) -> Result<Outcome, Error> {
             .map(crate::job::notes)
             .unwrap_or_default(),
     })
+}
+
+/// Takes the output folder for `req`: its lock (shared with the other shards, for a shard),
+/// its identity claimed, the shard recorded, and what an interrupted invocation left
+/// half-written removed.
+fn take_folder(req: &Request, file: &str, text: &str) -> Result<FolderLock, Error> {
+    let lock = match req.shard {
+        None => lock_whole(req.out)?,
+        Some(s) => lock_shard(req.out, s)?,
+    };
+    let identity = Identity {
+        seed: req.seed,
+        scenario: file.to_string(),
+        scenario_fnv1a64: fnv1a64(text),
+        count: req.count,
+        labels_format: LABELS_FORMAT,
+    };
+    claim(req.out, &identity, req.shard)?;
+    if let Some(s) = req.shard {
+        record_shard(req.out, s)?;
+    }
+    let runs = req.out.join("runs");
+    std::fs::create_dir_all(&runs).map_err(|e| Error::output(&runs, e))?;
+    remove_leftovers(req.out, req.shard)?;
+    Ok(lock)
 }
 
 /// Draws and builds every run's scenario, as each run does before it simulates, so that a
