@@ -12,15 +12,28 @@
 #    is lost): both complete their shards without redoing or duplicating a run, and the merge
 #    is again byte-identical to the one-machine run.
 #
-# Usage: .ci/slurm-dataset.sh PATH/TO/vmt   (as root: CI runs it from .ci/run)
-# Safe to run on a machine of one's own: everything lives in a temporary folder, the daemons
-# are ours (stopped by their pid files on exit) and the ports are free ones. On a failure it
-# prints the daemons' logs and the tasks' output. KEEP=1 keeps the temporary folder.
+# Usage: .ci/slurm-dataset.sh PATH/TO/vmt   (CI runs it from .ci/run)
+# It needs root (apt-get, munged as the munge user, slurmd): run as another user, it runs itself
+# again under `sudo -n`, and fails, saying so, when there is no password-less sudo; it fails
+# likewise when Slurm is not installed and apt-get is missing or cannot install it. It never
+# skips. Safe to run on a machine of one's own: everything lives in a temporary folder, the
+# daemons are ours (stopped by their pid files on exit) and the ports are free ones. On a
+# failure it prints the daemons' logs and the tasks' output. KEEP=1 keeps the temporary folder.
 set -euo pipefail
 
 vmt=$(realpath "${1:?usage: $0 PATH/TO/vmt}")
 repo=$(cd "$(dirname "$0")/.." && pwd)
-[ "$(id -u)" = 0 ] || { echo "slurm-dataset: run as root (it installs and starts Slurm)" >&2; exit 2; }
+[ -x "$vmt" ] || { echo "slurm-dataset: FAIL: $vmt is not an executable vmt" >&2; exit 2; }
+if [ "$(id -u)" != 0 ]; then
+    if command -v sudo >/dev/null && sudo -n true 2>/dev/null; then
+        echo "slurm-dataset: not root: running again under sudo" >&2
+        exec sudo -n env KEEP="${KEEP:-0}" bash "$repo/.ci/slurm-dataset.sh" "$vmt"
+    fi
+    echo "slurm-dataset: FAIL: the real-Slurm test needs root (it installs slurm-wlm and munge" \
+        "with apt-get and starts munged and slurmd) and $(id -un) is not root and has no" \
+        "password-less sudo: run .ci/run as root or give this user sudo without a password" >&2
+    exit 2
+fi
 
 work=$(mktemp -d /tmp/vmt-slurm.XXXXXX)
 chmod 755 "$work"
@@ -69,10 +82,14 @@ fail() { log "FAIL: $*"; exit 1; }
 
 # --- Slurm and munge from the Debian packages -------------------------------------------------
 if ! command -v slurmctld >/dev/null || ! command -v slurmd >/dev/null || ! command -v munged >/dev/null; then
+    command -v apt-get >/dev/null ||
+        fail "Slurm and munge are not installed and there is no apt-get to install them (a Debian-like machine is needed: slurm-wlm, munge)"
     log "installing slurm-wlm and munge"
     export DEBIAN_FRONTEND=noninteractive
-    apt-get update -qq
-    apt-get install -y -qq slurm-wlm munge >/dev/null
+    apt-get update -qq || fail "apt-get update failed (no network, or no package source?)"
+    apt-get install -y -qq slurm-wlm munge >/dev/null || fail "apt-get install slurm-wlm munge failed"
+    command -v slurmctld >/dev/null && command -v slurmd >/dev/null && command -v munged >/dev/null ||
+        fail "slurm-wlm and munge installed, yet slurmctld, slurmd or munged is not on the PATH ($PATH)"
 fi
 [ -f /etc/munge/munge.key ] || runuser -u munge -- mungekey --create
 
