@@ -1,17 +1,29 @@
-//! The dataset folder: its identity (`dataset.json`), its complete runs, the lock an
-//! invocation holds while it writes, and files written aside and renamed into place.
+//! The dataset folder: its identity (`dataset.json`), its complete runs, the locks an
+//! invocation holds while it writes, the records of the shards written into it, and files
+//! written aside and renamed into place.
+//!
+//! Locks (the operating system's advisory locks on files, released when the process ends,
+//! killed or not): an invocation of the whole dataset, and a merge, hold `.lock` alone; a
+//! shard holds `.lock` shared with the other shards and `.shards/<I>-of-<N>.lock` alone. So
+//! shards write one folder side by side (a cluster file system), a shard is never run twice at
+//! once, and nothing else writes while a shard does.
 
 use crate::Error;
+use crate::shard::Shard;
 use serde_json::{Value, json};
+use std::fs::{File, TryLockError};
 use std::path::{Path, PathBuf};
 
 /// Prefix of a run folder being written.
 pub(crate) const TMP_PREFIX: &str = ".tmp-";
 
-/// The file an invocation holds an exclusive lock on while it writes the folder. The
-/// operating system releases the lock when the process ends, killed or not, so the file left
-/// behind does not keep the next invocation out.
+/// The file an invocation holds a lock on while it writes the folder. The operating system
+/// releases the lock when the process ends, killed or not, so the file left behind does not
+/// keep the next invocation out.
 pub(crate) const LOCK_FILE: &str = ".lock";
+
+/// The folder of the shards' records (`<I>-of-<N>.json`) and locks; a merge removes it.
+pub const SHARDS_DIR: &str = ".shards";
 
 /// The folder of the scenarios of runs that failed in simulation, kept to reproduce them with
 /// `vmt run`; the next invocation removes it.
@@ -118,8 +130,9 @@ pub fn read_identity(dir: &Path) -> Result<Option<Identity>, Error> {
 /// Checks that `out` is a new folder or the same dataset (seed, scenario text and labels format)
 /// as `want`, and that no complete run has an id of `want.count` or more; then records `want`
 /// (keeping the scenario path the dataset was started with). A folder of runs without
-/// `dataset.json` was written before it existed, in labels format 1, and is refused.
-pub(crate) fn claim(out: &Path, want: &Identity) -> Result<(), Error> {
+/// `dataset.json` was written before it existed, in labels format 1, and is refused. A shard
+/// (`shard`) also keeps the count: the shards of one folder are of one dataset.
+pub(crate) fn claim(out: &Path, want: &Identity, shard: Option<Shard>) -> Result<(), Error> {
     let dir = out.display();
     let done = if out.join("runs").is_dir() {
         complete_runs(out)?
@@ -155,6 +168,13 @@ pub(crate) fn claim(out: &Path, want: &Identity) -> Result<(), Error> {
                 differs.push(format!(
                     "it was made from another scenario text ({} when started, hash {}; {} now, hash {})",
                     have.scenario, have.scenario_fnv1a64, want.scenario, want.scenario_fnv1a64
+                ));
+            }
+            if let Some(s) = shard.filter(|_| have.count != want.count) {
+                differs.push(format!(
+                    "it was started with --count {} and shard {s} has --count {}: the shards \
+                     of one folder share the count",
+                    have.count, want.count
                 ));
             }
             if !differs.is_empty() {
@@ -194,42 +214,166 @@ pub(crate) fn claim(out: &Path, want: &Identity) -> Result<(), Error> {
         )));
     }
     std::fs::create_dir_all(out).map_err(|e| Error::output(out, e))?;
-    write_aside(out, IDENTITY_FILE, |tmp| write_file(tmp, &record.json()))
+    write_aside(out, IDENTITY_FILE, &aside_tag(shard), |tmp| {
+        write_file(tmp, &record.json())
+    })
 }
 
-/// Writes `dir/name` with `write` into `dir/.tmp-name` and renames it in, so that a kill
-/// leaves the previous file whole rather than half of a new one.
+/// The tag of the files `shard` writes aside (`.1-of-4`), so that shards writing the same
+/// file into one folder at once do not write the same temporary file; none for the whole.
+pub(crate) fn aside_tag(shard: Option<Shard>) -> String {
+    shard.map(|s| format!(".{}", s.tag())).unwrap_or_default()
+}
+
+/// Writes `dir/name` with `write` into `dir/.tmp-name<tag>` and renames it in, so that a kill
+/// leaves the previous file whole rather than half of a new one ([`aside_tag`]).
 pub(crate) fn write_aside(
     dir: &Path,
     name: &str,
+    tag: &str,
     write: impl FnOnce(&Path) -> Result<(), Error>,
 ) -> Result<(), Error> {
-    let (tmp, path) = (dir.join(format!("{TMP_PREFIX}{name}")), dir.join(name));
+    let (tmp, path) = (dir.join(format!("{TMP_PREFIX}{name}{tag}")), dir.join(name));
     write(&tmp)?;
     std::fs::rename(&tmp, &path).map_err(|e| Error::output(&path, e))
 }
 
-/// Takes the exclusive lock of dataset folder `out` (creating it), so that a second
-/// `vmt dataset` on the same folder is refused rather than writing the same runs.
-pub(crate) fn lock(out: &Path) -> Result<std::fs::File, Error> {
-    std::fs::create_dir_all(out).map_err(|e| Error::output(out, e))?;
-    let path = out.join(LOCK_FILE);
-    let file = std::fs::OpenOptions::new()
+/// The locks an invocation holds on a dataset folder while it writes (see the module's
+/// documentation); dropped, they are released.
+pub(crate) struct FolderLock {
+    _files: Vec<File>,
+}
+
+/// Opens (creating) the lock file `path`.
+fn lock_file(path: &Path) -> Result<File, Error> {
+    std::fs::OpenOptions::new()
         .create(true)
         .truncate(false)
         .write(true)
-        .open(&path)
-        .map_err(|e| Error::output(&path, e))?;
+        .open(path)
+        .map_err(|e| Error::output(path, e))
+}
+
+/// The error of a lock another process holds: `who` is writing `out`.
+fn held(out: &Path, path: &Path, who: &str) -> Error {
+    Error::Request(format!(
+        "{}: {who} (it holds the lock {}); wait for it to finish, or give another --out folder",
+        out.display(),
+        path.display()
+    ))
+}
+
+/// Takes the lock of dataset folder `out` (creating it) alone, so that a second `vmt dataset`,
+/// a shard or a merge on the same folder is refused rather than writing the same runs.
+pub(crate) fn lock_whole(out: &Path) -> Result<FolderLock, Error> {
+    std::fs::create_dir_all(out).map_err(|e| Error::output(out, e))?;
+    let path = out.join(LOCK_FILE);
+    let file = lock_file(&path)?;
     match file.try_lock() {
-        Ok(()) => Ok(file),
-        Err(std::fs::TryLockError::WouldBlock) => Err(Error::Request(format!(
-            "{}: another `vmt dataset` is writing this dataset folder (it holds the lock {}); \
-             wait for it to finish, or give another --out folder",
-            out.display(),
-            path.display()
-        ))),
-        Err(std::fs::TryLockError::Error(e)) => Err(Error::output(&path, e)),
+        Ok(()) => Ok(FolderLock { _files: vec![file] }),
+        Err(TryLockError::WouldBlock) => Err(held(
+            out,
+            &path,
+            "another `vmt dataset` is writing this dataset folder",
+        )),
+        Err(TryLockError::Error(e)) => Err(Error::output(&path, e)),
     }
+}
+
+/// Takes the folder's lock shared with the other shards, and shard `shard`'s alone.
+pub(crate) fn lock_shard(out: &Path, shard: Shard) -> Result<FolderLock, Error> {
+    let dir = out.join(SHARDS_DIR);
+    std::fs::create_dir_all(&dir).map_err(|e| Error::output(&dir, e))?;
+    let path = out.join(LOCK_FILE);
+    let folder = lock_file(&path)?;
+    match folder.try_lock_shared() {
+        Ok(()) => {}
+        Err(TryLockError::WouldBlock) => {
+            return Err(held(
+                out,
+                &path,
+                "a `vmt dataset` of the whole dataset or a merge is writing this folder",
+            ));
+        }
+        Err(TryLockError::Error(e)) => return Err(Error::output(&path, e)),
+    }
+    let path = dir.join(format!("{}.lock", shard.tag()));
+    let own = lock_file(&path)?;
+    match own.try_lock() {
+        Ok(()) => Ok(FolderLock {
+            _files: vec![folder, own],
+        }),
+        Err(TryLockError::WouldBlock) => Err(held(
+            out,
+            &path,
+            &format!("another `vmt dataset` is making shard {shard} into this folder"),
+        )),
+        Err(TryLockError::Error(e)) => Err(Error::output(&path, e)),
+    }
+}
+
+/// Records that shard `shard` writes into `out` (`.shards/<I>-of-<N>.json`), for a merge to
+/// name the shard of a missing run. A folder holding records of another split into shards is
+/// refused: the runs of a folder are split one way.
+pub(crate) fn record_shard(out: &Path, shard: Shard) -> Result<(), Error> {
+    if let Some(other) = read_shard_records(out)?
+        .into_iter()
+        .find(|s| s.count != shard.count)
+    {
+        return Err(Error::Request(format!(
+            "{}: shard {shard} cannot join the shards of a split into {} written there \
+             ({}/{SHARDS_DIR}/{}.json): a folder's runs are split one way; give --shard I/{}, \
+             or another --out folder",
+            out.display(),
+            other.count,
+            out.display(),
+            other.tag(),
+            other.count
+        )));
+    }
+    let dir = out.join(SHARDS_DIR);
+    let name = format!("{}.json", shard.tag());
+    let text = format!(
+        "{:#}\n",
+        json!({"shard": shard.index, "shards": shard.count})
+    );
+    write_aside(&dir, &name, &aside_tag(Some(shard)), |tmp| {
+        write_file(tmp, &text)
+    })
+}
+
+/// The shards recorded in folder `dir`, in order.
+pub fn read_shard_records(dir: &Path) -> Result<Vec<Shard>, Error> {
+    let records = dir.join(SHARDS_DIR);
+    if !records.is_dir() {
+        return Ok(Vec::new());
+    }
+    let mut shards = Vec::new();
+    for entry in std::fs::read_dir(&records).map_err(|e| Error::output(&records, e))? {
+        let path = entry.map_err(|e| Error::output(&records, e))?.path();
+        let name = name_of(&path);
+        if name.starts_with(TMP_PREFIX) || !name.ends_with(".json") {
+            continue;
+        }
+        let v = read_json(&path)?;
+        let bad = || {
+            Error::input(
+                &path.display().to_string(),
+                None,
+                "not a shard's record: `vmt dataset --shard` writes {\"shard\": I, \"shards\": N}",
+            )
+        };
+        let shard = Shard {
+            index: v["shard"].as_u64().ok_or_else(bad)?,
+            count: v["shards"].as_u64().ok_or_else(bad)?,
+        };
+        if shard.count == 0 || shard.index >= shard.count {
+            return Err(bad());
+        }
+        shards.push(shard);
+    }
+    shards.sort();
+    Ok(shards)
 }
 
 /// Removes the accuracy report of a dataset about to get more runs: it describes fewer runs
@@ -238,37 +382,78 @@ pub(crate) fn remove_stale_reports(out: &Path) -> Result<Vec<PathBuf>, Error> {
     let mut removed = Vec::new();
     for name in ["accuracy.md", "accuracy.json"] {
         let path = out.join(name);
-        if path.is_file() {
-            std::fs::remove_file(&path).map_err(|e| Error::output(&path, e))?;
-            removed.push(path);
+        // Shards writing one folder remove it at once: the one that finds it gone is done.
+        match std::fs::remove_file(&path) {
+            Ok(()) => removed.push(path),
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
+            Err(e) => return Err(Error::output(&path, e)),
         }
     }
     Ok(removed)
 }
 
-/// Removes the temporary folders of runs an interrupted invocation did not finish, and the
-/// scenarios of the runs that failed in the last one.
-pub(crate) fn remove_leftovers(runs: &Path) -> Result<(), Error> {
-    // A manifest half-written when the previous invocation was killed.
-    if let Some(dir) = runs.parent() {
-        let failed = dir.join(FAILED_DIR);
-        if failed.is_dir() {
-            std::fs::remove_dir_all(&failed).map_err(|e| Error::output(&failed, e))?;
+/// Removes what an interrupted invocation left half-written: temporary run folders and files
+/// written aside, and the scenarios of the runs that failed in the last one. A shard removes
+/// only its own (its runs' folders and failed scenarios, the files it writes aside), which no
+/// other invocation writes while it holds its lock; the whole dataset's invocation removes all.
+pub(crate) fn remove_leftovers(out: &Path, shard: Option<Shard>) -> Result<(), Error> {
+    let remove = |path: &Path| {
+        let r = if path.is_dir() {
+            std::fs::remove_dir_all(path)
+        } else {
+            std::fs::remove_file(path)
+        };
+        r.map_err(|e| Error::output(path, e))
+    };
+    // A run's id as the name of its folder or failed scenario, its temporary folder's.
+    let ours = |name: &str| {
+        let id = name
+            .trim_start_matches(TMP_PREFIX)
+            .trim_end_matches(".toml");
+        match (shard, id.parse::<u64>()) {
+            (None, _) => true,
+            (Some(s), Ok(i)) => s.holds(i),
+            (Some(_), Err(_)) => false,
         }
-        for name in ["manifest.csv", "manifest.parquet"] {
-            let tmp = dir.join(format!("{TMP_PREFIX}{name}"));
-            if tmp.exists() {
-                std::fs::remove_file(&tmp).map_err(|e| Error::output(&tmp, e))?;
+    };
+    let tag = aside_tag(shard);
+    let aside = |name: &str| {
+        name.starts_with(TMP_PREFIX) && (shard.is_none() || name.ends_with(tag.as_str()))
+    };
+    for dir in [out.to_path_buf(), out.join(SHARDS_DIR)] {
+        for path in entries(&dir)? {
+            if path.is_file() && aside(&name_of(&path)) {
+                remove(&path)?;
             }
         }
     }
-    for entry in std::fs::read_dir(runs).map_err(|e| Error::output(runs, e))? {
-        let path = entry.map_err(|e| Error::output(runs, e))?.path();
-        if name_of(&path).starts_with(TMP_PREFIX) {
-            std::fs::remove_dir_all(&path).map_err(|e| Error::output(&path, e))?;
+    let failed = out.join(FAILED_DIR);
+    for path in entries(&failed)? {
+        if ours(&name_of(&path)) {
+            remove(&path)?;
+        }
+    }
+    if shard.is_none() && failed.is_dir() {
+        remove(&failed)?;
+    }
+    for path in entries(&out.join("runs"))? {
+        let name = name_of(&path);
+        if name.starts_with(TMP_PREFIX) && ours(&name) {
+            remove(&path)?;
         }
     }
     Ok(())
+}
+
+/// The entries of folder `dir`; none when it does not exist.
+fn entries(dir: &Path) -> Result<Vec<PathBuf>, Error> {
+    if !dir.is_dir() {
+        return Ok(Vec::new());
+    }
+    std::fs::read_dir(dir)
+        .map_err(|e| Error::output(dir, e))?
+        .map(|e| e.map(|e| e.path()).map_err(|e| Error::output(dir, e)))
+        .collect()
 }
 
 pub(crate) fn name_of(path: &Path) -> String {
@@ -293,6 +478,51 @@ pub fn complete_runs(dir: &Path) -> Result<Vec<PathBuf>, Error> {
     }
     out.sort_by_key(|p| (name_of(p).len(), name_of(p)));
     Ok(out)
+}
+
+/// The run folders of a dataset folder, as [`scan_runs`] finds them.
+pub struct ScannedRuns {
+    /// Folders holding every file of a run, by name, sorted.
+    pub complete: Vec<(String, PathBuf)>,
+    /// Folders of runs left half-written (a temporary folder, or a folder missing a file), with
+    /// the run's index where the name gives one.
+    pub partial: Vec<(Option<u64>, PathBuf)>,
+}
+
+/// The complete and half-written run folders of dataset folder `dir`.
+pub fn scan_runs(dir: &Path) -> Result<ScannedRuns, Error> {
+    let mut scan = ScannedRuns {
+        complete: Vec::new(),
+        partial: Vec::new(),
+    };
+    for path in entries(&dir.join("runs"))? {
+        let name = name_of(&path);
+        if !name.starts_with(TMP_PREFIX) && RUN_FILES.iter().all(|f| path.join(f).is_file()) {
+            scan.complete.push((name, path));
+        } else {
+            let id = name.trim_start_matches(TMP_PREFIX).parse().ok();
+            scan.partial.push((id, path));
+        }
+    }
+    scan.complete.sort_by_key(|(n, _)| (n.len(), n.clone()));
+    Ok(scan)
+}
+
+/// Writes `text` into the new file `path` and flushes it to the disk, so that a run renamed
+/// into place after its files survives a node lost with its page cache.
+pub(crate) fn write_synced(path: &Path, text: &str) -> Result<(), Error> {
+    use std::io::Write;
+    let mut f = File::create(path).map_err(|e| Error::output(path, e))?;
+    f.write_all(text.as_bytes())
+        .and_then(|_| f.sync_all())
+        .map_err(|e| Error::output(path, e))
+}
+
+/// Flushes file or folder `path` to the disk.
+pub(crate) fn sync(path: &Path) -> Result<(), Error> {
+    File::open(path)
+        .and_then(|f| f.sync_all())
+        .map_err(|e| Error::output(path, e))
 }
 
 pub(crate) fn write_file(path: &Path, text: &str) -> Result<(), Error> {

@@ -1,12 +1,14 @@
-//! Generating a dataset: every run still missing drawn, simulated and written, then the
-//! manifest rebuilt.
+//! Generating a dataset: every run still missing (of a shard, when one is asked for) drawn,
+//! simulated and written, then the manifest rebuilt (a merge writes it for shards).
 
 use crate::Error;
 use crate::folder::{
-    FAILED_DIR, Identity, LABELS_FORMAT, MAX_RUNS, TMP_PREFIX, claim, complete_runs, fnv1a64, lock,
-    name_of, remove_leftovers, remove_stale_reports, run_id, write_file,
+    FAILED_DIR, FolderLock, Identity, LABELS_FORMAT, MAX_RUNS, SHARDS_DIR, TMP_PREFIX, claim,
+    complete_runs, fnv1a64, lock_shard, lock_whole, name_of, record_shard, remove_leftovers,
+    remove_stale_reports, run_id, sync, write_synced,
 };
 use crate::manifest::write_manifest;
+use crate::shard::Shard;
 use indicatif::{ProgressBar, ProgressStyle};
 use rayon::prelude::*;
 use serde_json::{Map, Value, json};
@@ -30,6 +32,8 @@ pub struct Request<'a> {
     pub out: &'a Path,
     /// No progress bar.
     pub quiet: bool,
+    /// Only the runs of this shard, and no manifest (a merge writes it); None: every run.
+    pub shard: Option<Shard>,
 }
 
 /// What an invocation did.
@@ -37,10 +41,10 @@ pub struct Request<'a> {
 pub struct Outcome {
     /// Runs simulated now.
     pub simulated: usize,
-    /// Runs already complete.
+    /// Runs already complete (of the shard, for a shard).
     pub skipped: usize,
-    /// Rows of the manifest.
-    pub rows: usize,
+    /// Rows of the manifest; None for a shard, which writes none.
+    pub rows: Option<usize>,
     /// Accuracy reports removed because the dataset got more runs.
     pub removed: Vec<PathBuf>,
     /// What the scenario's job accepts but will not do as asked ([`crate::job::notes`]).
@@ -56,7 +60,43 @@ pub fn run_seed(k: u64, i: u64) -> u64 {
     (z ^ (z >> 31)) >> 1
 }
 
-/// Simulates the runs of `req` that are not complete yet and rebuilds the manifest.
+/// A dataset scenario read and checked.
+pub struct Template {
+    /// The file as given.
+    pub file: String,
+    /// Its text.
+    pub text: String,
+    /// Its `[dataset]` section.
+    pub dataset: Dataset,
+    /// The scenario itself, as every run's starts.
+    pub scenario: vmt_scenario::Scenario,
+}
+
+/// Reads the dataset scenario `path`: it must have a `[dataset]` section and load itself, so
+/// that a scenario error is reported once, not per run.
+pub fn read_template(path: &Path) -> Result<Template, Error> {
+    let file = path.display().to_string();
+    let text =
+        std::fs::read_to_string(path).map_err(|e| Error::input(&file, None, e.to_string()))?;
+    let base = path.parent().unwrap_or(Path::new("."));
+    let dataset = dataset::from_text(&text, &file)?.ok_or_else(|| {
+        Error::input(
+            &file,
+            None,
+            "no [dataset] section: `vmt dataset` needs [dataset.parameters]",
+        )
+    })?;
+    let scenario = vmt_scenario::parse(&text, &file, Some(base))?;
+    Ok(Template {
+        file,
+        text,
+        dataset,
+        scenario,
+    })
+}
+
+/// Simulates the runs of `req` (of its shard) that are not complete yet; rebuilds the
+/// manifest, unless a shard was asked for.
 pub fn build(req: &Request) -> Result<Outcome, Error> {
     if !(1..=MAX_RUNS).contains(&req.count) {
         return Err(Error::Request(format!(
@@ -64,19 +104,17 @@ pub fn build(req: &Request) -> Result<Outcome, Error> {
             req.count
         )));
     }
-    let file = req.scenario.display().to_string();
-    let text = std::fs::read_to_string(req.scenario)
-        .map_err(|e| Error::input(&file, None, e.to_string()))?;
+    if let Some(s) = req.shard {
+        s.check(req.count, &format!("--shard {s}"))?;
+    }
+    let mine = |i: &u64| req.shard.is_none_or(|s| s.holds(*i));
+    let Template {
+        file,
+        text,
+        dataset: ds,
+        scenario: template,
+    } = read_template(req.scenario)?;
     let base = req.scenario.parent().unwrap_or(Path::new("."));
-    let ds = dataset::from_text(&text, &file)?.ok_or_else(|| {
-        Error::input(
-            &file,
-            None,
-            "no [dataset] section: `vmt dataset` needs [dataset.parameters]",
-        )
-    })?;
-    // The template itself must load, so a scenario error is reported once, not per run.
-    let template = vmt_scenario::parse(&text, &file, Some(base))?;
     // Only the runs still to do: a resumed dataset of many runs does not draw them all again.
     let done_before: BTreeSet<String> = if req.out.join("runs").is_dir() {
         complete_runs(req.out)?.iter().map(|p| name_of(p)).collect()
@@ -84,27 +122,17 @@ pub fn build(req: &Request) -> Result<Outcome, Error> {
         BTreeSet::new()
     };
     check_draws(&ds, &file, base, req, &done_before)?;
-    let _lock = lock(req.out)?;
-    claim(
-        req.out,
-        &Identity {
-            seed: req.seed,
-            scenario: file.clone(),
-            scenario_fnv1a64: fnv1a64(&text),
-            count: req.count,
-            labels_format: LABELS_FORMAT,
-        },
-    )?;
+    let _lock = take_folder(req, &file, &text)?;
     let runs = req.out.join("runs");
-    std::fs::create_dir_all(&runs).map_err(|e| Error::output(&runs, e))?;
-    remove_leftovers(&runs)?;
     let done: BTreeSet<String> = complete_runs(req.out)?
         .iter()
         .filter_map(|p| p.file_name().map(|n| n.to_string_lossy().into_owned()))
         .collect();
     let todo: Vec<u64> = (0..req.count)
+        .filter(mine)
         .filter(|i| !done.contains(&run_id(*i)))
         .collect();
+    let total = (0..req.count).filter(mine).count();
     let removed = if todo.is_empty() {
         Vec::new()
     } else {
@@ -120,7 +148,10 @@ pub fn build(req: &Request) -> Result<Outcome, Error> {
         })
         .collect();
     bar.finish_and_clear();
-    let rows = write_manifest(req.out)?;
+    let rows = match req.shard {
+        Some(_) => None,
+        None => Some(write_manifest(req.out)?),
+    };
     let failed: Vec<(u64, Error)> = results
         .into_iter()
         .filter_map(|(i, r)| r.err().map(|e| (i, e)))
@@ -128,9 +159,16 @@ pub fn build(req: &Request) -> Result<Outcome, Error> {
     if !failed.is_empty() {
         return Err(failed_runs(req, &ds, &file, todo.len(), failed));
     }
+    if req.shard.is_none() && rows == Some(req.count as usize) {
+        // Whole: the shards' records of how it was split are of no more use.
+        let records = req.out.join(SHARDS_DIR);
+        if records.is_dir() {
+            std::fs::remove_dir_all(&records).map_err(|e| Error::output(&records, e))?;
+        }
+    }
     Ok(Outcome {
         simulated: todo.len(),
-        skipped: req.count as usize - todo.len(),
+        skipped: total - todo.len(),
         rows,
         removed,
         notes: template
@@ -139,6 +177,31 @@ pub fn build(req: &Request) -> Result<Outcome, Error> {
             .map(crate::job::notes)
             .unwrap_or_default(),
     })
+}
+
+/// Takes the output folder for `req`: its lock (shared with the other shards, for a shard),
+/// its identity claimed, the shard recorded, and what an interrupted invocation left
+/// half-written removed.
+fn take_folder(req: &Request, file: &str, text: &str) -> Result<FolderLock, Error> {
+    let lock = match req.shard {
+        None => lock_whole(req.out)?,
+        Some(s) => lock_shard(req.out, s)?,
+    };
+    let identity = Identity {
+        seed: req.seed,
+        scenario: file.to_string(),
+        scenario_fnv1a64: fnv1a64(text),
+        count: req.count,
+        labels_format: LABELS_FORMAT,
+    };
+    claim(req.out, &identity, req.shard)?;
+    if let Some(s) = req.shard {
+        record_shard(req.out, s)?;
+    }
+    let runs = req.out.join("runs");
+    std::fs::create_dir_all(&runs).map_err(|e| Error::output(&runs, e))?;
+    remove_leftovers(req.out, req.shard)?;
+    Ok(lock)
 }
 
 /// Draws and builds every run's scenario, as each run does before it simulates, so that a
@@ -155,6 +218,7 @@ fn check_draws(
 ) -> Result<(), Error> {
     let refused: Vec<(u64, vmt_scenario::ScenarioError)> = (0..req.count)
         .into_par_iter()
+        .filter(|i| req.shard.is_none_or(|s| s.holds(*i)))
         .filter(|i| !done.contains(&run_id(*i)))
         .filter_map(|i| {
             let sample = ds.sample(run_seed(req.seed, i));
@@ -315,7 +379,7 @@ fn simulate_one(
     let tmp = runs.join(format!("{TMP_PREFIX}{id}"));
     std::fs::create_dir_all(&tmp).map_err(|e| Error::output(&tmp, e))?;
     write_mcap(&run, &tmp.join("run.mcap"))?;
-    write_file(&tmp.join("scenario.toml"), &sample.text)?;
+    write_synced(&tmp.join("scenario.toml"), &sample.text)?;
     let parameters: Map<String, Value> = sample
         .values
         .iter()
@@ -333,7 +397,11 @@ fn simulate_one(
         "keys": keys,
         "ground_truth": run.ground_truth,
     });
-    write_file(&tmp.join("labels.json"), &format!("{labels:#}\n"))?;
+    write_synced(&tmp.join("labels.json"), &format!("{labels:#}\n"))?;
+    // On the disk before the rename makes the run complete: a node lost after it (its page
+    // cache with it) leaves the run whole, one lost before it a temporary folder.
+    sync(&tmp.join("run.mcap"))?;
+    sync(&tmp)?;
     let dest = runs.join(&id);
     // A folder of this id is an incomplete one (the run is only simulated when it is not
     // complete): the new run, the same bytes as the lost one, takes its place.

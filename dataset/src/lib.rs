@@ -21,15 +21,27 @@
 //! Run `i`'s seed is splitmix64 of (K, i), so a run does not depend on the number of threads
 //! nor on which runs were already done.
 //!
+//! Beyond one machine, the runs are split into [`shard`]s, run `i` in shard `i mod N`: each
+//! shard is made by its own invocation (a Slurm array task, a Kubernetes Indexed Job's pod),
+//! into one shared folder or a folder each, and [`merge()`] checks the parts and writes the
+//! manifest: the merged folder is byte-identical to a one-machine run's. [`launch`] writes
+//! the scheduler's files. A shard writes no manifest; it records itself in
+//! `.shards/<I>-of-<N>.json` (which the merge removes), so that a missing run is named with
+//! its shard.
+//!
 //! Modules: [`generate`] makes the runs, [`manifest`] lists them, [`folder`] keeps the folder
-//! whole, [`job`] executes one scenario's job, and [`accuracy`] scores the ball-bar diagnosis
-//! on a dataset against its truth.
+//! whole, [`job`] executes one scenario's job, [`shard`], [`mod@merge`] and [`launch`] spread a
+//! dataset over a cluster, and [`accuracy`] scores the ball-bar diagnosis on a dataset against
+//! its truth.
 
 pub mod accuracy;
 pub mod folder;
 pub mod generate;
 pub mod job;
+pub mod launch;
 pub mod manifest;
+pub mod merge;
+pub mod shard;
 
 pub use folder::{
     FAILED_DIR, IDENTITY_FILE, Identity, LABELS_FORMAT, MAX_RUNS, complete_runs, fnv1a64,
@@ -37,6 +49,8 @@ pub use folder::{
 };
 pub use generate::{Outcome, Request, build, run_seed};
 pub use manifest::{read_run_labels, write_manifest};
+pub use merge::{Merged, merge};
+pub use shard::Shard;
 
 use std::path::Path;
 use thiserror::Error;

@@ -298,8 +298,8 @@ fn missing_number(v: &Value) -> Option<String> {
 /// Rebuilds `manifest.csv` and `manifest.parquet` from the labels; returns the number of rows.
 pub fn write_manifest(dir: &Path) -> Result<usize, Error> {
     let m = manifest(dir)?;
-    write_aside(dir, "manifest.csv", |tmp| write_csv(&m, tmp))?;
-    write_aside(dir, "manifest.parquet", |tmp| {
+    write_aside(dir, "manifest.csv", "", |tmp| write_csv(&m, tmp))?;
+    write_aside(dir, "manifest.parquet", "", |tmp| {
         write_parquet(&m, tmp).map_err(|e| Error::output(&dir.join("manifest.parquet"), e))
     })?;
     Ok(m.rows.len())

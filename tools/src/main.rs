@@ -86,10 +86,15 @@ enum Command {
     /// OUT/dataset.json (seed, scenario hash, labels format), OUT/runs/<id>/{run.mcap,
     /// labels.json,scenario.toml} and OUT/manifest.{csv,parquet}; continues where an interrupted
     /// invocation stopped, and refuses a folder made with another seed, scenario text or labels
-    /// format (every folder of runs without dataset.json is of an older format).
+    /// format (every folder of runs without dataset.json is of an older format). On a cluster,
+    /// each task makes one shard (--shard, or the scheduler's environment) and `vmt dataset
+    /// merge` writes the manifest; --emit writes the scheduler's launcher.
     ///
-    /// Example:
+    /// Examples:
     ///   vmt dataset --scenario scenarios/dataset_xy.toml --count 500 --seed 1 --out ds
+    ///   vmt dataset --scenario s.toml --count 1000000 --seed 1 --out /shared/ds --emit slurm > ds.sbatch
+    ///   vmt dataset --scenario s.toml --count 100 --seed 1 --out ds --shard 2/4
+    ///   vmt dataset merge ds
     #[command(verbatim_doc_comment)]
     Dataset(DatasetArgs),
     /// Diagnose every run of a dataset and compare with its truth: bias, RMS, 95th percentile,
@@ -157,22 +162,85 @@ enum ChatterCommand {
 }
 
 #[derive(Args)]
+#[command(args_conflicts_with_subcommands = true, subcommand_negates_reqs = true)]
 struct DatasetArgs {
+    #[command(subcommand)]
+    action: Option<DatasetAction>,
     /// Scenario file with a [dataset] section.
-    #[arg(long)]
-    scenario: PathBuf,
+    #[arg(long, required = true)]
+    scenario: Option<PathBuf>,
     /// Number of runs (ids 0 to N-1), at least 1.
-    #[arg(long)]
-    count: u64,
+    #[arg(long, required = true)]
+    count: Option<u64>,
     /// Seed of the dataset; run i's seed is derived from it and i.
-    #[arg(long)]
-    seed: u64,
-    /// Output folder.
-    #[arg(long)]
-    out: PathBuf,
+    #[arg(long, required = true)]
+    seed: Option<u64>,
+    /// Output folder (one folder all shards write into, on a cluster file system, or a folder
+    /// per shard).
+    #[arg(long, required = true)]
+    out: Option<PathBuf>,
     /// No progress bar.
     #[arg(long)]
     quiet: bool,
+    /// Make only shard I of N: the runs i with i mod N = I (0 <= I < N). Without it, the
+    /// shard is read from a Slurm array task's SLURM_ARRAY_TASK_ID and SLURM_ARRAY_TASK_COUNT
+    /// (or _MIN/_MAX), or from a Kubernetes Indexed Job's JOB_COMPLETION_INDEX with --shards;
+    /// the command says which it used. A shard writes no manifest: `vmt dataset merge` does.
+    #[arg(long, value_name = "I/N", conflicts_with_all = ["shards", "emit"])]
+    shard: Option<String>,
+    /// Number of shards: the Kubernetes Job's completions (its pods read their index from
+    /// JOB_COMPLETION_INDEX), or the launcher's for --emit (default: 1000 runs each, at most
+    /// 1000 shards).
+    #[arg(long, value_name = "N")]
+    shards: Option<u64>,
+    /// Print the scheduler's launcher of the dataset instead of simulating: `slurm`, an sbatch
+    /// job array over the shards (run it with bash to submit the array and the merge job after
+    /// it), or `k8s`, an Indexed Job manifest with its merge Job.
+    #[arg(long, value_enum)]
+    emit: Option<EmitTo>,
+    /// With --emit: shards running at once (the array's % cap, the Job's parallelism);
+    /// default 100.
+    #[arg(long, value_name = "M", requires = "emit")]
+    max_parallel: Option<u64>,
+    /// With --emit: cores of each task (its threads).
+    #[arg(long, value_name = "C", requires = "emit", default_value_t = 1)]
+    cpus_per_task: u64,
+    /// With --emit k8s: the container image, with vmt on its PATH (default vmt:<version>).
+    #[arg(long, requires = "emit")]
+    image: Option<String>,
+}
+
+/// The scheduler `vmt dataset --emit` writes for.
+#[derive(Clone, Copy, clap::ValueEnum)]
+enum EmitTo {
+    /// A Slurm job array (sbatch script).
+    Slurm,
+    /// A Kubernetes Indexed Job (YAML manifest).
+    K8s,
+}
+
+#[derive(Subcommand)]
+enum DatasetAction {
+    /// Merge the shards of a dataset: checks that the folders hold one dataset (scenario text,
+    /// seed, count, labels format) and every run once and whole, names the missing runs (by
+    /// index and shard) and the damaged ones, then writes the manifest (CSV and Parquet). The
+    /// merged folder is byte-identical to a one-machine run's.
+    ///
+    /// Examples:
+    ///   vmt dataset merge ds                       (one folder all shards wrote into, in place)
+    ///   vmt dataset merge ds-0 ds-1 ds-2 --out ds  (a folder per shard)
+    #[command(verbatim_doc_comment)]
+    Merge(MergeArgs),
+}
+
+#[derive(Args)]
+struct MergeArgs {
+    /// The shards' dataset folders (one, merged in place, when all shards wrote into it).
+    #[arg(required = true)]
+    parts: Vec<PathBuf>,
+    /// The folder to merge them into (runs are hard-linked where the file system allows).
+    #[arg(long)]
+    out: Option<PathBuf>,
 }
 
 #[derive(Args)]
@@ -487,6 +555,46 @@ fn note_removed(dir: &Path, removed: &[PathBuf]) {
     }
 }
 
+/// `vmt dataset`: a merge, a launcher, or the dataset (a shard of it).
+fn dataset(a: DatasetArgs) -> Result<(), CliError> {
+    if let Some(DatasetAction::Merge(m)) = &a.action {
+        return vmt_tools::dataset::merge(&m.parts, m.out.as_deref());
+    }
+    // clap requires these without a subcommand.
+    let (Some(scenario), Some(count), Some(seed), Some(out)) =
+        (&a.scenario, a.count, a.seed, &a.out)
+    else {
+        return Err(CliError::Argument(
+            "vmt dataset needs --scenario, --count, --seed and --out".into(),
+        ));
+    };
+    let make = vmt_tools::dataset::Make {
+        request: vmt_dataset::Request {
+            scenario,
+            count,
+            seed,
+            out,
+            quiet: a.quiet,
+            shard: None,
+        },
+        shard: a.shard.as_deref(),
+        shards: a.shards,
+    };
+    match a.emit {
+        None => vmt_tools::dataset::command(&make),
+        Some(to) => vmt_tools::dataset::emit(&vmt_tools::dataset::Emit {
+            make,
+            scheduler: match to {
+                EmitTo::Slurm => vmt_dataset::launch::Scheduler::Slurm,
+                EmitTo::K8s => vmt_dataset::launch::Scheduler::Kubernetes,
+            },
+            parallel: a.max_parallel,
+            cpus: a.cpus_per_task,
+            image: a.image.as_deref(),
+        }),
+    }
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
@@ -502,9 +610,7 @@ fn main() -> ExitCode {
             diagnose: true,
         }),
         Command::Diagnose(args) => diagnose_cmd(args),
-        Command::Dataset(a) => {
-            vmt_tools::dataset::command(&a.scenario, a.count, a.seed, &a.out, a.quiet)
-        }
+        Command::Dataset(a) => dataset(a),
         Command::Accuracy(a) => vmt_tools::accuracy::command(&a.dir),
         Command::Lobes(a) => vmt_tools::lobes::command(&a),
         Command::Chatter(ChatterCommand::Detect(a)) => vmt_tools::chatter::command(&a),
