@@ -17,7 +17,7 @@ use serde_json::Value;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use vmt_chatter::detect::kim::{self, KimResult, KimSettings};
-use vmt_chatter::detect::spectral::{self, SpectralResult, SpectralSettings, tooth_passing_hz};
+use vmt_chatter::detect::spectral::{self, SpectralResult, SpectralSettings};
 use vmt_logs::input::{self, Input};
 
 /// The largest acceleration accepted from a CSV log, m/s² (10⁶, about 100 000 g: beyond the
@@ -396,14 +396,14 @@ pub fn detect(log: &Log, file: &str, args: &DetectArgs) -> Result<Report, CliErr
         let teeth = args.teeth.or(log.teeth);
         // The tooth-passing frequency is not estimated from the spectrum: on a chattering cut
         // the strongest peak is the chatter itself (929 Hz on scenarios/milling_slot.toml).
-        let (f_tp, source) = match (rpm, teeth) {
+        let (cut, source) = match (rpm, teeth) {
             (Some(n), Some(z)) => {
                 let source = if args.spindle_rpm.is_some() {
                     "from --spindle-rpm, --teeth"
                 } else {
                     "from the run"
                 };
-                (Some(tooth_passing_hz(n, z)), source)
+                ((n, z), source)
             }
             _ if args.detector == Which::Both => {
                 // Kim's verdict stands on its own; say why the other is missing.
@@ -421,10 +421,7 @@ pub fn detect(log: &Log, file: &str, args: &DetectArgs) -> Result<Report, CliErr
                 ));
             }
         };
-        let s = SpectralSettings {
-            tooth_passing_hz: f_tp,
-            ..Default::default()
-        };
+        let s = SpectralSettings::new(cut.0, cut.1);
         Some((spectral::detect(&slices, fs, &s).map_err(model)?, source))
     } else {
         None
@@ -513,7 +510,7 @@ pub fn text(log: &Log, r: &Report) -> String {
 pub fn write_csv(log: &Log, r: &Report, w: &mut impl Write) -> std::io::Result<()> {
     writeln!(
         w,
-        "detector,window_end_s,rms_m_s2,feed_override,share,non_harmonic_ratio,peak_hz,chatter"
+        "detector,window_end_s,rms_m_s2,feed_override,share,free_ratio,peak_hz,chatter"
     )?;
     if let Some((k, _)) = &r.kim {
         for b in &k.windows {
@@ -534,7 +531,7 @@ pub fn write_csv(log: &Log, r: &Report, w: &mut impl Write) -> std::io::Result<(
                 "better,{},,,{},{},{},{}",
                 log.start_s + f.end_s,
                 f.share,
-                f.non_harmonic_ratio,
+                f.free_ratio,
                 f.peak_hz,
                 f.chatter
             )?;

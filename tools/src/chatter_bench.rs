@@ -228,9 +228,8 @@ pub struct BenchArgs {
 
 impl BenchArgs {
     fn spectral(&self, r: &LabelledRun) -> spectral::SpectralSettings {
-        let d = spectral::SpectralSettings::default();
+        let d = spectral::SpectralSettings::new(r.spindle_rpm, r.teeth);
         spectral::SpectralSettings {
-            tooth_passing_hz: Some(spectral::tooth_passing_hz(r.spindle_rpm, r.teeth)),
             developed_share: self.developed_share.unwrap_or(d.developed_share),
             growth: self.growth.unwrap_or(d.growth),
             growth_window_s: self.growth_window_s.unwrap_or(d.growth_window_s),
@@ -417,11 +416,10 @@ fn speed_supervisor(teeth: u32) -> impl FnMut(&AccelWindow<'_>) -> SupervisorCom
             h.drain(..n);
         };
         history.iter_mut().for_each(keep);
-        let f_tp = spectral::tooth_passing_hz(w.spindle_rpm, teeth);
+        let f_tp = vmt_chatter::detect::forced::tooth_passing_hz(w.spindle_rpm, teeth);
         let s = spectral::SpectralSettings {
-            tooth_passing_hz: Some(f_tp),
             persistence: 1,
-            ..Default::default()
+            ..spectral::SpectralSettings::new(w.spindle_rpm, teeth)
         };
         let same = SupervisorCommand {
             feed_override: w.feed_override,

@@ -233,7 +233,7 @@ fn sustained_onset(truth: &serde_json::Value) -> Option<f64> {
 fn detectors_on_simulated_milling_runs() {
     use vmt_chatter::detect::eval::{LabelledRun, evaluate};
     use vmt_chatter::detect::kim::{self, KimSettings};
-    use vmt_chatter::detect::spectral::{self, SpectralSettings, tooth_passing_hz};
+    use vmt_chatter::detect::spectral::{self, SpectralSettings};
     use vmt_model::cutting::{
         CutGeometry, CuttingCoefficients, EndMill, MillingDirection, Mode, ToolDynamics,
     };
@@ -313,10 +313,7 @@ fn detectors_on_simulated_milling_runs() {
         });
     }
     let better = evaluate(&runs, |r| {
-        let s = SpectralSettings {
-            tooth_passing_hz: Some(tooth_passing_hz(r.spindle_rpm, r.teeth)),
-            ..Default::default()
-        };
+        let s = SpectralSettings::new(r.spindle_rpm, r.teeth);
         Ok(spectral::detect(&r.slices(), r.sample_rate_hz, &s)?.verdict)
     })
     .unwrap();
