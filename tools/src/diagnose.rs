@@ -343,34 +343,47 @@ fn centred(traces: &[Trace], d: &Diagnosis) -> Vec<BallbarTrace> {
         .collect()
 }
 
-/// The text block printed beside the polar plot: ISO figures and the largest present errors.
+/// The text block printed beside the polar plot: the ISO figures past the settling (the
+/// headline), the raw ones beside them and what the settling left out, then the largest
+/// present errors.
 fn figures_text(d: &Diagnosis) -> String {
-    let mut s = String::from("ISO 230-4 (least-squares centre)\n");
-    for dir in &d.iso.directions {
-        let _ = writeln!(
-            s,
-            "G {} {:.2} µm",
-            dir.sense.to_uppercase(),
-            dir.circular_deviation_um
-        );
-    }
-    if let Some(h) = d.iso.hysteresis_um {
-        let _ = writeln!(s, "H {h:.2} µm");
-    }
-    if let Some(g) = d.iso.bidirectional_deviation_um {
-        let _ = writeln!(s, "G(b) {g:.2} µm");
-    }
-    if let Some(settled) = &d.settled_iso {
-        let _ = writeln!(s, "without the end transients:");
-        for dir in &settled.directions {
-            let sense = dir.sense.to_uppercase();
-            let _ = writeln!(s, "G {sense} {:.2} µm", dir.circular_deviation_um);
-        }
-    }
+    let mut s = iso_headline(d);
     let _ = writeln!(s, "\nLargest errors");
     for f in d.findings.iter().filter(|f| f.present).take(8) {
         let digits = if f.unit == "ms" { 4 } else { 2 };
         let _ = writeln!(s, "{}: {:+.*} {}", f.key, digits, f.value, f.unit);
+    }
+    s
+}
+
+/// The ISO 230-4 figures of a polar plot's headline: past the settling, the raw ones beside
+/// them where they differ, and what the settling left out.
+pub fn iso_headline(d: &Diagnosis) -> String {
+    let mut s = String::from("ISO 230-4 (least-squares centre)\n");
+    let cut = d
+        .settling
+        .iter()
+        .any(|x| x.start_excluded_deg > 0.0 || x.end_excluded_deg > 0.0);
+    let raw = |v: f64, r: Option<f64>| match r {
+        Some(r) if cut && (v - r).abs() >= 0.005 => format!("{v:.2} µm (raw {r:.2})"),
+        _ => format!("{v:.2} µm"),
+    };
+    for (dir, whole) in d.iso.directions.iter().zip(&d.raw_iso.directions) {
+        let _ = writeln!(
+            s,
+            "G {} {}",
+            dir.sense.to_uppercase(),
+            raw(dir.circular_deviation_um, Some(whole.circular_deviation_um))
+        );
+    }
+    if let Some(h) = d.iso.hysteresis_um {
+        let _ = writeln!(s, "H {}", raw(h, d.raw_iso.hysteresis_um));
+    }
+    if let Some(g) = d.iso.bidirectional_deviation_um {
+        let _ = writeln!(s, "G(b) {}", raw(g, d.raw_iso.bidirectional_deviation_um));
+    }
+    if cut {
+        let _ = writeln!(s, "settled; left out: {}", report::excluded(d));
     }
     s
 }
