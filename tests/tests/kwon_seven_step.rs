@@ -360,7 +360,9 @@ fn headline_figures_are_taken_past_the_feed_in_transient() {
             assert!(g_raw > 50.0, "step {step} {}: raw G {g_raw} µm", dir.sense);
         }
         assert!(
-            diag.settling.iter().all(|s| s.settled && s.start_excluded_deg > 0.0),
+            diag.settling
+                .iter()
+                .all(|s| s.settled && s.start_excluded_deg > 0.0),
             "step {step}: {:?}",
             diag.settling
         );

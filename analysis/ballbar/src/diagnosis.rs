@@ -295,7 +295,11 @@ fn diagnose_test(
             .zip(&settling)
             .map(|((c, s), k)| (&c[k.kept.clone()], &s[k.kept.clone()]))
             .collect();
-        iso230_4::figures_with_trig(&kept.iter().collect::<Vec<_>>(), &trig, options.minimum_zone)
+        iso230_4::figures_with_trig(
+            &kept.iter().collect::<Vec<_>>(),
+            &trig,
+            options.minimum_zone,
+        )
     };
     Ok(Diagnosis {
         plane: first.plane,
@@ -325,13 +329,9 @@ fn settling(t: &Trace, res: &Residual, spikes: [Option<f64>; 2], noise: f64) -> 
     let n = t.angle_deg.len();
     let band = features::settled_band(res);
     let floor = MIN_CONTRIBUTION_UM.max(smoothed_noise_floor(res, noise));
-    let spike = reversing_at_start(res).map_or(0.0, |axis| {
-        spikes[axis]
-            .or(spikes[1 - axis])
-            .unwrap_or(0.0)
-    });
-    let start_transient =
-        features::start_transient(res).is_some_and(|h| h.abs() >= floor + spike);
+    let spike = reversing_at_start(res)
+        .map_or(0.0, |axis| spikes[axis].or(spikes[1 - axis]).unwrap_or(0.0));
+    let start_transient = features::start_transient(res).is_some_and(|h| h.abs() >= floor + spike);
     let end_transient = features::end_transient(res).is_some_and(|h| h.abs() >= floor);
     let from = if start_transient {
         features::settles(res, band, false)

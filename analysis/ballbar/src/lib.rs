@@ -29,6 +29,7 @@ pub mod take_up;
 pub mod trace;
 
 pub use diagnosis::{
-    BIAS_DETAIL_PREFIX, Diagnosis, DiagnosisError, Finding, Options, SETTLING_RULE, Settling, diagnose,
+    BIAS_DETAIL_PREFIX, Diagnosis, DiagnosisError, Finding, Options, SETTLING_RULE, Settling,
+    diagnose,
 };
 pub use trace::{Plane, Sense, Trace, TraceError};

@@ -95,19 +95,34 @@ fn figures_rows(d: &Diagnosis) -> Vec<(String, String)> {
         let s = dir.sense.to_uppercase();
         let sweep = match (dir.recorded_sweep_deg, cut) {
             (Some(all), _) => format!("{:.0} of {all:.0} deg", dir.sweep_deg),
-            (None, true) => format!("settled, {:.1} of {:.1} deg", dir.sweep_deg, whole.sweep_deg),
+            (None, true) => format!(
+                "settled, {:.1} of {:.1} deg",
+                dir.sweep_deg, whole.sweep_deg
+            ),
             (None, false) => format!("{:.0} deg", dir.sweep_deg),
         };
         rows.push((
             format!("Circular deviation G {s} ({sweep})"),
-            raw(dir.circular_deviation_um, whole.circular_deviation_um, false),
+            raw(
+                dir.circular_deviation_um,
+                whole.circular_deviation_um,
+                false,
+            ),
         ));
         rows.push((
             format!("Radial deviation F {s} max / min"),
             format!(
                 "{} / {}",
-                raw(dir.radial_deviation_max_um, whole.radial_deviation_max_um, true),
-                raw(dir.radial_deviation_min_um, whole.radial_deviation_min_um, true)
+                raw(
+                    dir.radial_deviation_max_um,
+                    whole.radial_deviation_max_um,
+                    true
+                ),
+                raw(
+                    dir.radial_deviation_min_um,
+                    whole.radial_deviation_min_um,
+                    true
+                )
             ),
         ));
         if let Some(z) = dir.minimum_zone_um {

@@ -436,7 +436,11 @@ fn better_detector_classifies_random_cuts() {
     eprintln!("better detector on 40 random cuts: {s:?}");
     assert_eq!(s.false_positive_rate, 0.0);
     assert_eq!(s.false_negative_rate, 0.0, "missed chatter runs");
-    assert!(s.median_latency_s < 0.5, "median latency {}", s.median_latency_s);
+    assert!(
+        s.median_latency_s < 0.5,
+        "median latency {}",
+        s.median_latency_s
+    );
     assert!(
         s.latencies_s.iter().all(|&l| l > 0.0),
         "fired before onset: {:?}",
@@ -462,7 +466,11 @@ fn run_out_lines_are_never_chatter_at_any_rate() {
             };
             let run = run_at(&cut, fs, &mut rng);
             let r = better_result(&run).unwrap();
-            assert!(!r.verdict.chatter, "{rpm} rev/min at {fs} Hz: {:?}", r.verdict);
+            assert!(
+                !r.verdict.chatter,
+                "{rpm} rev/min at {fs} Hz: {:?}",
+                r.verdict
+            );
             assert!(
                 r.seen.iter().any(|l| !l.line.tooth_passing),
                 "{rpm} rev/min at {fs} Hz: no run-out line seen"
@@ -489,10 +497,16 @@ fn aliased_forced_lines_are_not_chatter_and_chatter_is_still_found() {
         let (x, f_c) = signal_at(&cut, fs, &mut rng);
         let r = spectral::detect(&[&x], fs, &SpectralSettings::new(12_000.0, 4)).unwrap();
         assert_eq!(r.verdict.chatter, chatter.is_some(), "{:?}", r.verdict);
-        assert!(r.seen.iter().any(|l| l.line.folded(fs)), "no folded line seen");
+        assert!(
+            r.seen.iter().any(|l| l.line.folded(fs)),
+            "no folded line seen"
+        );
         if chatter.is_some() {
             let f = r.verdict.chatter_frequency_hz.unwrap();
-            assert!((f - alias_hz(f_c, fs)).abs() < 5.0, "{f} Hz against {f_c} Hz");
+            assert!(
+                (f - alias_hz(f_c, fs)).abs() < 5.0,
+                "{f} Hz against {f_c} Hz"
+            );
         }
     }
 }

@@ -91,8 +91,9 @@
 //! median of the free bins within [`FLOOR_BINS`] of it) is measured: the lines 10 dB or more
 //! above it are the forced lines seen. The tooth count they support is the N' from 2 to 16
 //! whose multiples stand highest above the other orders (mean level in dB of the orders that
-//! are multiples of N' minus that of the rest, over the orders whose alias no other order
-//! shares): a 4-tooth cutter with run-out has every order, its multiples of 4 highest, so
+//! are multiples of N' minus that of the rest, over the orders below the Nyquist frequency
+//! whose bins no other order shares: a folded line's level depends on the sensor's
+//! anti-alias filter): a 4-tooth cutter with run-out has every order, its multiples of 4 highest, so
 //! N' = 2 or 8 scores lower than 4 (half of 2's multiples and one in eight of the rest are
 //! tooth lines). When the stated teeth score 3 dB below the supported count the survey warns.
 //!
@@ -396,9 +397,17 @@ pub fn detect(
     let hidden = if verdict.chatter {
         None
     } else {
-        hidden_line(&frames, &line_share, &masked_power, &comb, &mask, s, lookback)
+        hidden_line(
+            &frames,
+            &line_share,
+            &masked_power,
+            &comb,
+            &mask,
+            s,
+            lookback,
+        )
     };
-    let teeth_check = teeth_check(&comb, &levels, &mask, s.teeth);
+    let teeth_check = teeth_check(&comb, &levels, &mask, s.teeth, fs);
     let mut seen: Vec<SeenLine> = comb
         .iter()
         .zip(&levels)
@@ -815,9 +824,18 @@ const CONTRAST_DB: f64 = 6.0;
 /// How far the stated teeth may score below the supported count, dB.
 const MISMATCH_DB: f64 = 3.0;
 
-/// The stated `teeth` against the comb (module doc). Orders whose alias shares its bins with
-/// another order's are left out: their level cannot be given to either.
-fn teeth_check(comb: &[ForcedLine], levels: &[f64], mask: &Mask, teeth: u32) -> TeethCheck {
+/// The stated `teeth` against the comb (module doc), over the orders below the Nyquist
+/// frequency (`fs`): a folded line comes through the sensor's anti-alias filter weakened by an
+/// amount the log does not say, so its level tells nothing of the tooth count. Orders whose
+/// alias shares its bins with another order's are left out: their level cannot be given to
+/// either.
+fn teeth_check(
+    comb: &[ForcedLine],
+    levels: &[f64],
+    mask: &Mask,
+    teeth: u32,
+    fs: f64,
+) -> TeethCheck {
     if !levels.iter().any(|&db| db >= SEEN_DB) {
         return TeethCheck::NotSeen;
     }
@@ -826,6 +844,7 @@ fn teeth_check(comb: &[ForcedLine], levels: &[f64], mask: &Mask, teeth: u32) -> 
         .zip(levels)
         .zip(&mask.lines)
         .enumerate()
+        .filter(|(_, ((c, _), _))| !c.folded(fs))
         .filter(|(i, (_, ((lo, hi), _)))| {
             mask.lines
                 .iter()
