@@ -2,6 +2,7 @@
 //! plots), the same for a run of ours and for an instrument's CSV.
 
 use crate::error::CliError;
+use crate::import::Import;
 use crate::plot::{self, Format};
 use crate::traces::{self, CsvSetup};
 use serde_json::{Value, json};
@@ -19,6 +20,8 @@ pub struct Diagnosed {
     pub tests: Vec<(Vec<Trace>, Diagnosis)>,
     /// Ground truth of a simulated run.
     pub ground_truth: Option<Value>,
+    /// For a CSV: which of its columns were read, in which units.
+    pub columns: Option<String>,
 }
 
 /// Ball-bar lengths accepted for a CSV trace, mm, and why (the diagnosis' cyclic-error search
@@ -94,10 +97,10 @@ const BALLBAR_COLUMNS: &str = "angle_deg, deviation_um, direction (cw/ccw) and o
 const LASER_COLUMNS: &str =
     "target_mm, direction (forward/backward), run, and deviation_um or reading_mm";
 
-/// Tells the kind of `path` from its first bytes (MCAP) or its CSV header, reading only its
-/// first `HEAD_BYTES` (a run's MCAP may hold a gigabyte); an empty file, or a header of
-/// neither kind, is refused naming what is missing.
-pub fn file_kind(path: &Path) -> Result<FileKind, CliError> {
+/// Tells the kind of `path` from its first bytes (MCAP) or its CSV header (or what `--columns`
+/// maps onto it: `import`), reading only its first `HEAD_BYTES` (a run's MCAP may hold a
+/// gigabyte); an empty file, or a header of neither kind, is refused naming what is missing.
+pub fn file_kind(path: &Path, import: &Import) -> Result<FileKind, CliError> {
     use std::io::Read;
     let file = path.display().to_string();
     let mut bytes = Vec::new();
@@ -120,7 +123,7 @@ pub fn file_kind(path: &Path) -> Result<FileKind, CliError> {
         .headers()
         .map(|h| h.iter().map(str::to_string).collect())
         .unwrap_or_default();
-    let has = |c: &str| header.iter().any(|h| h == c);
+    let has = |c: &str| import.maps(c) || header.iter().any(|h| h == c);
     if header.iter().all(|h| h.is_empty()) {
         return Err(CliError::input(
             &file,
@@ -137,7 +140,10 @@ pub fn file_kind(path: &Path) -> Result<FileKind, CliError> {
     if has("target_mm") {
         return Ok(FileKind::LaserCsv);
     }
-    let found = header.join(", ");
+    let found = format!(
+        "{}; map the export's own headers with --columns",
+        header.join(", ")
+    );
     // Columns only a laser CSV has: one missing its target column.
     let message = if has("run") || has("reading_mm") {
         format!(
@@ -157,14 +163,15 @@ pub fn file_kind(path: &Path) -> Result<FileKind, CliError> {
     Err(CliError::input(&file, Some(1), message))
 }
 
-/// Reads and diagnoses `path`.
+/// Reads and diagnoses `path` (`import`: a CSV's columns and units).
 pub fn diagnose_file(
     path: &Path,
     csv: Option<CsvSetup>,
+    import: &Import,
     options: &Options,
 ) -> Result<Diagnosed, CliError> {
     let file = path.display().to_string();
-    let recorded = traces::read(path, csv)?;
+    let (recorded, columns) = traces::read(path, csv, import)?;
     let tests = recorded
         .tests
         .into_iter()
@@ -178,12 +185,16 @@ pub fn diagnose_file(
         file,
         tests,
         ground_truth: recorded.ground_truth,
+        columns,
     })
 }
 
 /// The report as text: each test's diagnosis and, for a simulated run, the truth beside it.
 pub fn text(d: &Diagnosed) -> String {
-    let mut s = String::new();
+    let mut s = d
+        .columns
+        .as_ref()
+        .map_or_else(String::new, |c| format!("{c}\n\n"));
     for (i, (_, diag)) in d.tests.iter().enumerate() {
         s.push_str(&report::text(diag));
         if let Some(truth) = &d.ground_truth
@@ -271,7 +282,12 @@ pub fn json(d: &Diagnosed) -> Value {
             v
         })
         .collect();
-    json!({ "file": d.file, "tests": tests, "kwon_machine_report": kwon(d) })
+    json!({
+        "file": d.file,
+        "columns": d.columns,
+        "tests": tests,
+        "kwon_machine_report": kwon(d),
+    })
 }
 
 /// Writes `report.txt`, `report.md`, `report.json` and one polar plot per test into `dir`.

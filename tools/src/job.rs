@@ -150,13 +150,14 @@ pub fn diagnose(run: &Run, dir: &Path) -> Result<Option<RunDiagnosis>, CliError>
     let into = dir.join(crate::outputs::DIAGNOSIS);
     if !run.ballbar.is_empty() {
         let options = vmt_ballbar::Options::default();
-        let d = crate::diagnose::diagnose_file(&mcap, None, &options)?;
+        let none = crate::import::Import::default();
+        let d = crate::diagnose::diagnose_file(&mcap, None, &none, &options)?;
         let files = crate::diagnose::write(&d, &into)?;
         let text = crate::diagnose::text(&d);
         return Ok(Some(RunDiagnosis { text, files }));
     }
     if run.laser.is_some()
-        && let Some(p) = crate::positioning::read(&mcap, None)?
+        && let Some(p) = crate::positioning::read(&mcap, None, &crate::import::Import::default())?
     {
         let files = crate::positioning::write(&p, &into)?;
         let text = crate::positioning::text(&p);

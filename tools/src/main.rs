@@ -208,11 +208,15 @@ struct DiagnoseArgs {
     /// Also compute the minimum-zone circular deviation.
     #[arg(long)]
     minimum_zone: bool,
+    /// A CSV export's columns and units.
+    #[command(flatten)]
+    import: vmt_tools::import::ImportArgs,
 }
 
 fn diagnose_cmd(args: DiagnoseArgs) -> Result<(), CliError> {
     use vmt_tools::diagnose::FileKind;
-    let kind = vmt_tools::diagnose::file_kind(&args.file)?;
+    let import = args.import.parse()?;
+    let kind = vmt_tools::diagnose::file_kind(&args.file, &import)?;
     let what = match kind {
         FileKind::Mcap => "an MCAP run, which records its own set-up",
         FileKind::LaserCsv => "a laser positioning CSV",
@@ -241,14 +245,14 @@ fn diagnose_cmd(args: DiagnoseArgs) -> Result<(), CliError> {
     }
     let csv =
         vmt_tools::diagnose::csv_setup(args.radius_mm, args.feed_mm_min, args.plane.as_deref())?;
-    if let Some(p) = vmt_tools::positioning::read(&args.file, args.axis.as_deref())? {
+    if let Some(p) = vmt_tools::positioning::read(&args.file, args.axis.as_deref(), &import)? {
         return positioning_report(&p, args.json, args.out.as_deref());
     }
     let options = vmt_ballbar::Options {
         minimum_zone: args.minimum_zone,
         ..Default::default()
     };
-    let d = vmt_tools::diagnose::diagnose_file(&args.file, csv, &options)?;
+    let d = vmt_tools::diagnose::diagnose_file(&args.file, csv, &import, &options)?;
     if args.json {
         vmt_tools::outln!("{:#}", vmt_tools::diagnose::json(&d))?;
     } else {
