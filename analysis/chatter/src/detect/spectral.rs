@@ -33,7 +33,14 @@
 //! with the cut; one whose share of the comb grows by `growth` over the log is self-excited,
 //! not forced, and stays in the search). So the lines run-out, unbalance and the folding of
 //! lines above the Nyquist frequency put into the log are masked where they are, and the
-//! places where the comb carries nothing stay open. Should the masked lines cover more than
+//! places where the comb carries nothing stay open. A seen line is that line only where the
+//! peak of the mean spectrum in its bins lies within [`ON_LINE_BINS`] of its alias (a forced
+//! line is on k·f_r exactly; chatter a few Hz off it, or on a folded order's alias, is not
+//! masked with it), and it is not taken for forced where the cut cannot force it more than
+//! every direct tooth-passing line: a folded line (through the anti-alias filter's stop band)
+//! or, for an even tooth count of 4 or more, a line at a period-doubling order N/2, 3N/2, …
+//! that also stands 10 dB above both neighbouring orders (flip chatter, exactly on the comb;
+//! run-out and unbalance lines are of like size from order to order). Should the masked lines cover more than
 //! [`MAX_MASKED_SHARE`] of the bins, L is doubled, up to [`MAX_FRAME`]
 //! ([`DetectError::CombCrowded`] beyond). With j* the largest free bin,
 //!
@@ -272,6 +279,69 @@ fn line_bins(l: usize, fs: f64, comb: &[ForcedLine]) -> Vec<(usize, usize)> {
         .collect()
 }
 
+/// Largest distance, bins, between a comb line's alias and the peak of the mean spectrum in its
+/// bins for that peak to be the line: a forced line lies on k·f_r exactly (the Hann window's
+/// parabolic peak estimate is within a few hundredths of a bin at the levels that count), so a
+/// peak a quarter of a bin or more off it is something else, chatter near the comb. A quarter
+/// bin is a spindle speed within 0.4 % at the fourth order (16 bins per order), so a stated
+/// speed that close still masks its tooth-passing lines' neighbours.
+pub const ON_LINE_BINS: f64 = 0.25;
+
+/// The largest power of `mean` within bins `lo..=hi`.
+fn peak_power(mean: &[f64], lo: usize, hi: usize) -> f64 {
+    mean[lo..=hi].iter().copied().fold(0.0, f64::max)
+}
+
+/// Whether the peak of `mean` within bins `lo..=hi` lies within [`ON_LINE_BINS`] of bin
+/// position `at` (parabola through the log powers around the largest bin; a peak on the edge
+/// of the range rises beyond it and is off the line).
+fn on_line(mean: &[f64], lo: usize, hi: usize, at: f64) -> bool {
+    let Some(j) = (lo..=hi).max_by(|&a, &b| mean[a].total_cmp(&mean[b])) else {
+        return false;
+    };
+    if j == 0 || j + 1 >= mean.len() || (lo < hi && (j == lo || j == hi)) {
+        return false;
+    }
+    let [a, b, c] = [mean[j - 1], mean[j], mean[j + 1]].map(|p| p.max(f64::MIN_POSITIVE).ln());
+    let d = a - 2.0 * b + c;
+    let offset = if d < 0.0 { 0.5 * (a - c) / d } else { 0.0 };
+    (j as f64 + offset - at).abs() < ON_LINE_BINS
+}
+
+/// Comb lines that the cut cannot force more strongly than every tooth-passing line shown
+/// unfolded, so that a line there which is stronger is chatter on the comb.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Unlikely {
+    /// Any other line.
+    No,
+    /// A line shown folded: it came through the anti-alias filter's stop band (7 dB down at
+    /// 0.55·f_s, 28 dB at f_s for a 4th-order filter at 0.45·f_s) from a higher harmonic of
+    /// the tooth pulses or of run-out, which the cut excites less than the direct tooth lines.
+    Folded,
+    /// For an even tooth count N of 4 or more, an odd multiple of half the tooth-passing
+    /// frequency (orders N/2, 3N/2, …), where period-doubling (flip) chatter of an interrupted
+    /// cut lies (the tool alternating tooth by tooth; Insperger, Stépán et al., flip lobes of
+    /// low-immersion milling). Run-out, unbalance and misalignment put lines at every order,
+    /// of like size from one order to the next, so such a line is taken for chatter only when
+    /// it also stands [`FLIP_OVER_NEIGHBOURS`] above both neighbouring orders (with 2 teeth
+    /// those orders are run-out's own, and the rule is not applied).
+    Flip,
+}
+
+/// Power ratio by which a line at a period-doubling order stands above both neighbouring
+/// spindle orders to be taken for flip chatter (10 dB).
+pub const FLIP_OVER_NEIGHBOURS: f64 = 10.0;
+
+fn unlikely_forced(line: &ForcedLine, teeth: u32, fs: f64) -> Unlikely {
+    if line.folded(fs) {
+        Unlikely::Folded
+    } else if teeth >= 4 && teeth.is_multiple_of(2) && line.order % teeth == teeth / 2 {
+        Unlikely::Flip
+    } else {
+        Unlikely::No
+    }
+}
+
 /// The bins of a frame: what each is, and which comb lines are masked.
 struct Mask {
     bins: Vec<Bin>,
@@ -357,7 +427,43 @@ pub fn detect(
             .collect();
         // The direct tooth-passing lines always; every other comb line where the log shows it
         // as a forced line does, stationary against the comb (not growing as chatter does).
-        let seen: Vec<bool> = levels.iter().map(|db| *db >= SEEN_DB).collect();
+        let df = fs / l as f64;
+        let tooth_peak = comb
+            .iter()
+            .zip(&ranges)
+            .filter(|(c, _)| c.tooth_passing && !c.folded(fs))
+            .map(|(_, &(lo, hi))| peak_power(&mean, lo, hi))
+            .fold(0.0, f64::max);
+        // With every tooth-passing line folded there is no direct line to compare with.
+        let tooth_peak = if tooth_peak > 0.0 {
+            tooth_peak
+        } else {
+            f64::INFINITY
+        };
+        let order_power = |order: u32| {
+            comb.iter()
+                .zip(&ranges)
+                .find(|(c, _)| c.order == order)
+                .map_or(0.0, |(_, &(lo, hi))| peak_power(&mean, lo, hi))
+        };
+        let seen: Vec<bool> = comb
+            .iter()
+            .zip(&ranges)
+            .zip(&levels)
+            .map(|((c, &(lo, hi)), db)| {
+                let p = peak_power(&mean, lo, hi);
+                let not_forced = match unlikely_forced(c, s.teeth, fs) {
+                    Unlikely::No => false,
+                    Unlikely::Folded => p > tooth_peak,
+                    Unlikely::Flip => {
+                        p > tooth_peak
+                            && p > FLIP_OVER_NEIGHBOURS * order_power(c.order - 1)
+                            && p > FLIP_OVER_NEIGHBOURS * order_power(c.order + 1)
+                    }
+                };
+                *db >= SEEN_DB && on_line(&mean, lo, hi, c.alias_hz / df) && !not_forced
+            })
+            .collect();
         let seen_power = comb_shares(&spectra, &ranges, &seen, first);
         let masked: Vec<bool> = comb
             .iter()
