@@ -72,7 +72,7 @@ pub struct DetectArgs {
     pub limit: Option<f64>,
     /// Kim's pass band, Hz, as LOW,HIGH (stop edges half its width outside it); default: from
     /// --mode-hz, else from the run's tool-point modes, else the paper's 6000,7000.
-    #[arg(long, value_delimiter = ',', num_args = 2)]
+    #[arg(long, value_delimiter = ',')]
     pub band: Option<Vec<f64>>,
     /// A tool-point mode, Hz, whose chatter band Kim's detector watches (0.9 to 1.2 times it).
     #[arg(long, conflicts_with = "band")]
@@ -447,14 +447,16 @@ pub fn check_args(args: &DetectArgs) -> Result<(), CliError> {
     if let Some(z) = args.teeth {
         crate::error::check_count("--teeth", z as usize, TEETH, "the cutter's teeth")?;
     }
-    if let Some([lo, hi]) = args.band.as_deref().map(|b| [b[0], b[1]])
-        && !(lo.is_finite() && lo > 0.0 && lo < hi && hi.is_finite())
-    {
-        return Err(CliError::option(
-            "--band",
-            format!("{lo},{hi}"),
-            "LOW,HIGH in Hz with 0 < LOW < HIGH is accepted",
-        ));
+    if let Some(b) = &args.band {
+        let ok =
+            matches!(b[..], [lo, hi] if lo.is_finite() && lo > 0.0 && lo < hi && hi.is_finite());
+        if !ok {
+            return Err(CliError::option(
+                "--band",
+                b.iter().map(f64::to_string).collect::<Vec<_>>().join(","),
+                "LOW,HIGH in Hz with 0 < LOW < HIGH is accepted",
+            ));
+        }
     }
     if let Some(f) = args.mode_hz
         && !(f.is_finite() && f > 0.0)
@@ -482,9 +484,9 @@ pub fn check_args(args: &DetectArgs) -> Result<(), CliError> {
 
 /// Kim's settings for `log` (limit 1, set later) and where the band came from.
 fn kim_band(log: &Log, args: &DetectArgs) -> (KimSettings, BandSource) {
-    if let Some(b) = &args.band {
+    if let Some(&[lo, hi]) = args.band.as_deref() {
         let s = KimSettings {
-            band_hz: (b[0], b[1]),
+            band_hz: (lo, hi),
             ..KimSettings::with_limit(1.0)
         };
         return (s, BandSource::Given);
