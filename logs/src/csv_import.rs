@@ -190,14 +190,18 @@ pub enum ImportError {
     },
     /// A required column neither mapped nor present under our name.
     #[error(
-        "no `{name}` column (found: {found}); map it to the export's header with --columns \
-         {name}=HEADER"
+        "no `{name}` column (found: {found}); {what} has {accepted}: map it to the export's \
+         header with --columns {name}=HEADER"
     )]
     MissingColumn {
         /// Our column name.
         name: &'static str,
         /// The file's headers.
         found: String,
+        /// What the file is.
+        what: &'static str,
+        /// Our column names.
+        accepted: String,
     },
     /// A unit this column is not accepted in.
     #[error("--units {name}={unit}: not a unit of {name}; accepted: {accepted}")]
@@ -465,6 +469,8 @@ pub fn resolve(
                 return Err(ImportError::MissingColumn {
                     name: c.name,
                     found: found(),
+                    what,
+                    accepted: names(),
                 });
             }
             continue;

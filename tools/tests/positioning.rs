@@ -73,7 +73,7 @@ fn bad_laser_csvs_are_refused_naming_line_and_value() {
     let cases: Vec<(String, &str)> = vec![
         (
             "target_mm,direction,deviation_um\n0,forward,1\n".into(),
-            "no `run` column; a positioning test has target_mm, direction (forward or backward), run, and deviation_um or reading_mm (found: target_mm, direction, deviation_um)",
+            "no `run` column (found: target_mm, direction, deviation_um); a laser positioning test has target_mm, direction, run, deviation_um, reading_mm",
         ),
         (
             "target_mm,direction,run,deviation_um,run\n0,forward,1,1,2\n".into(),

@@ -35,9 +35,9 @@ pub enum DetectError {
     /// The spindle turns too slowly for this sample rate: telling a line from its
     /// spindle-rotation harmonics takes a longer frame than the detector takes.
     #[error(
-        "a spindle at {spindle_rpm} rev/min ({teeth} teeth) logged at {sample_rate_hz} Hz: its \
-         spindle-rotation harmonics lie {spindle_hz} Hz apart, and telling a chatter line from \
-         them takes bins of a sixteenth of that, frames of {frame_needed} samples, beyond the \
+        "a spindle at {spindle_rpm} rev/min ({teeth} teeth) logged at {sample_rate_hz:.0} Hz: its \
+         spindle-rotation harmonics lie {spindle_hz:.3} Hz apart, and telling a chatter line from \
+         them takes bins of a sixteenth of that, frames of {frame_needed:.0} samples, beyond the \
          longest frame of {max_frame} samples; a log sampled at {max_rate:.0} Hz or less tells \
          them apart",
         max_rate = *max_frame as f64 * spindle_hz / 16.0
@@ -58,7 +58,7 @@ pub enum DetectError {
     },
     /// The forced lines seen cover most of the spectrum even at the longest frame.
     #[error(
-        "a spindle at {spindle_rpm} rev/min logged at {sample_rate_hz} Hz: the {lines} forced \
+        "a spindle at {spindle_rpm} rev/min logged at {sample_rate_hz:.0} Hz: the {lines} forced \
          lines seen in the log (spindle-rotation harmonics and their aliases) cover {pct:.0} % \
          of its spectrum even with the longest frame ({max_frame} samples), so a chatter line \
          cannot be told from them (at most half of the spectrum may lie on them)",
@@ -78,8 +78,8 @@ pub enum DetectError {
     },
     /// Kim's band does not fit below the Nyquist frequency.
     #[error(
-        "Kim's band {pass_low}–{pass_high} Hz (stop edges {stop_low}–{stop_high} Hz) does not fit \
-         below the Nyquist frequency {nyquist} Hz of this {sample_rate} Hz log"
+        "Kim's band {pass_low:.0}–{pass_high:.0} Hz (stop edges {stop_low:.0}–{stop_high:.0} Hz) \
+         does not fit below the Nyquist frequency {nyquist:.0} Hz of this {sample_rate:.0} Hz log"
     , sample_rate = 2.0 * nyquist)]
     BandAboveNyquist {
         /// Pass band, Hz.
