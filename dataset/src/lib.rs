@@ -32,9 +32,11 @@
 //! Modules: [`generate`] makes the runs, [`manifest`] lists them, [`folder`] keeps the folder
 //! whole, [`job`] executes one scenario's job, [`shard`], [`mod@merge`] and [`launch`] spread a
 //! dataset over a cluster, and [`accuracy`] scores the ball-bar diagnosis on a dataset against
-//! its truth.
+//! its truth. [`chatter`] is the labelled set of simulated milling cuts the chatter detectors
+//! are scored on.
 
 pub mod accuracy;
+pub mod chatter;
 pub mod folder;
 pub mod generate;
 pub mod job;

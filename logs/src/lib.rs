@@ -8,12 +8,15 @@
 //! - [`live`]: both written while the job runs, from the simulator's blocks of records.
 //! - [`input`]: an MCAP file streamed back, message by message; [`ballbar`]: its ball-bar
 //!   traces grouped into circular tests; [`truth`]: the figures of the ground truth it carries.
+//! - [`csv_import`]: an instrument's CSV export read as it is exported: its columns mapped onto
+//!   ours and its units converted.
 //!
 //! Both use the simulation time of the run as their clock; nothing in them comes from the wall
 //! clock of the computer that wrote them (see each module for what that means for its format).
 //! The topics and entity paths are documented in the modules and in `docs/formats.md`.
 
 pub mod ballbar;
+pub mod csv_import;
 pub mod error;
 pub mod input;
 pub mod live;

@@ -273,8 +273,8 @@ pub struct AccelerometerToml {
     pub resonance_hz: f64,
     #[serde(default = "resonance_damping")]
     pub resonance_damping: f64,
-    #[serde(default = "anti_alias")]
-    pub anti_alias_hz: f64,
+    /// Default: [`vmt_sim::milling::ANTI_ALIAS_FRACTION`] of the sample rate.
+    pub anti_alias_hz: Option<f64>,
     #[serde(default = "noise")]
     pub noise_m_s2: f64,
     #[serde(default = "bits")]
@@ -291,9 +291,6 @@ fn resonance() -> f64 {
 }
 fn resonance_damping() -> f64 {
     0.05
-}
-fn anti_alias() -> f64 {
-    9_000.0
 }
 fn noise() -> f64 {
     0.05
@@ -360,7 +357,8 @@ fn accelerometer(
             "a damping ratio",
         )?,
         anti_alias_hz: in_open_range(
-            a.anti_alias_hz,
+            a.anti_alias_hz
+                .unwrap_or(vmt_sim::milling::ANTI_ALIAS_FRACTION * fs),
             0.0,
             fs / 2.0,
             &p.key("anti_alias_hz"),

@@ -106,7 +106,10 @@ fn xy_test(radius_mm: f64, feed_mm_min: f64) -> String {
 }
 
 /// The built-in machine (geometric errors of an uncompensated VMC, drive backlash and friction,
-/// unequal gains) with a drifting pivot: every figure of the XY test within tolerance.
+/// unequal gains) with a drifting pivot: every figure of the XY test within tolerance. The
+/// job's program runs in and out over 45° arcs (the default of `vmt program ballbar` and of a
+/// ball-bar job), so its data arcs start and end settled: the settling rule leaves nothing
+/// out, and the ISO figures are the raw ones, X's reversal spike at 0° included.
 #[test]
 fn builtin_machine_xy_test_is_diagnosed_within_tolerance() {
     let bar = r#"[instruments.ballbar]
@@ -116,6 +119,14 @@ setup_drift_um_per_min = [4.0, -2.0, 0.0]"#;
     let r = run(&xy_test(100.0, 2000.0), bar);
     let d = diagnose(&vmt_e2e::traces(&r), &Options::default()).expect("diagnosis");
     compare(&r, &d, tolerance(100.0));
+    for s in &d.settling {
+        assert_eq!(
+            (s.start_excluded_deg, s.end_excluded_deg),
+            (0.0, 0.0),
+            "{s:?}"
+        );
+    }
+    assert_eq!(d.iso, d.raw_iso);
 }
 
 /// The reversal spikes (1.8 µm over 40 ms on X at 2000 mm/min) follow each reversal in both

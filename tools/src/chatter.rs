@@ -1,24 +1,32 @@
 //! `vmt chatter detect`: chatter detection on an accelerometer log.
 //!
 //! Inputs:
-//! - a CSV file with a header holding `time_s` (s, strictly increasing, uniformly sampled to
-//!   within 1 %) and one or more of `ax`, `ay`, `az` (acceleration, m/s²); other columns are
-//!   ignored;
+//! - a CSV file with a header holding `time_s` (strictly increasing, uniformly sampled to
+//!   within 1 %, at any offset) and one or more of `ax`, `ay`, `az`; other columns are ignored.
+//!   An instrument's export is read as exported: `--columns` maps our names onto its headers,
+//!   `--units` (or a unit written in a header) gives its units, s or ms, m/s² or g
+//!   ([`crate::import`]);
 //! - a run of ours (`run.mcap`): the `/accelerometer` stream (fields `time_s`, `ax`, `ay`, `az`,
-//!   m/s²) and the spindle speed and teeth from the ground truth (`milling.spindle_rpm`,
-//!   `milling.teeth`, or `spindle_rpm`, `teeth` at its top level).
+//!   m/s²) and the spindle speed, teeth and tool-point modes from the ground truth
+//!   (`milling.spindle_rpm`, `milling.teeth`, `milling.modes`, or at its top level).
 //!
 //! Detectors: `vmt_chatter::detect::kim` (band-pass RMS against a limit) and
-//! `vmt_chatter::detect::spectral` (non-harmonic spectral peak share).
+//! `vmt_chatter::detect::spectral` (the share of the strongest line off the cut's forced comb).
+//! `--detector both` runs what can run and says why the other cannot.
 
 use crate::error::CliError;
+use crate::import::{Import, ImportArgs};
 use clap::{Args, ValueEnum};
 use serde_json::Value;
 use std::io::Write;
 use std::path::{Path, PathBuf};
-use vmt_chatter::detect::kim::{self, KimResult, KimSettings};
-use vmt_chatter::detect::spectral::{self, SpectralResult, SpectralSettings, tooth_passing_hz};
+use vmt_chatter::detect::DetectError;
+use vmt_chatter::detect::forced::AliasBand;
+use vmt_chatter::detect::kim::{self, KimResult, KimSettings, weakest_mode};
+use vmt_chatter::detect::spectral::{self, SpectralResult, SpectralSettings, TeethCheck};
+use vmt_logs::csv_import::{Column, Quantity};
 use vmt_logs::input::{self, Input};
+use vmt_model::cutting::Mode;
 
 /// The largest acceleration accepted from a CSV log, m/s² (10⁶, about 100 000 g: beyond the
 /// range of shock accelerometers, so a value above it is a unit or data error).
@@ -27,11 +35,11 @@ const MAX_ACCELERATION_M_S2: f64 = 1e6;
 /// Which detector to run.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 pub enum Which {
-    /// Kim, Song & Koh: band-pass (default 6–7 kHz), 50 ms block RMS against --limit.
+    /// Kim, Song & Koh: band-pass, 50 ms block RMS against --limit.
     Kim,
-    /// Share of the spectrum in the strongest peak that is not a tooth-passing harmonic.
+    /// Share of the spectrum in the strongest line off the cut's forced comb.
     Better,
-    /// Both.
+    /// Both where they can run.
     Both,
 }
 
@@ -40,7 +48,7 @@ pub enum Which {
 pub struct DetectArgs {
     /// The log: run.mcap (its `accelerometer` stream) or a CSV file with header
     /// time_s,ax,ay,az (s; m/s²; at least one of ax, ay, az; time strictly increasing and
-    /// uniformly sampled).
+    /// uniformly sampled), or an instrument's export with --columns and --units.
     pub log: PathBuf,
     /// Detector(s) to run.
     #[arg(long, value_enum, default_value = "both")]
@@ -53,20 +61,29 @@ pub struct DetectArgs {
     /// ground truth).
     #[arg(long, requires = "spindle_rpm")]
     pub teeth: Option<u32>,
+    /// How far above the sample rate forced lines reach the log, in sample rates: 1 (default)
+    /// masks the lines folded once (a sensor whose anti-alias filter is about 0.45 of its
+    /// rate), 0.5 none (an ideal filter), 2 or more for a sensor with a weak filter.
+    #[arg(long, default_value_t = 1.0)]
+    pub alias_band: f64,
     /// Kim's RMS limit of the band-passed acceleration, m/s² (default: 3 × the largest block
     /// RMS over the first 0.2 s of the log, which assumes the log starts with a stable cut).
     #[arg(long)]
     pub limit: Option<f64>,
-    /// Kim's pass band, Hz, as LOW,HIGH (stop edges 500 Hz outside it).
-    #[arg(long, value_delimiter = ',', default_values_t = KIM_BAND_HZ)]
-    pub band: Vec<f64>,
+    /// Kim's pass band, Hz, as LOW,HIGH (stop edges half its width outside it); default: from
+    /// --mode-hz, else from the run's tool-point modes, else the paper's 6000,7000.
+    #[arg(long, value_delimiter = ',')]
+    pub band: Option<Vec<f64>>,
+    /// A tool-point mode, Hz, whose chatter band Kim's detector watches (0.9 to 1.2 times it).
+    #[arg(long, conflicts_with = "band")]
+    pub mode_hz: Option<f64>,
     /// Write the per-window figures of the detectors to this CSV file.
     #[arg(long)]
     pub csv: Option<PathBuf>,
+    /// A CSV export's columns and units.
+    #[command(flatten)]
+    pub import: ImportArgs,
 }
-
-/// Kim's pass band unless --band says otherwise, Hz (Kim, Song & Koh's 6–7 kHz).
-pub const KIM_BAND_HZ: [f64; 2] = [6000.0, 7000.0];
 
 impl DetectArgs {
     /// `vmt chatter detect LOG` with every option at its default.
@@ -76,9 +93,12 @@ impl DetectArgs {
             detector: Which::Both,
             spindle_rpm: None,
             teeth: None,
+            alias_band: 1.0,
             limit: None,
-            band: KIM_BAND_HZ.to_vec(),
+            band: None,
+            mode_hz: None,
             csv: None,
+            import: ImportArgs::default(),
         }
     }
 }
@@ -99,22 +119,58 @@ pub struct Log {
     pub teeth: Option<u32>,
     /// Axial depth of cut (mm) from the ground truth.
     pub axial_depth_mm: Option<f64>,
+    /// The tool-point modes (X, then Y) from the ground truth.
+    pub modes: Vec<Mode>,
+    /// For a CSV: which of its columns were read, in which units.
+    pub columns: Option<String>,
 }
 
 const AXES: [&str; 3] = ["ax", "ay", "az"];
 
-const CSV_FORMAT: &str = "a header with time_s (s) and one or more of ax, ay, az (m/s²), then one row of numbers per sample";
+/// The columns of an accelerometer CSV.
+const COLUMNS: [Column; 4] = [
+    Column {
+        name: "time_s",
+        quantity: Quantity::Time,
+        required: true,
+    },
+    Column {
+        name: "ax",
+        quantity: Quantity::Acceleration,
+        required: false,
+    },
+    Column {
+        name: "ay",
+        quantity: Quantity::Acceleration,
+        required: false,
+    },
+    Column {
+        name: "az",
+        quantity: Quantity::Acceleration,
+        required: false,
+    },
+];
 
-/// Reads an MCAP run or a CSV log.
-pub fn read(path: &Path) -> Result<Log, CliError> {
+const CSV_FORMAT: &str = "a header with time_s (s) and one or more of ax, ay, az (m/s²), then one row of numbers per sample (an export's own headers and units through --columns and --units)";
+
+/// Reads an MCAP run or a CSV log (`import`: the CSV's columns and units).
+pub fn read(path: &Path, import: &Import) -> Result<Log, CliError> {
     let file = path.display().to_string();
     match input::open(path, &file)? {
-        Input::Mcap => read_mcap(path, &file),
-        Input::Other(bytes) => read_csv(&bytes, &file),
+        Input::Mcap => {
+            if import.given() {
+                return Err(CliError::Argument(format!(
+                    "{file} is a run of ours (MCAP), whose columns and units are its own: \
+                     --columns and --units apply to CSV exports"
+                )));
+            }
+            read_mcap(path, &file)
+        }
+        Input::Other(bytes) => read_csv(&bytes, &file, import),
     }
 }
 
-fn read_csv(bytes: &[u8], file: &str) -> Result<Log, CliError> {
+fn read_csv(bytes: &[u8], file: &str, import: &Import) -> Result<Log, CliError> {
     let mut r = csv::ReaderBuilder::new()
         .trim(csv::Trim::All)
         .from_reader(bytes);
@@ -129,21 +185,12 @@ fn read_csv(bytes: &[u8], file: &str) -> Result<Log, CliError> {
         })?
         .clone();
     crate::traces::unique_columns(&header, file)?;
-    let find = |n: &str| header.iter().position(|h| h == n);
-    let found = || header.iter().collect::<Vec<_>>().join(",");
-    let time = find("time_s").ok_or_else(|| {
-        CliError::input(
-            file,
-            Some(1),
-            format!(
-                "no `time_s` column (found: {}); expected {CSV_FORMAT}",
-                found()
-            ),
-        )
-    })?;
-    let axes: Vec<(&str, usize)> = AXES
+    let cols = import.resolve(&header, &COLUMNS, "an accelerometer log", file)?;
+    let time = cols.get("time_s").map_or(0, |c| c.index);
+    let time_factor = cols.factor("time_s");
+    let axes: Vec<(&str, usize, f64)> = AXES
         .iter()
-        .filter_map(|a| find(a).map(|i| (*a, i)))
+        .filter_map(|a| cols.get(a).map(|c| (*a, c.index, cols.factor(a))))
         .collect();
     if axes.is_empty() {
         return Err(CliError::input(
@@ -151,7 +198,7 @@ fn read_csv(bytes: &[u8], file: &str) -> Result<Log, CliError> {
             Some(1),
             format!(
                 "no `ax`, `ay` or `az` column (found: {}); expected {CSV_FORMAT}",
-                found()
+                header.iter().collect::<Vec<_>>().join(", ")
             ),
         ));
     }
@@ -167,7 +214,7 @@ fn read_csv(bytes: &[u8], file: &str) -> Result<Log, CliError> {
             )
         })?;
         let line = Some(crate::traces::record_line(bytes, rec.position(), 0)).filter(|&l| l > 0);
-        let num = |col: usize, name: &str| -> Result<f64, CliError> {
+        let num = |col: usize| -> Result<f64, CliError> {
             let cell = rec.get(col).unwrap_or("");
             cell.parse::<f64>()
                 .ok()
@@ -176,11 +223,14 @@ fn read_csv(bytes: &[u8], file: &str) -> Result<Log, CliError> {
                     CliError::input(
                         file,
                         line,
-                        format!("column `{name}`: `{cell}` is not a finite number"),
+                        format!(
+                            "column `{}`: `{cell}` is not a finite number",
+                            header[col].trim()
+                        ),
                     )
                 })
         };
-        let t = num(time, "time_s")?;
+        let t = num(time)? * time_factor;
         if let Some(&prev) = times.last()
             && t <= prev
         {
@@ -188,20 +238,22 @@ fn read_csv(bytes: &[u8], file: &str) -> Result<Log, CliError> {
                 file,
                 line,
                 format!(
-                    "column `time_s`: {t} does not increase (previous {prev}); times must be strictly increasing"
+                    "column `{}`: {t} s does not increase (previous {prev} s); times must be strictly increasing",
+                    header[time].trim()
                 ),
             ));
         }
         times.push(t);
-        for ((name, col), v) in axes.iter().zip(&mut values) {
-            let a = num(*col, name)?;
+        for ((name, col, factor), v) in axes.iter().zip(&mut values) {
+            let a = num(*col)? * factor;
             if a.abs() > MAX_ACCELERATION_M_S2 {
                 return Err(CliError::input(
                     file,
                     line,
                     format!(
-                        "column `{name}`: {a:e} m/s² is not accepted; an acceleration within \
-                         ±{MAX_ACCELERATION_M_S2:e} m/s² (check the unit: m/s², not g or mm/s²)"
+                        "column `{}`: {a:e} m/s² is not accepted; an acceleration within \
+                         ±{MAX_ACCELERATION_M_S2:e} m/s² (check the unit: --units {name}=g or m/s^2)",
+                        header[*col].trim()
                     ),
                 ));
             }
@@ -210,10 +262,12 @@ fn read_csv(bytes: &[u8], file: &str) -> Result<Log, CliError> {
     }
     let channels = axes
         .iter()
-        .map(|(n, _)| n.to_string())
+        .map(|(n, _, _)| n.to_string())
         .zip(values)
         .collect();
-    finish(file, &times, channels, None)
+    let mut log = finish(file, &times, channels, None)?;
+    log.columns = Some(crate::import::echo(&cols));
+    Ok(log)
 }
 
 fn read_mcap(path: &Path, file: &str) -> Result<Log, CliError> {
@@ -310,31 +364,76 @@ fn finish(
             .and_then(|m| m["teeth"].as_u64())
             .and_then(|t| u32::try_from(t).ok()),
         axial_depth_mm: milling.and_then(|m| m["axial_depth_mm"].as_f64()),
+        modes: milling.map_or_else(Vec::new, truth_modes),
+        columns: None,
     })
 }
 
-/// What the detectors found.
+/// The tool-point modes of a milling truth (`modes.x`, `modes.y`: frequency, damping ratio,
+/// stiffness).
+fn truth_modes(m: &Value) -> Vec<Mode> {
+    ["x", "y"]
+        .iter()
+        .filter_map(|d| m["modes"][d].as_array())
+        .flatten()
+        .filter_map(|v| {
+            Some(Mode {
+                natural_frequency_hz: v["frequency_hz"].as_f64()?,
+                damping_ratio: v["damping_ratio"].as_f64()?,
+                stiffness: v["stiffness_n_per_m"].as_f64()?,
+            })
+        })
+        .collect()
+}
+
+/// Where Kim's band came from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum BandSource {
+    /// `--band`.
+    Given,
+    /// `--mode-hz`.
+    Mode,
+    /// The weakest tool-point mode of the run's truth.
+    RunMode,
+    /// The paper's 6–7 kHz.
+    Paper,
+}
+
+impl BandSource {
+    fn describe(self) -> &'static str {
+        match self {
+            BandSource::Given => "from --band",
+            BandSource::Mode => "from --mode-hz",
+            BandSource::RunMode => "from the run's weakest tool-point mode",
+            BandSource::Paper => "the paper's",
+        }
+    }
+}
+
+/// What the detectors found, and what could not run and why.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Report {
-    /// Kim's detector, with the limit used.
-    pub kim: Option<(KimResult, f64)>,
-    /// The spectral detector, and where its tooth-passing frequency came from.
+    /// Kim's detector, its settings (band, limit) and where the band came from.
+    pub kim: Option<(KimResult, KimSettings, BandSource)>,
+    /// Why Kim's detector did not run (with `--detector both`).
+    pub kim_skipped: Option<String>,
+    /// The spectral detector, and where its spindle speed and teeth came from.
     pub spectral: Option<(SpectralResult, &'static str)>,
-    /// Why the spectral detector was not run though asked for with Kim's (`--detector both`).
-    pub spectral_skipped: Option<&'static str>,
+    /// Why the spectral detector did not run (with `--detector both`).
+    pub spectral_skipped: Option<String>,
 }
 
 /// Why the `better` detector cannot run on a log without spindle speed and teeth.
 const NO_TOOTH_PASSING: &str = "the log gives no spindle speed and teeth: the `better` detector \
-     needs --spindle-rpm and --teeth (its tooth-passing frequency is not guessed from the \
-     spectrum, whose strongest peak may be the chatter itself)";
+     needs --spindle-rpm and --teeth (the forced comb is not guessed from the spectrum, whose \
+     strongest peak may be the chatter itself)";
 
 /// Spindle speeds accepted by --spindle-rpm.
 pub const SPINDLE_RPM: (f64, f64) = (1.0, 200_000.0);
 /// Teeth accepted by --teeth.
 pub const TEETH: (usize, usize) = (1, 100);
 
-/// Checks --spindle-rpm and --teeth (given together, clap makes sure) in the units typed.
+/// Checks the options in the units typed.
 pub fn check_args(args: &DetectArgs) -> Result<(), CliError> {
     if let Some(n) = args.spindle_rpm {
         crate::error::check_range(
@@ -348,15 +447,33 @@ pub fn check_args(args: &DetectArgs) -> Result<(), CliError> {
     if let Some(z) = args.teeth {
         crate::error::check_count("--teeth", z as usize, TEETH, "the cutter's teeth")?;
     }
-    if let [lo, hi] = args.band[..]
-        && !(lo.is_finite() && lo > 0.0 && lo < hi && hi.is_finite())
+    if let Some(b) = &args.band {
+        let ok =
+            matches!(b[..], [lo, hi] if lo.is_finite() && lo > 0.0 && lo < hi && hi.is_finite());
+        if !ok {
+            return Err(CliError::option(
+                "--band",
+                b.iter().map(f64::to_string).collect::<Vec<_>>().join(","),
+                "LOW,HIGH in Hz with 0 < LOW < HIGH is accepted",
+            ));
+        }
+    }
+    if let Some(f) = args.mode_hz
+        && !(f.is_finite() && f > 0.0)
     {
         return Err(CliError::option(
-            "--band",
-            format!("{lo},{hi}"),
-            "LOW,HIGH in Hz with 0 < LOW < HIGH is accepted",
+            "--mode-hz",
+            f,
+            "a natural frequency > 0 Hz",
         ));
     }
+    crate::error::check_range(
+        "--alias-band",
+        args.alias_band,
+        (0.5, 10.0),
+        "sample rates",
+        "0.5 (no alias) to 10",
+    )?;
     if let Some(l) = args.limit
         && !(l.is_finite() && l > 0.0)
     {
@@ -365,83 +482,105 @@ pub fn check_args(args: &DetectArgs) -> Result<(), CliError> {
     Ok(())
 }
 
-/// Runs the chosen detectors on `log` (read from `file`).
+/// Kim's settings for `log` (limit 1, set later) and where the band came from.
+fn kim_band(log: &Log, args: &DetectArgs) -> (KimSettings, BandSource) {
+    if let Some(&[lo, hi]) = args.band.as_deref() {
+        let s = KimSettings {
+            band_hz: (lo, hi),
+            ..KimSettings::with_limit(1.0)
+        };
+        return (s, BandSource::Given);
+    }
+    if let Some(f) = args.mode_hz {
+        return (KimSettings::for_mode(f, 1.0), BandSource::Mode);
+    }
+    match weakest_mode(&log.modes) {
+        Some(f) => (KimSettings::for_mode(f, 1.0), BandSource::RunMode),
+        None => (KimSettings::with_limit(1.0), BandSource::Paper),
+    }
+}
+
+/// Runs the chosen detectors on `log` (read from `file`): with `--detector both`, those that
+/// can run; an error when the one asked for (or neither of both) cannot.
 pub fn detect(log: &Log, file: &str, args: &DetectArgs) -> Result<Report, CliError> {
     let fs = log.sample_rate_hz;
     let slices: Vec<&[f64]> = log.channels.iter().map(|(_, v)| v.as_slice()).collect();
-    let model = |e: vmt_chatter::detect::DetectError| CliError::input(file, None, e.to_string());
-    let kim = if args.detector != Which::Better {
-        let band = match args.band[..] {
-            [lo, hi] => (lo, hi),
-            _ => {
-                return Err(CliError::Argument(
-                    "--band LOW,HIGH: two frequencies in Hz".into(),
-                ));
-            }
-        };
-        let mut s = KimSettings {
-            band_hz: band,
-            ..KimSettings::with_limit(1.0)
-        };
-        s.limit = match args.limit {
-            Some(l) => l,
-            None => default_limit(&slices, fs, &s).map_err(model)?,
-        };
-        Some((kim::detect(&slices, fs, &s).map_err(model)?, s.limit))
-    } else {
-        None
+    let model = |e: DetectError| CliError::input(file, None, e.to_string());
+    let mut report = Report {
+        kim: None,
+        kim_skipped: None,
+        spectral: None,
+        spectral_skipped: None,
     };
-    let spectral = if args.detector != Which::Kim {
+    if args.detector != Which::Better {
+        let (mut s, source) = kim_band(log, args);
+        match s.fits(fs) {
+            Ok(()) => {
+                s.limit = match args.limit {
+                    Some(l) => l,
+                    None => default_limit(&slices, fs, &s).map_err(model)?,
+                };
+                report.kim = Some((kim::detect(&slices, fs, &s).map_err(model)?, s, source));
+            }
+            Err(e) => {
+                let why = format!(
+                    "{e} ({} band; give --band or --mode-hz for a band below it)",
+                    source.describe()
+                );
+                if args.detector == Which::Kim {
+                    return Err(CliError::input(file, None, why));
+                }
+                report.kim_skipped = Some(why);
+            }
+        }
+    }
+    if args.detector != Which::Kim {
         let rpm = args.spindle_rpm.or(log.spindle_rpm);
         let teeth = args.teeth.or(log.teeth);
-        // The tooth-passing frequency is not estimated from the spectrum: on a chattering cut
-        // the strongest peak is the chatter itself (929 Hz on scenarios/milling_slot.toml).
-        let (f_tp, source) = match (rpm, teeth) {
+        // The comb is not estimated from the spectrum: on a chattering cut the strongest peak
+        // is the chatter itself (929 Hz on scenarios/milling_slot.toml).
+        let outcome = match (rpm, teeth) {
             (Some(n), Some(z)) => {
                 let source = if args.spindle_rpm.is_some() {
                     "from --spindle-rpm, --teeth"
                 } else {
                     "from the run"
                 };
-                (Some(tooth_passing_hz(n, z)), source)
+                let s = SpectralSettings {
+                    alias_band: AliasBand {
+                        sample_rates: args.alias_band,
+                    },
+                    ..SpectralSettings::new(n, z)
+                };
+                spectral::detect(&slices, fs, &s)
+                    .map(|r| (r, source))
+                    .map_err(|e| e.to_string())
             }
-            _ if args.detector == Which::Both => {
-                // Kim's verdict stands on its own; say why the other is missing.
-                return Ok(Report {
-                    kim,
-                    spectral: None,
-                    spectral_skipped: Some(NO_TOOTH_PASSING),
-                });
-            }
-            _ => {
-                return Err(CliError::input(
-                    file,
-                    None,
-                    format!("{NO_TOOTH_PASSING}, or run --detector kim"),
-                ));
-            }
+            _ => Err(NO_TOOTH_PASSING.to_string()),
         };
-        let s = SpectralSettings {
-            tooth_passing_hz: f_tp,
-            ..Default::default()
-        };
-        Some((spectral::detect(&slices, fs, &s).map_err(model)?, source))
-    } else {
-        None
-    };
-    Ok(Report {
-        kim,
-        spectral,
-        spectral_skipped: None,
-    })
+        match outcome {
+            Ok(r) => report.spectral = Some(r),
+            Err(why) if args.detector == Which::Both => report.spectral_skipped = Some(why),
+            Err(why) => return Err(CliError::input(file, None, why)),
+        }
+    }
+    if let (None, None, Some(k), Some(b)) = (
+        &report.kim,
+        &report.spectral,
+        &report.kim_skipped,
+        &report.spectral_skipped,
+    ) {
+        return Err(CliError::input(
+            file,
+            None,
+            format!("neither detector can run on this log: kim: {k}; better: {b}"),
+        ));
+    }
+    Ok(report)
 }
 
 /// 3 × the largest block RMS within the first 0.2 s.
-fn default_limit(
-    slices: &[&[f64]],
-    fs: f64,
-    s: &KimSettings,
-) -> Result<f64, vmt_chatter::detect::DetectError> {
+fn default_limit(slices: &[&[f64]], fs: f64, s: &KimSettings) -> Result<f64, DetectError> {
     let probe = kim::detect(
         slices,
         fs,
@@ -459,6 +598,9 @@ fn default_limit(
     })
 }
 
+/// Forced lines listed in the text report, strongest first.
+const LINES_LISTED: usize = 8;
+
 /// The report as text.
 pub fn text(log: &Log, r: &Report) -> String {
     let n = log.channels.first().map_or(0, |c| c.1.len());
@@ -470,13 +612,16 @@ pub fn text(log: &Log, r: &Report) -> String {
         log.start_s,
         names.join(", ")
     );
+    if let Some(c) = &log.columns {
+        out += &format!("{c}\n");
+    }
     // On the log's clock, where a viewer of the same file finds the cut.
     let when = |t: Option<f64>| {
         t.map_or("no chatter".to_string(), |t| {
             format!("CHATTER at {:.3} s", log.start_s + t)
         })
     };
-    if let Some((k, limit)) = &r.kim {
+    if let Some((k, s, source)) = &r.kim {
         let peak = k.windows.iter().map(|w| w.rms).fold(0.0, f64::max);
         let feed = k
             .windows
@@ -484,26 +629,114 @@ pub fn text(log: &Log, r: &Report) -> String {
             .map(|w| w.feed_override)
             .fold(1.0, f64::min);
         out += &format!(
-            "kim:      {} (limit {limit:.4} m/s², largest block RMS {peak:.4} m/s², lowest feed override {feed:.3})\n",
-            when(k.verdict.detection_time_s)
+            "kim:      {} (band {:.0}–{:.0} Hz {}, limit {:.4} m/s², largest block RMS {peak:.4} m/s², lowest feed override {feed:.3})\n",
+            when(k.verdict.detection_time_s),
+            s.band_hz.0,
+            s.band_hz.1,
+            source.describe(),
+            s.limit
         );
+    }
+    if let Some(why) = &r.kim_skipped {
+        out += &format!("kim:      not run: {why}\n");
     }
     if let Some((s, source)) = &r.spectral {
-        let freq = s
-            .verdict
-            .chatter_frequency_hz
-            .map(|f| format!(", chatter frequency {f:.1} Hz"))
-            .unwrap_or_default();
-        let peak = s.frames.iter().map(|f| f.share).fold(0.0, f64::max);
+        out += &spectral_text(log, s, source, &when);
+    }
+    if let Some(why) = &r.spectral_skipped {
+        out += &format!("better:   not run: {why}\n");
+    }
+    out
+}
+
+/// The spectral detector's lines of the text report: its verdict, the forced lines it saw, the
+/// teeth the comb supports, a line it could not tell from the comb.
+fn spectral_text(
+    log: &Log,
+    s: &SpectralResult,
+    source: &str,
+    when: &dyn Fn(Option<f64>) -> String,
+) -> String {
+    let fs = log.sample_rate_hz;
+    let freq = s
+        .verdict
+        .chatter_frequency_hz
+        .map(|f| format!(", chatter frequency {f:.1} Hz as logged"))
+        .unwrap_or_default();
+    let peak = s.frames.iter().map(|f| f.share).fold(0.0, f64::max);
+    let mut out = format!(
+        "better:   {}{freq} (spindle {:.2} Hz, tooth passing {:.2} Hz {source}; frame {} samples, {:.0} % of the spectrum on forced lines; largest share {peak:.3})\n",
+        when(s.verdict.detection_time_s),
+        s.spindle_hz,
+        s.tooth_passing_hz,
+        s.frame_len,
+        100.0 * s.masked_share
+    );
+    if s.seen.is_empty() {
+        out += "          forced lines seen: none 10 dB above the noise\n";
+    } else {
+        let lines: Vec<String> = s
+            .seen
+            .iter()
+            .take(LINES_LISTED)
+            .map(|l| {
+                let kind = if l.line.tooth_passing {
+                    "tooth passing"
+                } else {
+                    "spindle rotation"
+                };
+                let at = if l.line.folded(fs) {
+                    format!(" seen at {:.1} Hz", l.line.alias_hz)
+                } else {
+                    String::new()
+                };
+                format!(
+                    "{}×f_r {:.1} Hz{at} ({kind}, {:+.0} dB)",
+                    l.line.order, l.line.frequency_hz, l.level_db
+                )
+            })
+            .collect();
+        let more = s.seen.len().saturating_sub(LINES_LISTED);
+        let more = if more > 0 {
+            format!(" and {more} more")
+        } else {
+            String::new()
+        };
         out += &format!(
-            "better:   {}{freq} (tooth passing {:.2} Hz {source}, frame {} samples, largest share {peak:.3})\n",
-            when(s.verdict.detection_time_s),
-            s.tooth_passing_hz,
-            s.frame_len
+            "          forced lines seen (never chatter): {}{more}\n",
+            lines.join(", ")
         );
     }
-    if let Some(why) = r.spectral_skipped {
-        out += &format!("better:   not run: {why}\n");
+    match s.teeth_check {
+        TeethCheck::Mismatch {
+            stated,
+            stated_contrast_db,
+            supported,
+            contrast_db,
+        } => {
+            out += &format!(
+                "          WARNING: the comb does not fit {stated} teeth: it supports {supported} (its multiples of f_r stand {contrast_db:.0} dB above the other orders, those of {stated} {stated_contrast_db:.0} dB); check --teeth\n"
+            );
+        }
+        TeethCheck::Undecided => {
+            out += "          teeth not checked: every spindle order about as strong (run-out or unbalance dominates the comb)\n";
+        }
+        TeethCheck::NotSeen | TeethCheck::Consistent { .. } => {}
+    }
+    if let Some(h) = &s.hidden {
+        let kind = if h.line.tooth_passing {
+            "a tooth-passing harmonic"
+        } else {
+            "a spindle-rotation harmonic"
+        };
+        out += &format!(
+            "          cannot tell: a line grew ×{:.0} by {:.3} s on {}×f_r ({:.1} Hz, {kind}, seen at {:.1} Hz): chatter there is indistinguishable from the forced line at this rate and speed\n",
+            h.growth,
+            log.start_s + h.end_s,
+            h.line.order,
+            h.line.frequency_hz,
+            h.line.alias_hz
+        );
     }
     out
 }
@@ -513,9 +746,9 @@ pub fn text(log: &Log, r: &Report) -> String {
 pub fn write_csv(log: &Log, r: &Report, w: &mut impl Write) -> std::io::Result<()> {
     writeln!(
         w,
-        "detector,window_end_s,rms_m_s2,feed_override,share,non_harmonic_ratio,peak_hz,chatter"
+        "detector,window_end_s,rms_m_s2,feed_override,share,free_ratio,peak_hz,chatter"
     )?;
-    if let Some((k, _)) = &r.kim {
+    if let Some((k, _, _)) = &r.kim {
         for b in &k.windows {
             writeln!(
                 w,
@@ -534,7 +767,7 @@ pub fn write_csv(log: &Log, r: &Report, w: &mut impl Write) -> std::io::Result<(
                 "better,{},,,{},{},{},{}",
                 log.start_s + f.end_s,
                 f.share,
-                f.non_harmonic_ratio,
+                f.free_ratio,
                 f.peak_hz,
                 f.chatter
             )?;
@@ -547,7 +780,7 @@ pub fn write_csv(log: &Log, r: &Report, w: &mut impl Write) -> std::io::Result<(
 /// `DIR/report.txt`: the report and the files written.
 pub fn diagnose_run(mcap: &Path, dir: &Path) -> Result<(String, Vec<PathBuf>), CliError> {
     let args = DetectArgs::defaults(mcap.to_path_buf());
-    let log = read(mcap)?;
+    let log = read(mcap, &Import::default())?;
     let report = detect(&log, &mcap.display().to_string(), &args)?;
     let text = text(&log, &report);
     std::fs::create_dir_all(dir).map_err(|e| CliError::output(dir, e))?;
@@ -565,7 +798,7 @@ pub fn diagnose_run(mcap: &Path, dir: &Path) -> Result<(String, Vec<PathBuf>), C
 /// `vmt chatter detect`.
 pub fn command(args: &DetectArgs) -> Result<(), CliError> {
     check_args(args)?;
-    let log = read(&args.log)?;
+    let log = read(&args.log, &args.import.parse()?)?;
     let report = detect(&log, &args.log.display().to_string(), args)?;
     crate::out!("{}", text(&log, &report))?;
     if let Some(path) = &args.csv {

@@ -228,9 +228,8 @@ pub struct BenchArgs {
 
 impl BenchArgs {
     fn spectral(&self, r: &LabelledRun) -> spectral::SpectralSettings {
-        let d = spectral::SpectralSettings::default();
+        let d = spectral::SpectralSettings::new(r.spindle_rpm, r.teeth);
         spectral::SpectralSettings {
-            tooth_passing_hz: Some(spectral::tooth_passing_hz(r.spindle_rpm, r.teeth)),
             developed_share: self.developed_share.unwrap_or(d.developed_share),
             growth: self.growth.unwrap_or(d.growth),
             growth_window_s: self.growth_window_s.unwrap_or(d.growth_window_s),
@@ -417,11 +416,10 @@ fn speed_supervisor(teeth: u32) -> impl FnMut(&AccelWindow<'_>) -> SupervisorCom
             h.drain(..n);
         };
         history.iter_mut().for_each(keep);
-        let f_tp = spectral::tooth_passing_hz(w.spindle_rpm, teeth);
+        let f_tp = vmt_chatter::detect::forced::tooth_passing_hz(w.spindle_rpm, teeth);
         let s = spectral::SpectralSettings {
-            tooth_passing_hz: Some(f_tp),
             persistence: 1,
-            ..Default::default()
+            ..spectral::SpectralSettings::new(w.spindle_rpm, teeth)
         };
         let same = SupervisorCommand {
             feed_override: w.feed_override,
@@ -534,5 +532,144 @@ pub fn compensate(a: &CompensateArgs) -> Result<(), CliError> {
         "\nKim, Song & Koh report for their feed-override loop: feed 200 -> about 152 mm/min, Ra 4.2 -> 4.0 µm."
     );
     crate::out!("{out}")?;
+    Ok(())
+}
+
+/// `vmt chatter rates` arguments: the labelled set of `vmt_dataset::chatter`.
+#[derive(clap::Args, Debug)]
+pub struct RatesArgs {
+    /// Spindle speeds, evenly spaced over --speed-range-rpm.
+    #[arg(long, default_value_t = 20)]
+    pub speeds: usize,
+    /// Lowest and highest spindle speed, rev/min, as LOW,HIGH.
+    #[arg(long, value_delimiter = ',', default_values_t = [vmt_dataset::chatter::SPEEDS_RPM.0, vmt_dataset::chatter::SPEEDS_RPM.1])]
+    pub speed_range_rpm: Vec<f64>,
+    /// Axial depths per speed, evenly spaced over --depth-range-mm.
+    #[arg(long, default_value_t = 10)]
+    pub depths: usize,
+    /// Shallowest and deepest cut, mm, as LOW,HIGH.
+    #[arg(long, value_delimiter = ',', default_values_t = [vmt_dataset::chatter::DEPTHS_MM.0, vmt_dataset::chatter::DEPTHS_MM.1])]
+    pub depth_range_mm: Vec<f64>,
+    /// Length of each cut, s.
+    #[arg(long, default_value_t = 2.5)]
+    pub duration_s: f64,
+    /// Sample rates every cut is logged at, Hz.
+    #[arg(long, value_delimiter = ',', default_values_t = [1600.0, 8000.0, 20_000.0])]
+    pub rates_hz: Vec<f64>,
+    /// Seed of the first cut (cut i gets seed + i).
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Also write one row per cut and rate (cut, label, the better detector's verdict) to this
+    /// CSV file.
+    #[arg(long)]
+    pub csv: Option<std::path::PathBuf>,
+    /// No progress bar.
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+/// Sample rates `vmt chatter rates` accepts, Hz: the cut's step is 1/160 000 s and a log's
+/// period a whole number of steps of at least 8.
+const RATES_HZ: (f64, f64) = (500.0, 20_000.0);
+
+/// Checks the grid, duration and rates of `vmt chatter rates`.
+fn check_rates(a: &RatesArgs) -> Result<(), CliError> {
+    use crate::error::{check_count, check_range};
+    check_count("--speeds", a.speeds, (1, 200), "speeds of the grid")?;
+    check_count("--depths", a.depths, (1, 200), "depths per speed")?;
+    check_range(
+        "--duration-s",
+        a.duration_s,
+        (0.5, 10.0),
+        "s",
+        "seconds of cut per run; the longest frame at 3000 rev/min is 0.32 s",
+    )?;
+    for (name, range, limits, unit, why) in [
+        (
+            "--speed-range-rpm",
+            &a.speed_range_rpm,
+            SPINDLE_RPM,
+            "rev/min",
+            SPINDLE_WHY,
+        ),
+        (
+            "--depth-range-mm",
+            &a.depth_range_mm,
+            (0.01, 30.0),
+            "mm",
+            "axial depths within the tool's 30 mm flutes",
+        ),
+    ] {
+        for &v in range {
+            check_range(name, v, limits, unit, why)?;
+        }
+        if range.len() != 2 || range[0] > range[1] {
+            return Err(CliError::option(
+                name,
+                format!("{range:?}"),
+                "LOW,HIGH with LOW <= HIGH",
+            ));
+        }
+    }
+    check_count("--rates-hz", a.rates_hz.len(), (1, 8), "sample rates")?;
+    for &r in &a.rates_hz {
+        check_range(
+            "--rates-hz",
+            r,
+            RATES_HZ,
+            "Hz",
+            "a sample rate whose period is a whole number of the cut's 1/160 000 s steps",
+        )?;
+        let steps = 1.0 / (r * vmt_dataset::chatter::STEP_S);
+        if (steps - steps.round()).abs() > 1e-9 {
+            return Err(CliError::option(
+                "--rates-hz",
+                r,
+                "a rate whose period is a whole number of the cut's 1/160 000 s steps (160 000 / n Hz: 1600, 8000, 20 000, ...)",
+            ));
+        }
+    }
+    let total = (a.speeds * a.depths * a.rates_hz.len()) as f64 * a.duration_s;
+    if total > BENCH_TOTAL_S {
+        return Err(CliError::Argument(format!(
+            "--speeds {} x --depths {} x {} rates x --duration-s {} = {total} s of cut: at most \
+             {BENCH_TOTAL_S} s is accepted (every run's accelerometer record is kept in memory)",
+            a.speeds,
+            a.depths,
+            a.rates_hz.len(),
+            a.duration_s
+        )));
+    }
+    Ok(())
+}
+
+/// Runs `vmt chatter rates`: simulates the set, scores the detectors at each rate and prints
+/// the table.
+pub fn rates(a: &RatesArgs) -> Result<(), CliError> {
+    use vmt_dataset::chatter::{SetSpec, cuts, markdown, score, simulate_set};
+    check_rates(a)?;
+    let spec = SetSpec {
+        speeds: a.speeds,
+        speed_range_rpm: (a.speed_range_rpm[0], a.speed_range_rpm[1]),
+        depths: a.depths,
+        depth_range_mm: (a.depth_range_mm[0], a.depth_range_mm[1]),
+        duration_s: a.duration_s,
+        seed: a.seed,
+        rates_hz: a.rates_hz.clone(),
+    };
+    let bar = if a.quiet {
+        indicatif::ProgressBar::hidden()
+    } else {
+        indicatif::ProgressBar::new(cuts(&spec).len() as u64)
+    };
+    bar.set_message("cuts simulated");
+    let set = simulate_set(&spec, || bar.inc(1)).map_err(sim_error)?;
+    bar.finish_and_clear();
+    let scores = score(&set, &spec).map_err(sim_error)?;
+    if let Some(path) = &a.csv {
+        std::fs::write(path, vmt_dataset::chatter::csv(&set, &scores))
+            .map_err(|e| CliError::output(path, e))?;
+    }
+    crate::out!("{}", markdown(&set, &spec, &scores))?;
     Ok(())
 }

@@ -2,6 +2,7 @@
 //! plots), the same for a run of ours and for an instrument's CSV.
 
 use crate::error::CliError;
+use crate::import::Import;
 use crate::plot::{self, Format};
 use crate::traces::{self, CsvSetup};
 use serde_json::{Value, json};
@@ -19,6 +20,8 @@ pub struct Diagnosed {
     pub tests: Vec<(Vec<Trace>, Diagnosis)>,
     /// Ground truth of a simulated run.
     pub ground_truth: Option<Value>,
+    /// For a CSV: which of its columns were read, in which units.
+    pub columns: Option<String>,
 }
 
 /// Ball-bar lengths accepted for a CSV trace, mm, and why (the diagnosis' cyclic-error search
@@ -94,10 +97,10 @@ const BALLBAR_COLUMNS: &str = "angle_deg, deviation_um, direction (cw/ccw) and o
 const LASER_COLUMNS: &str =
     "target_mm, direction (forward/backward), run, and deviation_um or reading_mm";
 
-/// Tells the kind of `path` from its first bytes (MCAP) or its CSV header, reading only its
-/// first `HEAD_BYTES` (a run's MCAP may hold a gigabyte); an empty file, or a header of
-/// neither kind, is refused naming what is missing.
-pub fn file_kind(path: &Path) -> Result<FileKind, CliError> {
+/// Tells the kind of `path` from its first bytes (MCAP) or its CSV header (or what `--columns`
+/// maps onto it: `import`), reading only its first `HEAD_BYTES` (a run's MCAP may hold a
+/// gigabyte); an empty file, or a header of neither kind, is refused naming what is missing.
+pub fn file_kind(path: &Path, import: &Import) -> Result<FileKind, CliError> {
     use std::io::Read;
     let file = path.display().to_string();
     let mut bytes = Vec::new();
@@ -120,7 +123,7 @@ pub fn file_kind(path: &Path) -> Result<FileKind, CliError> {
         .headers()
         .map(|h| h.iter().map(str::to_string).collect())
         .unwrap_or_default();
-    let has = |c: &str| header.iter().any(|h| h == c);
+    let has = |c: &str| import.maps(c) || header.iter().any(|h| h == c);
     if header.iter().all(|h| h.is_empty()) {
         return Err(CliError::input(
             &file,
@@ -137,7 +140,10 @@ pub fn file_kind(path: &Path) -> Result<FileKind, CliError> {
     if has("target_mm") {
         return Ok(FileKind::LaserCsv);
     }
-    let found = header.join(", ");
+    let found = format!(
+        "{}; map the export's own headers with --columns",
+        header.join(", ")
+    );
     // Columns only a laser CSV has: one missing its target column.
     let message = if has("run") || has("reading_mm") {
         format!(
@@ -157,14 +163,15 @@ pub fn file_kind(path: &Path) -> Result<FileKind, CliError> {
     Err(CliError::input(&file, Some(1), message))
 }
 
-/// Reads and diagnoses `path`.
+/// Reads and diagnoses `path` (`import`: a CSV's columns and units).
 pub fn diagnose_file(
     path: &Path,
     csv: Option<CsvSetup>,
+    import: &Import,
     options: &Options,
 ) -> Result<Diagnosed, CliError> {
     let file = path.display().to_string();
-    let recorded = traces::read(path, csv)?;
+    let (recorded, columns) = traces::read(path, csv, import)?;
     let tests = recorded
         .tests
         .into_iter()
@@ -178,12 +185,16 @@ pub fn diagnose_file(
         file,
         tests,
         ground_truth: recorded.ground_truth,
+        columns,
     })
 }
 
 /// The report as text: each test's diagnosis and, for a simulated run, the truth beside it.
 pub fn text(d: &Diagnosed) -> String {
-    let mut s = String::new();
+    let mut s = d
+        .columns
+        .as_ref()
+        .map_or_else(String::new, |c| format!("{c}\n\n"));
     for (i, (_, diag)) in d.tests.iter().enumerate() {
         s.push_str(&report::text(diag));
         if let Some(truth) = &d.ground_truth
@@ -271,7 +282,12 @@ pub fn json(d: &Diagnosed) -> Value {
             v
         })
         .collect();
-    json!({ "file": d.file, "tests": tests, "kwon_machine_report": kwon(d) })
+    json!({
+        "file": d.file,
+        "columns": d.columns,
+        "tests": tests,
+        "kwon_machine_report": kwon(d),
+    })
 }
 
 /// Writes `report.txt`, `report.md`, `report.json` and one polar plot per test into `dir`.
@@ -343,34 +359,47 @@ fn centred(traces: &[Trace], d: &Diagnosis) -> Vec<BallbarTrace> {
         .collect()
 }
 
-/// The text block printed beside the polar plot: ISO figures and the largest present errors.
+/// The text block printed beside the polar plot: the ISO figures past the settling (the
+/// headline), the raw ones beside them and what the settling left out, then the largest
+/// present errors.
 fn figures_text(d: &Diagnosis) -> String {
-    let mut s = String::from("ISO 230-4 (least-squares centre)\n");
-    for dir in &d.iso.directions {
-        let _ = writeln!(
-            s,
-            "G {} {:.2} µm",
-            dir.sense.to_uppercase(),
-            dir.circular_deviation_um
-        );
-    }
-    if let Some(h) = d.iso.hysteresis_um {
-        let _ = writeln!(s, "H {h:.2} µm");
-    }
-    if let Some(g) = d.iso.bidirectional_deviation_um {
-        let _ = writeln!(s, "G(b) {g:.2} µm");
-    }
-    if let Some(settled) = &d.settled_iso {
-        let _ = writeln!(s, "without the end transients:");
-        for dir in &settled.directions {
-            let sense = dir.sense.to_uppercase();
-            let _ = writeln!(s, "G {sense} {:.2} µm", dir.circular_deviation_um);
-        }
-    }
+    let mut s = iso_headline(d);
     let _ = writeln!(s, "\nLargest errors");
     for f in d.findings.iter().filter(|f| f.present).take(8) {
         let digits = if f.unit == "ms" { 4 } else { 2 };
         let _ = writeln!(s, "{}: {:+.*} {}", f.key, digits, f.value, f.unit);
+    }
+    s
+}
+
+/// The ISO 230-4 figures of a polar plot's headline: past the settling, the raw ones beside
+/// them where they differ, and what the settling left out.
+pub fn iso_headline(d: &Diagnosis) -> String {
+    let mut s = String::from("ISO 230-4 (least-squares centre)\n");
+    let cut = d
+        .settling
+        .iter()
+        .any(|x| x.start_excluded_deg > 0.0 || x.end_excluded_deg > 0.0);
+    let raw = |v: f64, r: Option<f64>| match r {
+        Some(r) if cut && (v - r).abs() >= 0.005 => format!("{v:.2} µm (raw {r:.2})"),
+        _ => format!("{v:.2} µm"),
+    };
+    for (dir, whole) in d.iso.directions.iter().zip(&d.raw_iso.directions) {
+        let _ = writeln!(
+            s,
+            "G {} {}",
+            dir.sense.to_uppercase(),
+            raw(dir.circular_deviation_um, Some(whole.circular_deviation_um))
+        );
+    }
+    if let Some(h) = d.iso.hysteresis_um {
+        let _ = writeln!(s, "H {}", raw(h, d.raw_iso.hysteresis_um));
+    }
+    if let Some(g) = d.iso.bidirectional_deviation_um {
+        let _ = writeln!(s, "G(b) {}", raw(g, d.raw_iso.bidirectional_deviation_um));
+    }
+    if cut {
+        let _ = writeln!(s, "settled; left out: {}", report::excluded(d));
     }
     s
 }

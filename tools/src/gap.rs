@@ -51,7 +51,13 @@ fn model_error(file: &str, e: GapError) -> CliError {
 pub fn measured(files: &[PathBuf], csv: Option<CsvSetup>) -> Result<Vec<Trace>, CliError> {
     let mut all = Vec::new();
     for f in files {
-        all.extend(traces::read(f, csv)?.tests.into_iter().flatten());
+        all.extend(
+            traces::read(f, csv, &crate::import::Import::default())?
+                .0
+                .tests
+                .into_iter()
+                .flatten(),
+        );
     }
     if all.is_empty() {
         return Err(CliError::Argument(
@@ -570,7 +576,9 @@ pub fn command(a: &GapArgs) -> Result<(), CliError> {
         return vibration_command(a);
     }
     for f in &a.real {
-        if crate::diagnose::file_kind(f)? == crate::diagnose::FileKind::LaserCsv {
+        if crate::diagnose::file_kind(f, &crate::import::Import::default())?
+            == crate::diagnose::FileKind::LaserCsv
+        {
             return Err(CliError::input(
                 &f.display().to_string(),
                 Some(1),

@@ -150,13 +150,14 @@ pub fn diagnose(run: &Run, dir: &Path) -> Result<Option<RunDiagnosis>, CliError>
     let into = dir.join(crate::outputs::DIAGNOSIS);
     if !run.ballbar.is_empty() {
         let options = vmt_ballbar::Options::default();
-        let d = crate::diagnose::diagnose_file(&mcap, None, &options)?;
+        let none = crate::import::Import::default();
+        let d = crate::diagnose::diagnose_file(&mcap, None, &none, &options)?;
         let files = crate::diagnose::write(&d, &into)?;
         let text = crate::diagnose::text(&d);
         return Ok(Some(RunDiagnosis { text, files }));
     }
     if run.laser.is_some()
-        && let Some(p) = crate::positioning::read(&mcap, None)?
+        && let Some(p) = crate::positioning::read(&mcap, None, &crate::import::Import::default())?
     {
         let files = crate::positioning::write(&p, &into)?;
         let text = crate::positioning::text(&p);
@@ -186,11 +187,25 @@ fn write_polars(run: &Run, dir: &Path) -> Result<Vec<PathBuf>, CliError> {
             ),
         };
         let path = dir.join(name);
-        let figures: Vec<String> = test.iter().map(trace_figures).collect();
+        let mut figures: Vec<String> = headline(test).into_iter().collect();
+        figures.extend(test.iter().map(trace_figures));
         plot::draw_polar(test, &path, Format::Png, Some(&figures.join("\n")))?;
         files.push(path);
     }
     Ok(files)
+}
+
+/// The ISO 230-4 figures of a test as its diagnosis gives them (past the feed-in's settling,
+/// the raw ones beside), for the headline of its polar plot; `None` for a test the diagnosis
+/// does not take (an arc under 90°).
+fn headline(test: &[BallbarTrace]) -> Option<String> {
+    let traces = test
+        .iter()
+        .map(|t| crate::traces::from_run(t, "run"))
+        .collect::<Result<Vec<_>, _>>()
+        .ok()?;
+    let d = vmt_ballbar::diagnose(&traces, &vmt_ballbar::Options::default()).ok()?;
+    Some(crate::diagnose::iso_headline(&d))
 }
 
 /// A trace's label, radial span and mean, on two lines (the plot's text block is narrower

@@ -8,6 +8,7 @@ pub mod dataset;
 pub mod diagnose;
 pub mod error;
 pub mod gap;
+pub mod import;
 pub mod job;
 pub mod lobes;
 pub mod map;

@@ -137,25 +137,35 @@ enum Command {
 #[derive(Subcommand)]
 enum ChatterCommand {
     /// Detect chatter in an accelerometer log: run.mcap (its `accelerometer` stream, m/s², and
-    /// the spindle speed and teeth from its ground truth) or a CSV file with header
-    /// time_s,ax,ay,az (time in s, strictly increasing and uniformly sampled; acceleration in
-    /// m/s²; at least one of ax, ay, az; other columns ignored).
+    /// the spindle speed, teeth and tool-point modes from its ground truth) or a CSV file with
+    /// header time_s,ax,ay,az (time in s, strictly increasing and uniformly sampled; acceleration
+    /// in m/s²; at least one of ax, ay, az; other columns ignored), or an instrument's export
+    /// read through --columns and --units.
     ///
-    /// Detectors: `kim` (Kim, Song & Koh 2015: Chebyshev band-pass 6–7 kHz, 50 ms block RMS
-    /// against --limit, feed override = limit / RMS) and `better` (share of the short-time
-    /// spectrum in the strongest peak that is not a tooth-passing harmonic; needs no band, but
-    /// the tooth-passing frequency: for a CSV log give --spindle-rpm and --teeth, which a CSV
-    /// does not carry, or run --detector kim). Prints the decision, the detection time and the
-    /// chatter frequency.
+    /// Detectors: `kim` (Kim, Song & Koh 2015: Chebyshev band-pass, 50 ms block RMS against
+    /// --limit, feed override = limit / RMS; the band from --band, --mode-hz or the run's
+    /// weakest tool-point mode, else the paper's 6–7 kHz, and refused above the Nyquist
+    /// frequency) and `better` (share of the short-time spectrum in the strongest line off the
+    /// cut's forced comb, the spindle-rotation and tooth-passing harmonics where they land,
+    /// aliases included; needs the spindle speed and teeth: for a CSV log give --spindle-rpm
+    /// and --teeth). `both` runs what can run and says why the other cannot. Prints the
+    /// decision, the detection time, the chatter frequency and the forced lines seen.
     ///
     /// Examples:
     ///   vmt chatter detect out/run.mcap
     ///   vmt chatter detect accel.csv --spindle-rpm 7500 --teeth 4 --limit 0.5 --csv windows.csv
+    ///   vmt chatter detect export.csv --spindle-rpm 12000 --teeth 4 \
+    ///     --columns "time_s=Time (s),ax=Accel X (m/s^2),ay=Accel Y (m/s^2),az=Accel Z (m/s^2)"
     #[command(verbatim_doc_comment)]
     Detect(vmt_tools::chatter::DetectArgs),
     /// Both detectors on a labelled set of simulated slots over spindle speeds and depths:
     /// accuracy, false positives, misses and latency.
     Bench(vmt_tools::chatter_bench::BenchArgs),
+    /// Both detectors on a labelled set of simulated cuts, half of them with spindle run-out,
+    /// each logged at several sample rates (default 200 cuts at 1.6, 8 and 20 kHz): accuracy,
+    /// run-out cuts called chatter, misses and latency per rate. A slow sweep: 1 to 3 minutes
+    /// on two cores (dev build).
+    Rates(vmt_tools::chatter_bench::RatesArgs),
     /// Chatter suppression in the loop: no control, Kim's feed override, and the spindle speed
     /// moved to a stable lobe; chatter, removal rate and roughness side by side.
     Compensate(vmt_tools::chatter_bench::CompensateArgs),
@@ -276,11 +286,15 @@ struct DiagnoseArgs {
     /// Also compute the minimum-zone circular deviation.
     #[arg(long)]
     minimum_zone: bool,
+    /// A CSV export's columns and units.
+    #[command(flatten)]
+    import: vmt_tools::import::ImportArgs,
 }
 
 fn diagnose_cmd(args: DiagnoseArgs) -> Result<(), CliError> {
     use vmt_tools::diagnose::FileKind;
-    let kind = vmt_tools::diagnose::file_kind(&args.file)?;
+    let import = args.import.parse()?;
+    let kind = vmt_tools::diagnose::file_kind(&args.file, &import)?;
     let what = match kind {
         FileKind::Mcap => "an MCAP run, which records its own set-up",
         FileKind::LaserCsv => "a laser positioning CSV",
@@ -309,14 +323,14 @@ fn diagnose_cmd(args: DiagnoseArgs) -> Result<(), CliError> {
     }
     let csv =
         vmt_tools::diagnose::csv_setup(args.radius_mm, args.feed_mm_min, args.plane.as_deref())?;
-    if let Some(p) = vmt_tools::positioning::read(&args.file, args.axis.as_deref())? {
+    if let Some(p) = vmt_tools::positioning::read(&args.file, args.axis.as_deref(), &import)? {
         return positioning_report(&p, args.json, args.out.as_deref());
     }
     let options = vmt_ballbar::Options {
         minimum_zone: args.minimum_zone,
         ..Default::default()
     };
-    let d = vmt_tools::diagnose::diagnose_file(&args.file, csv, &options)?;
+    let d = vmt_tools::diagnose::diagnose_file(&args.file, csv, &import, &options)?;
     if args.json {
         vmt_tools::outln!("{:#}", vmt_tools::diagnose::json(&d))?;
     } else {
@@ -615,6 +629,7 @@ fn main() -> ExitCode {
         Command::Lobes(a) => vmt_tools::lobes::command(&a),
         Command::Chatter(ChatterCommand::Detect(a)) => vmt_tools::chatter::command(&a),
         Command::Chatter(ChatterCommand::Bench(a)) => vmt_tools::chatter_bench::bench(&a),
+        Command::Chatter(ChatterCommand::Rates(a)) => vmt_tools::chatter_bench::rates(&a),
         Command::Chatter(ChatterCommand::Compensate(a)) => vmt_tools::chatter_bench::compensate(&a),
         Command::Gap(a) => vmt_tools::gap::command(&a),
         Command::GapBench(a) => vmt_tools::gap::bench_command(&a),

@@ -18,6 +18,7 @@
 //! `/laser` topic); the axis name comes from `--axis` (CSV) or the run.
 
 use crate::error::CliError;
+use crate::import::Import;
 use crate::plot::{DrawResult, FONT, Figure, Format, register_font, render};
 use crate::traces::{csv_with_header, finite_cell};
 use plotters::coord::Shift;
@@ -25,6 +26,7 @@ use plotters::prelude::*;
 use serde_json::{Value, json};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
+use vmt_logs::csv_import::{Column, Quantity, Resolved};
 use vmt_logs::input::{self, Input};
 use vmt_positioning::{Approach, Evaluation, PositioningRun, Reading, evaluate, report};
 
@@ -38,17 +40,25 @@ pub struct Positioning {
     pub evaluation: Evaluation,
     /// The `laser` section of a simulated run's ground truth.
     pub truth: Option<Value>,
+    /// For a CSV: which of its columns were read, in which units.
+    pub columns: Option<String>,
 }
 
 /// Reads and evaluates `path` if it is a positioning test (an MCAP run with a `/laser` topic or
-/// a CSV with a `target_mm` column); `None` for any other file.
-pub fn read(path: &Path, axis: Option<&str>) -> Result<Option<Positioning>, CliError> {
+/// a CSV with a `target_mm` column, or one `--columns` maps it onto: `import`); `None` for any
+/// other file.
+pub fn read(
+    path: &Path,
+    axis: Option<&str>,
+    import: &Import,
+) -> Result<Option<Positioning>, CliError> {
     let file = path.display().to_string();
     let found = match input::open(path, &file)? {
-        Input::Mcap => read_mcap(path, &file)?,
-        Input::Other(bytes) => read_csv(&bytes, &file, axis.unwrap_or("?"))?.map(|r| (r, None)),
+        Input::Mcap => read_mcap(path, &file)?.map(|(r, t)| (r, t, None)),
+        Input::Other(bytes) => read_csv(&bytes, &file, axis.unwrap_or("?"), import)?
+            .map(|(r, cols)| (r, None, Some(crate::import::echo(&cols)))),
     };
-    let Some((run, truth)) = found else {
+    let Some((run, truth, columns)) = found else {
         return Ok(None);
     };
     let evaluation = evaluate(&run);
@@ -57,6 +67,7 @@ pub fn read(path: &Path, axis: Option<&str>) -> Result<Option<Positioning>, CliE
         run,
         evaluation,
         truth,
+        columns,
     }))
 }
 
@@ -130,31 +141,68 @@ fn laser_reading(v: &Value) -> Result<Reading, String> {
     })
 }
 
-fn read_csv(bytes: &[u8], file: &str, axis: &str) -> Result<Option<PositioningRun>, CliError> {
+/// The columns of a laser positioning CSV.
+const COLUMNS: [Column; 5] = [
+    Column {
+        name: "target_mm",
+        quantity: Quantity::Millimetres,
+        required: true,
+    },
+    Column {
+        name: "direction",
+        quantity: Quantity::Label,
+        required: true,
+    },
+    Column {
+        name: "run",
+        quantity: Quantity::Label,
+        required: true,
+    },
+    Column {
+        name: "deviation_um",
+        quantity: Quantity::Micrometres,
+        required: false,
+    },
+    Column {
+        name: "reading_mm",
+        quantity: Quantity::Millimetres,
+        required: false,
+    },
+];
+
+fn read_csv(
+    bytes: &[u8],
+    file: &str,
+    axis: &str,
+    import: &Import,
+) -> Result<Option<(PositioningRun, Resolved)>, CliError> {
     let (mut reader, header) = csv_with_header(bytes, file)?;
-    let find = |name: &str| header.iter().position(|h| h == name);
-    let Some(target) = find("target_mm") else {
+    if !import.maps("target_mm") && !header.iter().any(|h| h == "target_mm") {
         return Ok(None);
-    };
-    let need = |name: &str| {
-        find(name).ok_or_else(|| {
-            CliError::input(
-                file,
-                Some(1),
-                format!(
-                    "no `{name}` column; a positioning test has target_mm, direction (forward or backward), run, and deviation_um or reading_mm (found: {})",
-                    header.iter().collect::<Vec<_>>().join(", ")
-                ),
-            )
-        })
-    };
-    let (dir_col, run_col) = (need("direction")?, need("run")?);
-    let value = match (find("deviation_um"), find("reading_mm")) {
+    }
+    let cols = import.resolve(&header, &COLUMNS, "a laser positioning test", file)?;
+    let col = |name: &str| cols.index(name).unwrap_or(0);
+    let (target, dir_col, run_col) = (col("target_mm"), col("direction"), col("run"));
+    let value = match (cols.index("deviation_um"), cols.index("reading_mm")) {
         (Some(k), Some(r)) => Measured::Both(k, r),
         (Some(k), None) => Measured::Deviation(k),
         (None, Some(k)) => Measured::Reading(k),
-        (None, None) => Measured::Deviation(need("deviation_um")?),
+        (None, None) => {
+            return Err(CliError::input(
+                file,
+                Some(1),
+                format!(
+                    "no `deviation_um` or `reading_mm` column (found: {}); a positioning test has target_mm, direction (forward or backward), run, and deviation_um or reading_mm (an export's own headers through --columns)",
+                    header.iter().collect::<Vec<_>>().join(", ")
+                ),
+            ));
+        }
     };
+    let (f_target, f_dev, f_read) = (
+        cols.factor("target_mm"),
+        cols.factor("deviation_um"),
+        cols.factor("reading_mm"),
+    );
     let mut readings = Vec::new();
     let mut lines = Vec::new();
     for (i, record) in reader.records().enumerate() {
@@ -164,7 +212,7 @@ fn read_csv(bytes: &[u8], file: &str, axis: &str) -> Result<Option<PositioningRu
         })?;
         let line = crate::traces::record_line(bytes, rec.position(), i + 2);
         let at = |msg: String| CliError::input(file, Some(line), msg);
-        let number = |k: usize, name: &str| finite_cell(&rec, k, name, file, line);
+        let number = |k: usize| finite_cell(&rec, k, header[k].trim(), file, line);
         let d = rec.get(dir_col).unwrap_or("");
         let approach = direction(d).ok_or_else(|| {
             at(format!(
@@ -177,19 +225,19 @@ fn read_csv(bytes: &[u8], file: &str, axis: &str) -> Result<Option<PositioningRu
             .ok()
             .filter(|&j| j > 0)
             .ok_or_else(|| at(format!("run `{r}` is not accepted; a positive integer")))?;
-        let target_mm = number(target, "target_mm")?;
+        let target_mm = number(target)? * f_target;
         let deviation_um = match value {
-            Measured::Deviation(k) => number(k, "deviation_um")?,
-            Measured::Reading(k) => (number(k, "reading_mm")? - target_mm) * 1e3,
+            Measured::Deviation(k) => number(k)? * f_dev,
+            Measured::Reading(k) => (number(k)? * f_read - target_mm) * 1e3,
             Measured::Both(k, r) => {
-                let (d, from_reading) = (
-                    number(k, "deviation_um")?,
-                    (number(r, "reading_mm")? - target_mm) * 1e3,
-                );
+                let (d, from_reading) =
+                    (number(k)? * f_dev, (number(r)? * f_read - target_mm) * 1e3);
                 // Each cell is rounded to its last digit: they agree within the two halves.
                 let cell = |k: usize| rec.get(k).unwrap_or("");
                 // The target is the nominal position, exact as written.
-                let tolerance = half_last_digit(cell(k)) + half_last_digit(cell(r)) * 1e3 + 1e-6;
+                let tolerance = half_last_digit(cell(k)) * f_dev
+                    + half_last_digit(cell(r)) * f_read * 1e3
+                    + 1e-6;
                 if (d - from_reading).abs() > tolerance {
                     return Err(at(format!(
                         "deviation_um = {d} but reading_mm − target_mm = {from_reading:.4} µm; the two columns must agree within {tolerance:.4} µm (the rounding of their last digits)"
@@ -211,19 +259,21 @@ fn read_csv(bytes: &[u8], file: &str, axis: &str) -> Result<Option<PositioningRu
         });
         lines.push(line);
     }
-    PositioningRun::new(axis, readings).map(Some).map_err(|e| {
-        // Name the line of the reading the check points at, if it points at one.
-        let line = match &e {
-            vmt_positioning::PositioningError::NotFinite { reading, .. }
-            | vmt_positioning::PositioningError::TargetOutOfRange { reading, .. }
-            | vmt_positioning::PositioningError::TargetsTooClose { reading, .. }
-            | vmt_positioning::PositioningError::Duplicate { reading, .. } => {
-                lines.get(*reading).copied()
-            }
-            _ => None,
-        };
-        CliError::input(file, line, e.to_string())
-    })
+    PositioningRun::new(axis, readings)
+        .map(|r| Some((r, cols)))
+        .map_err(|e| {
+            // Name the line of the reading the check points at, if it points at one.
+            let line = match &e {
+                vmt_positioning::PositioningError::NotFinite { reading, .. }
+                | vmt_positioning::PositioningError::TargetOutOfRange { reading, .. }
+                | vmt_positioning::PositioningError::TargetsTooClose { reading, .. }
+                | vmt_positioning::PositioningError::Duplicate { reading, .. } => {
+                    lines.get(*reading).copied()
+                }
+                _ => None,
+            };
+            CliError::input(file, line, e.to_string())
+        })
 }
 
 /// Which column holds the measured value.
@@ -271,7 +321,11 @@ fn truth_rows(p: &Positioning) -> Vec<(&'static str, f64, f64)> {
 
 /// The report as text, with the simulated run's truth beside it.
 pub fn text(p: &Positioning) -> String {
-    let mut s = report::text(&p.evaluation);
+    let mut s = p
+        .columns
+        .as_ref()
+        .map_or_else(String::new, |c| format!("{c}\n"));
+    s.push_str(&report::text(&p.evaluation));
     let rows = truth_rows(p);
     if !rows.is_empty() {
         let _ = writeln!(
@@ -294,6 +348,7 @@ pub fn text(p: &Positioning) -> String {
 pub fn json(p: &Positioning) -> Value {
     json!({
         "file": p.file,
+        "columns": p.columns,
         "positioning": p.evaluation,
         "ground_truth": p.truth.as_ref().map(|t| &t["iso230_2_exact"]),
     })
@@ -457,8 +512,9 @@ mod tests {
             }
             s
         };
-        assert!(read_csv(csv("2.6").as_bytes(), "l.csv", "X").is_ok());
-        let e = read_csv(csv("2.4").as_bytes(), "l.csv", "X").unwrap_err();
+        let none = Import::default();
+        assert!(read_csv(csv("2.6").as_bytes(), "l.csv", "X", &none).is_ok());
+        let e = read_csv(csv("2.4").as_bytes(), "l.csv", "X", &none).unwrap_err();
         assert!(e.to_string().contains("within 0.5500 µm"), "{e}");
     }
 

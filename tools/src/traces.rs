@@ -13,11 +13,16 @@
 //! | `time_s` | s | optional: sample time on one clock for the whole file |
 //!
 //! The radius, feed and plane come from the command line (`--radius-mm`, `--feed-mm-min`,
-//! `--plane`). Rows of one direction must be consecutive and in the order measured.
+//! `--plane`). Rows of one direction must be consecutive and in the order measured. An
+//! instrument's export is read as exported: `--columns` maps our names onto its headers,
+//! `--units` (or a unit written in a header) gives its units: the deviation in µm or mm, the
+//! angle in deg or rad, the time in s or ms ([`crate::import`]).
 
 use crate::error::CliError;
+use crate::import::Import;
 use std::path::Path;
 use vmt_ballbar::{Trace, TraceError};
+use vmt_logs::csv_import::{Column, Quantity, Resolved};
 use vmt_logs::input::{self, Input};
 use vmt_sim::run::BallbarTrace;
 
@@ -39,11 +44,24 @@ pub fn from_run(t: &BallbarTrace, file: &str) -> Result<Trace, CliError> {
     vmt_gap::model::trace_of(t).map_err(|e| CliError::input(file, None, e.to_string()))
 }
 
-/// Reads `path`: an MCAP run (by its magic bytes) or a CSV trace file.
-pub fn read(path: &Path, csv: Option<CsvSetup>) -> Result<Recorded, CliError> {
+/// Reads `path`: an MCAP run (by its magic bytes) or a CSV trace file (`import`: its columns
+/// and units). For a CSV, also the line that says which columns were read in which units.
+pub fn read(
+    path: &Path,
+    csv: Option<CsvSetup>,
+    import: &Import,
+) -> Result<(Recorded, Option<String>), CliError> {
     let file = path.display().to_string();
     let bytes = match input::open(path, &file)? {
-        Input::Mcap => return Ok(vmt_logs::ballbar::read(path, &file)?),
+        Input::Mcap => {
+            if import.given() {
+                return Err(CliError::Argument(format!(
+                    "{file} is a run of ours (MCAP), whose columns and units are its own: \
+                     --columns and --units apply to CSV exports"
+                )));
+            }
+            return Ok((vmt_logs::ballbar::read(path, &file)?, None));
+        }
         Input::Other(bytes) => bytes,
     };
     let setup = csv.ok_or_else(|| {
@@ -51,42 +69,37 @@ pub fn read(path: &Path, csv: Option<CsvSetup>) -> Result<Recorded, CliError> {
             "{file} is a CSV trace: give its set-up with --radius-mm, --feed-mm-min and --plane"
         ))
     })?;
-    let traces = read_csv(&bytes, &file, setup)?;
-    Ok(Recorded {
+    let (traces, cols) = read_csv(&bytes, &file, setup, import)?;
+    let recorded = Recorded {
         tests: group_tests(traces),
         ground_truth: None,
-    })
-}
-
-/// Column indices of a CSV header.
-struct Columns {
-    angle: usize,
-    deviation: usize,
-    direction: usize,
-    time: Option<usize>,
-}
-
-fn columns(header: &csv::StringRecord, file: &str) -> Result<Columns, CliError> {
-    let find = |name: &str| header.iter().position(|h| h.trim() == name);
-    let need = |name: &str| {
-        find(name).ok_or_else(|| {
-            CliError::input(
-                file,
-                Some(1),
-                format!(
-                    "no `{name}` column; a ball-bar trace has angle_deg, deviation_um, direction (cw or ccw) and optionally time_s, a laser positioning test target_mm, direction, run and deviation_um (found: {})",
-                    header.iter().collect::<Vec<_>>().join(", ")
-                ),
-            )
-        })
     };
-    Ok(Columns {
-        angle: need("angle_deg")?,
-        deviation: need("deviation_um")?,
-        direction: need("direction")?,
-        time: find("time_s"),
-    })
+    Ok((recorded, Some(crate::import::echo(&cols))))
 }
+
+/// The columns of a ball-bar CSV.
+const COLUMNS: [Column; 4] = [
+    Column {
+        name: "angle_deg",
+        quantity: Quantity::Angle,
+        required: true,
+    },
+    Column {
+        name: "deviation_um",
+        quantity: Quantity::Micrometres,
+        required: true,
+    },
+    Column {
+        name: "direction",
+        quantity: Quantity::Label,
+        required: true,
+    },
+    Column {
+        name: "time_s",
+        quantity: Quantity::Time,
+        required: false,
+    },
+];
 
 /// Samples of one direction while reading.
 struct Run {
@@ -205,9 +218,23 @@ fn csv_trace_error(e: TraceError, file: &str, lines: &[usize], direction: &str) 
     }
 }
 
-fn read_csv(bytes: &[u8], file: &str, setup: CsvSetup) -> Result<Vec<Trace>, CliError> {
+fn read_csv(
+    bytes: &[u8],
+    file: &str,
+    setup: CsvSetup,
+    import: &Import,
+) -> Result<(Vec<Trace>, Resolved), CliError> {
     let (mut reader, header) = csv_with_header(bytes, file)?;
-    let cols = columns(&header, file)?;
+    let resolved = import.resolve(&header, &COLUMNS, "a ball-bar trace", file)?;
+    let col = |name: &str| resolved.index(name).unwrap_or(0);
+    let (angle_col, deviation_col, direction_col) =
+        (col("angle_deg"), col("deviation_um"), col("direction"));
+    let time_col = resolved.index("time_s");
+    let (angle_factor, deviation_factor, time_factor) = (
+        resolved.factor("angle_deg"),
+        resolved.factor("deviation_um"),
+        resolved.factor("time_s"),
+    );
     let mut runs: Vec<Run> = Vec::new();
     for (i, record) in reader.records().enumerate() {
         let rec = record.map_err(|e| {
@@ -216,8 +243,8 @@ fn read_csv(bytes: &[u8], file: &str, setup: CsvSetup) -> Result<Vec<Trace>, Cli
         })?;
         // The reader's own line count: blank lines are skipped, quoted cells may span lines.
         let line = record_line(bytes, rec.position(), i + 2);
-        let number = |k: usize, name: &str| finite_cell(&rec, k, name, file, line);
-        let direction = rec.get(cols.direction).unwrap_or("").to_ascii_lowercase();
+        let number = |k: usize| finite_cell(&rec, k, header[k].trim(), file, line);
+        let direction = rec.get(direction_col).unwrap_or("").to_ascii_lowercase();
         if direction != "cw" && direction != "ccw" {
             return Err(CliError::input(
                 file,
@@ -244,16 +271,17 @@ fn read_csv(bytes: &[u8], file: &str, setup: CsvSetup) -> Result<Vec<Trace>, Cli
             });
         }
         let run = runs.last_mut().expect("pushed above");
-        let mut angle = number(cols.angle, "angle_deg")?;
+        let mut angle = number(angle_col)? * angle_factor;
         if let Some(last) = run.angle.last() {
             // Unwrap: the nearest turn to the previous sample.
             angle += 360.0 * ((last - angle) / 360.0).round();
         }
         run.angle.push(angle);
         run.lines.push(line);
-        run.deviation.push(number(cols.deviation, "deviation_um")?);
-        if let Some(k) = cols.time {
-            run.time.push(number(k, "time_s")?);
+        run.deviation
+            .push(number(deviation_col)? * deviation_factor);
+        if let Some(k) = time_col {
+            run.time.push(number(k)? * time_factor);
         }
     }
     if runs.is_empty() {
@@ -271,7 +299,7 @@ fn read_csv(bytes: &[u8], file: &str, setup: CsvSetup) -> Result<Vec<Trace>, Cli
                 setup.feed_mm_min,
                 r.angle,
                 r.deviation,
-                cols.time.map(|_| r.time),
+                time_col.map(|_| r.time),
             )
             .map_err(|e| csv_trace_error(e, file, &r.lines, &r.direction))
         })
@@ -279,7 +307,7 @@ fn read_csv(bytes: &[u8], file: &str, setup: CsvSetup) -> Result<Vec<Trace>, Cli
     for t in &traces {
         check_flat_feed(t, setup)?;
     }
-    Ok(traces)
+    Ok((traces, resolved))
 }
 
 /// A CSV trace's times against `--feed-mm-min` within [`vmt_ballbar::trace::FEED_TOLERANCE`]
@@ -305,7 +333,7 @@ fn check_flat_feed(t: &Trace, setup: CsvSetup) -> Result<(), CliError> {
 /// stated `feed`.
 fn flat_feed_error(label: &str, speed: f64, radius_mm: f64, feed: f64) -> CliError {
     CliError::Argument(format!(
-        "--feed-mm-min {feed}: the times of {label} give {speed:.1} mm/min along the {radius_mm} mm circle (within {} % is accepted); check the feed, --radius-mm and the unit of time_s (s)",
+        "--feed-mm-min {feed}: the times of {label} give {speed:.1} mm/min along the {radius_mm} mm circle (within {} % is accepted); check the feed, --radius-mm and the unit of time_s (s; --units time_s=ms for ms)",
         vmt_ballbar::trace::FEED_TOLERANCE * 100.0
     ))
 }

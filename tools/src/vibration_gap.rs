@@ -32,7 +32,7 @@ fn logs(files: &[PathBuf]) -> Result<Vec<Log>, CliError> {
     files
         .iter()
         .map(|f| {
-            let l = chatter::read(f)?;
+            let l = chatter::read(f, &crate::import::Import::default())?;
             Ok(Log {
                 name: f.display().to_string(),
                 sample_rate_hz: l.sample_rate_hz,

@@ -42,7 +42,7 @@ fn times(n: usize) -> Vec<f64> {
 
 fn write_csv(dir: &Path, name: &str, chatter: bool) -> String {
     let mut text = String::from("time_s,ax,ay,az\n");
-    for t in times(12_000) {
+    for t in times(16_000) {
         let [x, y, z] = [0, 1, 2].map(|k| accel(t, k, chatter));
         text += &format!("{t},{x},{y},{z}\n");
     }
@@ -82,14 +82,16 @@ fn csv_with_chatter_is_detected_at_its_time_and_frequency() {
     assert!(o.status.success(), "{}", stderr(&o));
     let text = String::from_utf8_lossy(&o.stdout);
     let better = text.lines().find(|l| l.starts_with("better:")).unwrap();
+    // Within a frame and two hops of the onset: frames of 4096 samples (0.2 s) resolve the
+    // 125 Hz spindle's orders.
     let t = number_after(better, "CHATTER at ");
-    assert!(t > ONSET_S && t < ONSET_S + 0.08, "{better}");
+    assert!(t > ONSET_S && t < ONSET_S + 0.35, "{better}");
     let f = number_after(better, "chatter frequency ");
     assert!((f - F_CHATTER).abs() < 10.0, "{better}");
     let rows = std::fs::read_to_string(&out).unwrap();
     assert!(rows.starts_with("detector,window_end_s,"));
-    assert!(rows.lines().filter(|l| l.starts_with("better,")).count() > 50);
-    assert!(rows.lines().filter(|l| l.starts_with("kim,")).count() == 12);
+    assert!(rows.lines().filter(|l| l.starts_with("better,")).count() >= 10);
+    assert!(rows.lines().filter(|l| l.starts_with("kim,")).count() == 16);
 }
 
 /// The stable cut's 6.5 kHz harmonic is in Kim's band: with a limit below its level Kim's
@@ -118,7 +120,7 @@ fn stable_csv_is_not_flagged_by_the_spectral_detector() {
 #[test]
 fn mcap_run_uses_its_accelerometer_stream_and_ground_truth() {
     let dir = tempfile::tempdir().unwrap();
-    let t = times(10_000);
+    let t = times(16_000);
     let channels = ["ax", "ay", "az"]
         .iter()
         .enumerate()
@@ -233,7 +235,7 @@ fn sustained_onset(truth: &serde_json::Value) -> Option<f64> {
 fn detectors_on_simulated_milling_runs() {
     use vmt_chatter::detect::eval::{LabelledRun, evaluate};
     use vmt_chatter::detect::kim::{self, KimSettings};
-    use vmt_chatter::detect::spectral::{self, SpectralSettings, tooth_passing_hz};
+    use vmt_chatter::detect::spectral::{self, SpectralSettings};
     use vmt_model::cutting::{
         CutGeometry, CuttingCoefficients, EndMill, MillingDirection, Mode, ToolDynamics,
     };
@@ -313,10 +315,7 @@ fn detectors_on_simulated_milling_runs() {
         });
     }
     let better = evaluate(&runs, |r| {
-        let s = SpectralSettings {
-            tooth_passing_hz: Some(tooth_passing_hz(r.spindle_rpm, r.teeth)),
-            ..Default::default()
-        };
+        let s = SpectralSettings::new(r.spindle_rpm, r.teeth);
         Ok(spectral::detect(&r.slices(), r.sample_rate_hz, &s)?.verdict)
     })
     .unwrap();
@@ -340,7 +339,8 @@ fn detectors_on_simulated_milling_runs() {
         "{labels:?}"
     );
     assert_eq!(better.accuracy, 1.0, "{better:?}");
-    assert!(better.p90_latency_s < 0.05, "{better:?}");
+    // About a frame and two hops: frames as long as the spindle's comb needs.
+    assert!(better.p90_latency_s < 0.3, "{better:?}");
 }
 
 /// `vmt chatter compensate` on its default cut (20 000 rpm, 0.3 mm, half immersion: 5 % past
@@ -431,4 +431,361 @@ fn irregular_sampling_is_reported_in_short_numbers() {
     let e = error_of(&(body + "0.05,1\n0.0553,1\n"));
     assert!(e.contains("interval 0.0053 s"), "{e}");
     assert!(e.contains("mean 0.005027273 s"), "{e}");
+}
+
+/// A spindle-housing accelerometer export as a vertical machining centre's software writes it
+/// (the shape of NOTES.md's real files: header `Time (s),Accel X (m/s^2),Accel Y (m/s^2),Accel Z
+/// (m/s^2),CI Value`, 1.65 kHz, time from an arbitrary offset), written here from a formula: a
+/// 4-flute cutter at 12 000 rev/min (tooth passing 800 Hz, above a quarter of the rate) with
+/// run-out, its harmonics up to 6 kHz through a 4th-order anti-alias filter at 0.45 of the rate
+/// and sampled, so that those above 825 Hz fold into the band (1600 Hz at 50 Hz), and with
+/// `chatter` a 570 Hz line growing from 2 s after the start, with 0.01 m/s² of noise. Units:
+/// `ms` writes the time in ms
+/// and `g` the accelerations in g, with those units in the headers when `units_in_header`.
+struct Export {
+    /// Spindle frequency, Hz (200: 12 000 rev/min).
+    spindle_hz: f64,
+    chatter: bool,
+    ms: bool,
+    g: bool,
+    units_in_header: bool,
+}
+
+const EXPORT_FS: f64 = 1650.0;
+const EXPORT_T0: f64 = 1234.5;
+const EXPORT_CHATTER_HZ: f64 = 570.0;
+
+impl Export {
+    fn accel(&self, i: usize, k: usize) -> f64 {
+        let t = i as f64 / EXPORT_FS;
+        let aa = |f: f64| 1.0 / (1.0 + (f / (0.45 * EXPORT_FS)).powi(8)).sqrt();
+        let phase = k as f64 + 0.3;
+        // Sensor noise, 0.01 m/s² uniform, from a multiplicative hash of sample and axis.
+        let h = ((i * 3 + k) as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 11;
+        let mut a = 0.02 * (h as f64 / (1u64 << 53) as f64 - 0.5);
+        for order in 1..=30 {
+            let f = order as f64 * self.spindle_hz;
+            // Tooth passing (every 4th order) strong, run-out weaker, both falling with f.
+            let level = if order % 4 == 0 { 3.0 } else { 0.4 } * (-f / 2000.0).exp();
+            a += aa(f) * level * (TAU * f * t + phase * order as f64).sin();
+        }
+        let since = t - 2.0;
+        if self.chatter && since > 0.0 {
+            a += aa(EXPORT_CHATTER_HZ)
+                * 2.0
+                * (1.0 - (-since / 0.05).exp())
+                * (TAU * EXPORT_CHATTER_HZ * t + phase).sin();
+        }
+        a
+    }
+
+    fn write(&self, dir: &Path, name: &str) -> String {
+        let (t_unit, a_unit) = (
+            if self.ms { "ms" } else { "s" },
+            if self.g { "g" } else { "m/s^2" },
+        );
+        let header = if self.units_in_header {
+            format!(
+                "Time ({t_unit}),Accel X ({a_unit}),Accel Y ({a_unit}),Accel Z ({a_unit}),CI Value\n"
+            )
+        } else {
+            "Time,Accel X,Accel Y,Accel Z,CI Value\n".to_string()
+        };
+        let mut text = header;
+        for i in 0..(6.0 * EXPORT_FS) as usize {
+            let t = i as f64 / EXPORT_FS;
+            let clock = EXPORT_T0 + t;
+            let time = if self.ms { 1e3 * clock } else { clock };
+            let scale = if self.g { 1.0 / 9.806_65 } else { 1.0 };
+            let [x, y, z] = [0, 1, 2].map(|k| scale * self.accel(i, k));
+            text += &format!("{time:.6},{x:.6},{y:.6},{z:.6},{}\n", i % 7);
+        }
+        let p = dir.join(name);
+        std::fs::write(&p, text).unwrap();
+        p.display().to_string()
+    }
+}
+
+const EXPORT_COLUMNS: &str =
+    "time_s=Time (s),ax=Accel X (m/s^2),ay=Accel Y (m/s^2),az=Accel Z (m/s^2)";
+
+/// The export read through --columns, as exported: the chatter is found at its time on the
+/// export's own clock and at its frequency; the run-out's and the folded lines are listed as
+/// forced, never as chatter; Kim's paper band cannot run at 1.65 kHz and `both` says why and
+/// gives the other's verdict; the report echoes which column was read in which unit.
+#[test]
+fn an_exported_accelerometer_csv_is_read_through_its_column_mapping() {
+    let dir = tempfile::tempdir().unwrap();
+    let export = Export {
+        chatter: true,
+        ms: false,
+        g: false,
+        units_in_header: true,
+        spindle_hz: 200.0,
+    };
+    let csv = export.write(dir.path(), "export.csv");
+    let o = vmt(&[
+        "chatter",
+        "detect",
+        &csv,
+        "--columns",
+        EXPORT_COLUMNS,
+        "--spindle-rpm",
+        "12000",
+        "--teeth",
+        "4",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        text.contains("columns: time_s = \"Time (s)\" in s (from the header), ax = \"Accel X (m/s^2)\" in m/s² (from the header)"),
+        "{text}"
+    );
+    assert!(text.contains("9900 samples at 1650.0 Hz"), "{text}");
+    let better = text.lines().find(|l| l.starts_with("better:")).unwrap();
+    let t = number_after(better, "CHATTER at ");
+    assert!(t > EXPORT_T0 + 2.0 && t < EXPORT_T0 + 3.0, "{better}");
+    let f = number_after(better, "chatter frequency ");
+    assert!((f - EXPORT_CHATTER_HZ).abs() < 5.0, "{better}");
+    assert!(
+        text.contains("kim:      not run:") && text.contains("Nyquist frequency 825 Hz"),
+        "{text}"
+    );
+    assert!(text.contains("1×f_r 200.0 Hz (spindle rotation"), "{text}");
+    assert!(
+        text.contains("8×f_r 1600.0 Hz seen at 50.0 Hz (tooth passing"),
+        "{text}"
+    );
+    assert!(!text.contains("WARNING"), "{text}");
+}
+
+/// The same export in ms and g: units written in the headers are taken from them, units the
+/// headers do not state are given with --units; either way the verdict is the export's in s
+/// and m/s². A stated unit against the header's is refused.
+#[test]
+fn an_export_in_ms_and_g_is_read_in_its_units() {
+    let dir = tempfile::tempdir().unwrap();
+    let reference = {
+        let csv = Export {
+            chatter: true,
+            ms: false,
+            g: false,
+            units_in_header: true,
+            spindle_hz: 200.0,
+        }
+        .write(dir.path(), "si.csv");
+        let o = vmt(&[
+            "chatter",
+            "detect",
+            &csv,
+            "--columns",
+            EXPORT_COLUMNS,
+            "--spindle-rpm",
+            "12000",
+            "--teeth",
+            "4",
+            "--detector",
+            "better",
+        ]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        String::from_utf8_lossy(&o.stdout)
+            .lines()
+            .nth(2)
+            .unwrap()
+            .to_string()
+    };
+    let in_header = Export {
+        chatter: true,
+        ms: true,
+        g: true,
+        units_in_header: true,
+        spindle_hz: 200.0,
+    }
+    .write(dir.path(), "ms_g.csv");
+    let bare = Export {
+        chatter: true,
+        ms: true,
+        g: true,
+        units_in_header: false,
+        spindle_hz: 200.0,
+    }
+    .write(dir.path(), "bare.csv");
+    for (csv, columns, units) in [
+        (
+            &in_header,
+            "time_s=Time (ms),ax=Accel X (g),ay=Accel Y (g),az=Accel Z (g)",
+            None,
+        ),
+        (
+            &bare,
+            "time_s=Time,ax=Accel X,ay=Accel Y,az=Accel Z",
+            Some("time_s=ms,ax=g,ay=g,az=g"),
+        ),
+    ] {
+        let mut args = vec![
+            "chatter",
+            "detect",
+            csv,
+            "--columns",
+            columns,
+            "--spindle-rpm",
+            "12000",
+            "--teeth",
+            "4",
+            "--detector",
+            "better",
+        ];
+        if let Some(u) = units {
+            args.extend(["--units", u]);
+        }
+        let o = vmt(&args);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let text = String::from_utf8_lossy(&o.stdout);
+        assert!(text.contains("in ms") && text.contains("in g"), "{text}");
+        let better = text.lines().nth(2).unwrap();
+        // The same verdict, time and frequency (the g values are rounded to 6 decimals).
+        assert_eq!(
+            number_after(better, "CHATTER at "),
+            number_after(&reference, "CHATTER at "),
+            "{better}\n{reference}"
+        );
+        assert!(
+            (number_after(better, "frequency ") - number_after(&reference, "frequency ")).abs()
+                < 0.5
+        );
+    }
+    let o = vmt(&[
+        "chatter",
+        "detect",
+        &in_header,
+        "--columns",
+        "time_s=Time (ms),ax=Accel X (g)",
+        "--units",
+        "ax=m/s^2",
+        "--detector",
+        "kim",
+        "--band",
+        "300,400",
+    ]);
+    assert!(!o.status.success());
+    let e = stderr(&o);
+    assert!(
+        e.contains("ms_g.csv:1") && e.contains("`Accel X (g)` says g"),
+        "{e}"
+    );
+}
+
+/// Bad input, one clear error each: a mapping naming a column the export does not have (the
+/// header it was looked for and the headers found), an unknown unit (the units accepted), no
+/// teeth, and a spindle whose comb the rate cannot resolve.
+#[test]
+fn bad_mappings_units_teeth_and_speeds_are_refused_one_by_one() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = Export {
+        chatter: false,
+        ms: false,
+        g: false,
+        units_in_header: true,
+        spindle_hz: 200.0,
+    }
+    .write(dir.path(), "export.csv");
+    let run = |extra: &[&str]| {
+        let mut args = vec!["chatter", "detect", &csv];
+        args.extend(extra);
+        let o = vmt(&args);
+        assert!(!o.status.success(), "{extra:?}");
+        stderr(&o)
+    };
+    let e = run(&[
+        "--columns",
+        "time_s=Time (s),ax=Accel Q (m/s^2)",
+        "--spindle-rpm",
+        "12000",
+        "--teeth",
+        "4",
+    ]);
+    assert!(
+        e.contains("export.csv:1")
+            && e.contains("maps `ax` to `Accel Q (m/s^2)`")
+            && e.contains(
+                "found: Time (s), Accel X (m/s^2), Accel Y (m/s^2), Accel Z (m/s^2), CI Value"
+            ),
+        "{e}"
+    );
+    let e = run(&["--columns", EXPORT_COLUMNS, "--units", "ax=furlong"]);
+    assert!(
+        e.contains("--units ax=furlong") && e.contains("accepted: m/s² or g"),
+        "{e}"
+    );
+    let e = run(&[
+        "--columns",
+        EXPORT_COLUMNS,
+        "--spindle-rpm",
+        "12000",
+        "--teeth",
+        "0",
+    ]);
+    assert!(e.contains("--teeth 0: from 1 to 100"), "{e}");
+    let e = run(&[
+        "--columns",
+        EXPORT_COLUMNS,
+        "--spindle-rpm",
+        "60",
+        "--teeth",
+        "4",
+        "--detector",
+        "better",
+    ]);
+    assert!(
+        e.contains("export.csv")
+            && e.contains("60 rev/min")
+            && e.contains("1650 Hz")
+            && e.contains("beyond the longest frame"),
+        "{e}"
+    );
+}
+
+/// The wrong number of teeth does not make the tooth-passing lines chatter (every spindle order
+/// is forced), and the report names the count the comb supports. At 3046 rev/min (f_r =
+/// 1650 Hz / 32.5), so that 16 spindle orders lie below the Nyquist frequency (at 12 000
+/// rev/min only 4 do, too few for the comb to tell a tooth count) and the folded orders land
+/// half-way between them (an order sharing its bins with a folded one is not read).
+#[test]
+fn wrong_teeth_are_warned_about_not_taken_for_chatter() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = Export {
+        chatter: false,
+        ms: false,
+        g: false,
+        units_in_header: true,
+        spindle_hz: 1650.0 / 32.5,
+    }
+    .write(dir.path(), "export.csv");
+    // Two teeth, a divisor of four, share half of the comb's strong lines and score within the
+    // 3 dB the check allows on this comb: not asked here.
+    for (teeth, warned) in [("3", true), ("5", true), ("4", false)] {
+        let o = vmt(&[
+            "chatter",
+            "detect",
+            &csv,
+            "--columns",
+            EXPORT_COLUMNS,
+            "--spindle-rpm",
+            "3046.153846",
+            "--teeth",
+            teeth,
+            "--detector",
+            "better",
+        ]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let text = String::from_utf8_lossy(&o.stdout);
+        assert!(text.contains("better:   no chatter"), "{text}");
+        assert_eq!(
+            text.contains(&format!(
+                "WARNING: the comb does not fit {teeth} teeth: it supports 4"
+            )),
+            warned,
+            "{teeth} teeth: {text}"
+        );
+    }
 }

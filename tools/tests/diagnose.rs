@@ -493,3 +493,113 @@ fn a_simulated_run_in_one_direction_reads_its_truth_plus_the_stated_bias() {
         "{test}"
     );
 }
+
+/// A ball-bar export in its instrument's own shape (headers `Time [ms]`, `Angle (deg)`,
+/// `Deviation (mm)`, `Run`, an extra `Temp (C)`; time in ms, deviation in mm), written here
+/// from the same formula as the documented CSV: read through --columns with the units taken
+/// from its headers, or stated with --units where the headers give none, it gives the
+/// documented CSV's diagnosis, and the report says which column was read in which unit.
+#[test]
+fn an_exported_ballbar_csv_is_read_through_its_mapping_and_units() {
+    let dir = tempfile::tempdir().unwrap();
+    let e = Errors {
+        backlash_um: [3.0, 0.0],
+        squareness_urad: 12.0,
+        noise_um: 0.3,
+        ..Default::default()
+    };
+    let traces = test(Plane::Xy, &e, 5);
+    let plain = diagnose_json(&write_csv(dir.path(), "plain.csv", &traces));
+    let export = |header: &str, name: &str| {
+        let mut s = format!("{header}\n");
+        for t in &traces {
+            let times = t.time_s.as_ref().unwrap();
+            for ((time, a), d) in times.iter().zip(&t.angle_deg).zip(&t.deviation_um) {
+                s += &format!(
+                    "{:.6},{},{:.9},{},20.1\n",
+                    time * 1e3,
+                    a.rem_euclid(360.0),
+                    d * 1e-3,
+                    t.sense.name().to_uppercase()
+                );
+            }
+        }
+        let p = dir.path().join(name);
+        std::fs::write(&p, s).unwrap();
+        p
+    };
+    let labelled = export("Time [ms],Angle (deg),Deviation (mm),Run,Temp (C)", "a.csv");
+    let bare = export("Time,Angle,Deviation,Run,Temp", "b.csv");
+    for (file, columns, units) in [
+        (
+            &labelled,
+            "time_s=Time [ms],angle_deg=Angle (deg),deviation_um=Deviation (mm),direction=Run",
+            None,
+        ),
+        (
+            &bare,
+            "time_s=Time,angle_deg=Angle,deviation_um=Deviation,direction=Run",
+            Some("time_s=ms,deviation_um=mm"),
+        ),
+    ] {
+        let mut args = vec![
+            "diagnose",
+            file.to_str().unwrap(),
+            "--json",
+            "--columns",
+            columns,
+        ];
+        if let Some(u) = units {
+            args.extend(["--units", u]);
+        }
+        args.extend(SETUP);
+        let o = vmt(&args);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let r: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+        let echo = r["columns"].as_str().unwrap();
+        assert!(
+            echo.contains("deviation_um = \"Deviation") && echo.contains(" in mm"),
+            "{echo}"
+        );
+        assert!(echo.contains(" in ms"), "{echo}");
+        for key in ["backlash_x", "squareness_xy"] {
+            let (a, b) = (
+                finding(&r, key)["value"].as_f64(),
+                finding(&plain, key)["value"].as_f64(),
+            );
+            assert!(
+                (a.unwrap() - b.unwrap()).abs() < 1e-3,
+                "{key}: {a:?} vs {b:?}"
+            );
+        }
+    }
+    // Bad mappings: a header the export lacks, an unknown unit, a unit against the header's.
+    let refused = |columns: &str, units: Option<&str>| {
+        let mut args = vec!["diagnose", labelled.to_str().unwrap(), "--columns", columns];
+        if let Some(u) = units {
+            args.extend(["--units", u]);
+        }
+        args.extend(SETUP);
+        let o = vmt(&args);
+        assert!(!o.status.success(), "{columns} {units:?}");
+        stderr(&o)
+    };
+    let full = "time_s=Time [ms],angle_deg=Angle (deg),deviation_um=Deviation (mm),direction=Run";
+    let e = refused(
+        "time_s=Time [ms],angle_deg=Angle (deg),deviation_um=Radius (mm),direction=Run",
+        None,
+    );
+    assert!(
+        e.contains("a.csv:1")
+            && e.contains("maps `deviation_um` to `Radius (mm)`")
+            && e.contains("found: Time [ms], Angle (deg), Deviation (mm), Run, Temp (C)"),
+        "{e}"
+    );
+    let e = refused(full, Some("deviation_um=inch"));
+    assert!(
+        e.contains("--units deviation_um=inch") && e.contains("µm or mm"),
+        "{e}"
+    );
+    let e = refused(full, Some("deviation_um=um"));
+    assert!(e.contains("`Deviation (mm)` says mm"), "{e}");
+}

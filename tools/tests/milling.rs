@@ -114,8 +114,9 @@ fn a_slot_beyond_the_limit_chatters_near_the_mode_and_is_detected() {
         let rows = e[entity]["rows"].as_u64().unwrap_or(0);
         assert!(rows > 1000, "{entity}: {rows} rows in {}", e);
     }
-    // The detectors report on the log's clock too: soon after the onset, not 1 s before
-    // the cut as when they counted from the first accelerometer sample.
+    // The detectors report on the log's clock too: soon after the onset (within a frame of
+    // 0.1 s, which resolves the 250 Hz spindle's orders, and two hops), not 1 s before the cut
+    // as when they counted from the first accelerometer sample.
     let at = detect
         .lines()
         .find_map(|l| l.split("better:   CHATTER at ").nth(1))
@@ -123,7 +124,7 @@ fn a_slot_beyond_the_limit_chatters_near_the_mode_and_is_detected() {
         .and_then(|t| t.parse::<f64>().ok())
         .unwrap_or_else(|| panic!("{detect}"));
     assert!(
-        at > cut_start + onset && at < cut_start + onset + 0.1,
+        at > cut_start + onset && at < cut_start + onset + 0.2,
         "detected at {at} s, onset {} s: {detect}",
         cut_start + onset
     );

@@ -73,7 +73,7 @@ fn bad_laser_csvs_are_refused_naming_line_and_value() {
     let cases: Vec<(String, &str)> = vec![
         (
             "target_mm,direction,deviation_um\n0,forward,1\n".into(),
-            "no `run` column; a positioning test has target_mm, direction (forward or backward), run, and deviation_um or reading_mm (found: target_mm, direction, deviation_um)",
+            "no `run` column (found: target_mm, direction, deviation_um); a laser positioning test has target_mm, direction, run, deviation_um, reading_mm",
         ),
         (
             "target_mm,direction,run,deviation_um,run\n0,forward,1,1,2\n".into(),
@@ -259,4 +259,69 @@ fn run_diagnose_evaluates_a_laser_run_as_vmt_diagnose_does() {
             "{name}"
         );
     }
+}
+
+/// The laser test of [`laser_csv`] exported as a laser system's software writes it (headers
+/// `Run No.`, `Dir`, `Target (mm)`, `Error (mm)`; the deviation in mm): read through --columns,
+/// it gives the documented CSV's ISO 230-2 figures, and the report echoes the mapping; a mapping
+/// naming a header the export lacks and an unknown unit are refused naming them.
+#[test]
+fn an_exported_laser_csv_is_read_through_its_mapping_and_units() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut export = String::from("Run No.,Dir,Target (mm),Error (mm)\n");
+    for line in laser_csv().lines().skip(1) {
+        let c: Vec<&str> = line.split(',').collect();
+        let (target, reading): (f64, f64) = (c[2].parse().unwrap(), c[3].parse().unwrap());
+        export += &format!("{},{},{target},{:.9}\n", c[0], c[1], reading - target);
+    }
+    let columns = "run=Run No.,direction=Dir,target_mm=Target (mm),deviation_um=Error (mm)";
+    let o = diagnose(
+        dir.path(),
+        &export,
+        &["--axis", "X", "--json", "--columns", columns],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let r: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let f = &r["positioning"]["iso230_2"];
+    assert!((f["b_um"].as_f64().unwrap() - 2.0).abs() < 2e-3, "{f}");
+    assert!((f["e_um"].as_f64().unwrap() - 10.0).abs() < 2e-3, "{f}");
+    assert_eq!(
+        r["columns"],
+        "columns: target_mm = \"Target (mm)\" in mm (from the header), direction = \"Dir\", \
+         run = \"Run No.\", deviation_um = \"Error (mm)\" in mm (from the header)"
+    );
+    let o = diagnose(
+        dir.path(),
+        &export,
+        &[
+            "--axis",
+            "X",
+            "--columns",
+            "run=Run,direction=Dir,target_mm=Target (mm),deviation_um=Error (mm)",
+        ],
+    );
+    let e = stderr(&o);
+    assert!(
+        !o.status.success() && e.contains("laser.csv:1") && e.contains("maps `run` to `Run`"),
+        "{e}"
+    );
+    let o = diagnose(
+        dir.path(),
+        &export.replace("Error (mm)", "Error"),
+        &[
+            "--axis",
+            "X",
+            "--columns",
+            "run=Run No.,direction=Dir,target_mm=Target (mm),deviation_um=Error",
+            "--units",
+            "deviation_um=nm",
+        ],
+    );
+    let e = stderr(&o);
+    assert!(
+        !o.status.success()
+            && e.contains("--units deviation_um=nm")
+            && e.contains("accepted: µm or mm"),
+        "{e}"
+    );
 }

@@ -11,7 +11,7 @@
 use crate::features::{self, Residual};
 use crate::iso230_4::{self, Figures};
 use crate::model::{self, Fit, FitError, Normal, Term, Terms, reversal_angles};
-use crate::samples::{self, Placement, Samples};
+use crate::samples::{Placement, Samples};
 use crate::signatures::{self, Point};
 use crate::take_up;
 use crate::trace::{Plane, Trace, TraceError};
@@ -142,12 +142,17 @@ pub struct Diagnosis {
     pub feed_mm_min: f64,
     /// Labels of the traces.
     pub traces: Vec<String>,
-    /// ISO 230-4 figures.
+    /// ISO 230-4 figures over the data arc past its settling ([`SETTLING_RULE`]), as instrument
+    /// software gives them: over every sample when the runs start and end settled (a test with
+    /// run-in and run-out arcs), without the feed-in's transient otherwise (a test without them,
+    /// as Kwon's steps, carries the carriages' lag at the feed-in corner into G and H, 160 µm
+    /// where the errors are a few).
     pub iso: Figures,
-    /// The ISO 230-4 figures without the transients at the ends of every trace (the fit's
-    /// window, [`settled`]), given when a start transient is present: a test without overshoot
-    /// (Kwon's steps) carries the feed-in's lag into G and H, 160 µm where the errors are a few.
-    pub settled_iso: Option<Figures>,
+    /// ISO 230-4 figures over every sample of the data arc (its first revolution), transients
+    /// included.
+    pub raw_iso: Figures,
+    /// Per trace, the data arc [`SETTLING_RULE`] left out of [`Diagnosis::iso`].
+    pub settling: Vec<Settling>,
     /// Diagnosed errors, ranked by contribution to the circular deviation.
     pub findings: Vec<Finding>,
     /// Errors this test cannot determine.
@@ -163,6 +168,38 @@ impl Diagnosis {
     pub fn finding(&self, key: &str) -> Option<&Finding> {
         self.findings.iter().find(|f| f.key == key)
     }
+}
+
+/// How the ISO 230-4 figures of [`Diagnosis::iso`] leave out the transients at the ends of a
+/// run, stated in every report.
+pub const SETTLING_RULE: &str = "A run is settled from the first sample after which its \
+residual from the fitted error model, smoothed over 4 ms, stays within its noise band (the \
+median of the settled residual ± 5 robust standard deviations, at least ±0.01 µm) for 3 deg of \
+travel; the end likewise backwards. Applied where a transient is found at that end (the \
+extreme of the smoothed residual in its first or last 5 deg at least 0.5 µm and 6 noise \
+standard deviations above the residual's level, and above the largest reversal spike measured \
+when the run starts at an axis reversal); the ISO 230-4 figures are taken over the settled \
+part, the raw figures over the whole data arc.";
+
+/// What [`SETTLING_RULE`] left out of one trace.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Settling {
+    /// Label of the trace.
+    pub label: String,
+    /// `cw` or `ccw`.
+    pub sense: String,
+    /// Data arc left out at the start, deg (0 when the run starts settled).
+    pub start_excluded_deg: f64,
+    /// Data arc left out at the end, deg.
+    pub end_excluded_deg: f64,
+    /// Level and half-width of the band the residual settles into, µm.
+    pub band_um: (f64, f64),
+    /// False when the residual does not settle within the first (or last) half of the run:
+    /// the figures then keep that end.
+    pub settled: bool,
+    /// The samples kept.
+    #[serde(skip)]
+    pub kept: std::ops::Range<usize>,
 }
 
 /// Diagnoses a test of one or two traces (CW and CCW of the same circle).
@@ -214,7 +251,7 @@ fn diagnose_test(
         .filter(|(_, f)| f.present)
         .map(|(c, _)| *c)
         .collect();
-    let (mut findings, rms, noise) = if present.is_empty() {
+    let (mut findings, rms, noise, settling) = if present.is_empty() {
         first
     } else {
         // Near its reversals an axis stays within one pitch of its turning point (stationary
@@ -243,20 +280,35 @@ fn diagnose_test(
         .iter()
         .map(|p| (p.cos.as_slice(), p.sin.as_slice()))
         .collect();
-    let transient = findings
-        .iter()
-        .any(|f| f.present && f.key.starts_with("start_transient_"));
-    let settled_iso = transient.then(|| {
-        let settled: Vec<Trace> = traces.iter().map(settled).collect();
-        iso230_4::figures(&settled.iter().collect::<Vec<_>>(), options.minimum_zone)
-    });
+    let raw_iso = iso230_4::figures_with_trig(&refs, &trig, options.minimum_zone);
+    let whole = |(t, s): (&Trace, &Settling)| s.kept == (0..t.angle_deg.len());
+    let iso = if traces.iter().zip(&settling).all(whole) {
+        raw_iso.clone()
+    } else {
+        let kept: Vec<Trace> = traces
+            .iter()
+            .zip(&settling)
+            .map(|(t, s)| t.samples(s.kept.clone()))
+            .collect();
+        let trig: Vec<(&[f64], &[f64])> = trig
+            .iter()
+            .zip(&settling)
+            .map(|((c, s), k)| (&c[k.kept.clone()], &s[k.kept.clone()]))
+            .collect();
+        iso230_4::figures_with_trig(
+            &kept.iter().collect::<Vec<_>>(),
+            &trig,
+            options.minimum_zone,
+        )
+    };
     Ok(Diagnosis {
         plane: first.plane,
         radius_mm: first.radius_mm,
         feed_mm_min: first.feed_mm_min,
         traces: traces.iter().map(|t| t.label.clone()).collect(),
-        iso: iso230_4::figures_with_trig(&refs, &trig, options.minimum_zone),
-        settled_iso,
+        iso,
+        raw_iso,
+        settling,
         findings,
         not_computed: not_computed(&Terms::for_test(&refs), first),
         residual_rms_um: rms,
@@ -264,28 +316,44 @@ fn diagnose_test(
     })
 }
 
-/// `t` without its samples within the transient window of either end
-/// ([`samples::transient_deg`]: the samples the fit leaves out); all of
-/// it when that would leave nothing.
-pub fn settled(t: &Trace) -> Trace {
-    let window = samples::transient_deg(t.feed_mm_min, t.radius_mm);
-    let (Some(&a0), Some(&a1)) = (t.angle_deg.first(), t.angle_deg.last()) else {
-        return t.clone();
+/// What [`SETTLING_RULE`] leaves of trace `t` with residual `res`. The start is searched where
+/// the smoothed residual's extreme in the first 5° ([`features::start_transient`]) stands
+/// [`smoothed_noise_floor`] (at least 0.5 µm) above its level, and above the reversal spike
+/// there when the run starts at an axis' reversal: by the largest spike measured at that axis'
+/// reversals inside the runs (`spikes`, µm), or at the other axis' where this one has none
+/// inside them (a half circle): a run that starts where its axis reverses holds that axis'
+/// spike in its first degrees, an error of the machine the figures must keep. The end likewise
+/// with its last 5° ([`features::end_transient`]; a run ends before the reversal its spike
+/// follows).
+fn settling(t: &Trace, res: &Residual, spikes: [Option<f64>; 2], noise: f64) -> Settling {
+    let n = t.angle_deg.len();
+    let band = features::settled_band(res);
+    let floor = MIN_CONTRIBUTION_UM.max(smoothed_noise_floor(res, noise));
+    let spike = reversing_at_start(res)
+        .map_or(0.0, |axis| spikes[axis].or(spikes[1 - axis]).unwrap_or(0.0));
+    let start_transient = features::start_transient(res).is_some_and(|h| h.abs() >= floor + spike);
+    let end_transient = features::end_transient(res).is_some_and(|h| h.abs() >= floor);
+    let from = if start_transient {
+        features::settles(res, band, false)
+    } else {
+        Some(0)
     };
-    let keep = |a: f64| (a - a0).abs() >= window && (a1 - a).abs() >= window;
-    let Some(from) = t.angle_deg.iter().position(|&a| keep(a)) else {
-        return t.clone();
+    let to = if end_transient {
+        features::settles(res, band, true)
+    } else {
+        Some(n)
     };
-    let to = t
-        .angle_deg
-        .iter()
-        .rposition(|&a| keep(a))
-        .map_or(from, |i| i + 1);
-    let mut s = t.clone();
-    s.angle_deg = t.angle_deg[from..to].to_vec();
-    s.deviation_um = t.deviation_um[from..to].to_vec();
-    s.time_s = t.time_s.as_ref().map(|time| time[from..to].to_vec());
-    s
+    let kept = from.unwrap_or(0)..to.unwrap_or(n);
+    let a = &t.angle_deg;
+    Settling {
+        label: t.label.clone(),
+        sense: t.sense.name().into(),
+        start_excluded_deg: (a[kept.start] - a[0]).abs(),
+        end_excluded_deg: (a[n - 1] - a[kept.end - 1]).abs(),
+        band_um: band,
+        settled: from.is_some() && to.is_some(),
+        kept,
+    }
 }
 
 /// Per trace, the fitted groups' points, mean residuals (µm) and sizes, in sample order: what
@@ -329,8 +397,9 @@ fn leave_out_spikes(s: &mut Samples, t: &Trace, reversals: &[Vec<usize>; 2]) {
     }
 }
 
-/// The findings of one pass (ranked), the residual's RMS and the noise (µm).
-type Pass = (Vec<Finding>, f64, f64);
+/// The findings of one pass (ranked), the residual's RMS and the noise (µm), and the settling
+/// of each trace.
+type Pass = (Vec<Finding>, f64, f64, Vec<Settling>);
 
 /// What a pass of the diagnosis does about cyclic errors.
 #[derive(Clone, Copy)]
@@ -393,9 +462,14 @@ fn diagnose_once(
             .collect::<Vec<_>>(),
     );
     findings.extend(closing_errors(&fit, traces, &samples));
-    let local = local_findings(&mut findings, &fit, &residuals, traces, noise);
+    let (local, spikes) = local_findings(&mut findings, &fit, &residuals, traces, noise);
     take_up_details(&mut findings, reach_um, at_limit, plane);
     findings.extend(local);
+    let settled: Vec<Settling> = traces
+        .iter()
+        .zip(&residuals)
+        .map(|(t, res)| settling(t, res, spikes, noise))
+        .collect();
     let groups = || {
         let mut g = cyclic_groups(&residuals, &samples);
         g.without_left_out(&terms, plane);
@@ -423,7 +497,7 @@ fn diagnose_once(
         }
         r.sums.recycle();
     }
-    Ok(((findings, (rss / n as f64).sqrt(), noise), cyclic))
+    Ok(((findings, (rss / n as f64).sqrt(), noise, settled), cyclic))
 }
 
 fn check_test(traces: &[Trace]) -> Result<(), DiagnosisError> {
@@ -855,13 +929,14 @@ fn mean_sd(v: &[f64]) -> (f64, f64) {
     (m, sd)
 }
 
+/// The local findings, and the largest reversal spike measured per axis (µm).
 fn local_findings(
     findings: &mut [Finding],
     fit: &Fit,
     residuals: &[Residual],
     traces: &[Trace],
     noise: f64,
-) -> Vec<Finding> {
+) -> (Vec<Finding>, [Option<f64>; 2]) {
     let (p, q) = fit.plane.axes();
     let mut out = Vec::new();
     let mut spikes = [None; 2];
@@ -903,7 +978,16 @@ fn local_findings(
     for (t, res) in traces.iter().zip(residuals) {
         out.extend(start_transient_finding(t, res, noise, spikes, [p, q]));
     }
-    out
+    (out, spikes)
+}
+
+/// The axis that may reverse at the start of a run (p at θ = 0° or 180°, q at 90° or 270°,
+/// within the spike zone), if one does.
+fn reversing_at_start(res: &Residual) -> Option<usize> {
+    let (c, s) = (res.cos[0].abs(), res.sin[0].abs());
+    let near = features::SPIKE_ZONE_DEG.to_radians().sin() * 2.0;
+    // p reverses where sin θ = 0, q where cos θ = 0.
+    (s.min(c) < near).then_some(usize::from(c < s))
 }
 
 /// Adds to each backlash finding reported present the reach of its take-up, `take_up_um` (µm
@@ -951,11 +1035,7 @@ fn start_transient_finding(
     let sense = t.sense.name();
     let mut name = format!("Transient at the start, {}", sense.to_uppercase());
     let mut details = Vec::new();
-    let (c, s) = (res.cos[0].abs(), res.sin[0].abs());
-    let near = features::SPIKE_ZONE_DEG.to_radians().sin() * 2.0;
-    // p reverses where sin θ = 0, q where cos θ = 0.
-    let reversing = (s.min(c) < near).then_some(usize::from(c < s));
-    let spike = match reversing {
+    let spike = match reversing_at_start(res) {
         None => Some(0.0),
         Some(axis) => {
             let letter = letters[axis];

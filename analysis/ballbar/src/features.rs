@@ -726,6 +726,75 @@ pub fn start_transient(res: &Residual) -> Option<f64> {
         .max_by(|a, b| a.abs().total_cmp(&b.abs()))
 }
 
+/// Travel over which the smoothed residual must stay within its band for the run to count as
+/// settled, deg (the fit's least end window, [`crate::samples::TRANSIENT_MIN_DEG`]).
+pub const SETTLE_HOLD_DEG: f64 = crate::samples::TRANSIENT_MIN_DEG;
+
+/// The least half-width of the settling band, µm: the resolution the ISO figures are given to.
+pub const SETTLE_BAND_MIN_UM: f64 = 0.01;
+
+/// The band the settled residual of a run occupies: its level (the median of the smoothed
+/// residual over [`Residual::settled`], one value per smoothing window: the values between add
+/// nothing independent) and half-width (five robust standard deviations, 1.4826 times the
+/// median absolute deviation from that level, at least [`SETTLE_BAND_MIN_UM`]), µm. It holds the
+/// noise and whatever the model leaves of the path, so a transient is over once the residual is
+/// back inside it. Five standard deviations: a smoothed Gaussian noise leaves a band of 5σ
+/// once in 1.7 million values, so that noise alone does not put off the settling within the
+/// hold's few hundred values (at 3σ it did, 2.3° into a run whose transient had settled after
+/// 0.4°).
+pub fn settled_band(res: &Residual) -> (f64, f64) {
+    let range = res.settled.clone();
+    if range.is_empty() {
+        return (0.0, SETTLE_BAND_MIN_UM);
+    }
+    let k = res.smooth_width().min(range.len());
+    let n = range.len().div_ceil(k);
+    let at = |i: usize| res.smooth(range.start + k * i);
+    let level = select(n, n / 2, at);
+    let mad = select(n, n / 2, |i| (at(i) - level).abs());
+    (level, (5.0 * 1.4826 * mad).max(SETTLE_BAND_MIN_UM))
+}
+
+/// The first sample of `res` from which its smoothed residual stays within `band` of `level`
+/// over [`SETTLE_HOLD_DEG`] of travel, looked for in the first half of the run (`None` when
+/// it does not settle there). With `from_end`, the same from the end of the run backwards: the
+/// end (exclusive) of the samples before the run's last excursion out of the band.
+pub fn settles(res: &Residual, (level, band): (f64, f64), from_end: bool) -> Option<usize> {
+    let n = res.r.len();
+    let hold = (SETTLE_HOLD_DEG * res.per_deg()).ceil().max(1.0) as usize;
+    let half = n / 2;
+    let outside = |j: usize| (res.smooth(j) - level).abs() > band;
+    let mut start = 0;
+    for step in 0..n {
+        let j = if from_end { n - 1 - step } else { step };
+        if outside(j) {
+            start = step + 1;
+        } else if step + 1 - start >= hold {
+            return Some(if from_end { n - start } else { start });
+        }
+        if start > half {
+            return None;
+        }
+    }
+    None
+}
+
+/// The transient at the end of a trace: the extreme of the smoothed residual in its last 5°
+/// above its median elsewhere (as [`start_transient`] at the start), µm.
+pub fn end_transient(res: &Residual) -> Option<f64> {
+    let n = res.r.len();
+    let zone = res.window(n.saturating_sub(1), -5.0, 1.0);
+    let rest = res.window(n.saturating_sub(1), -360.0, -10.0);
+    if zone.is_empty() || rest.len() < 10 {
+        return None;
+    }
+    let k = res.smooth_width().min(rest.len() / 10);
+    let m = rest.len().div_ceil(k);
+    let level = select(m, m / 2, |i| res.smooth(rest.start + k * i));
+    zone.map(|j| res.smooth(j) - level)
+        .max_by(|a, b| a.abs().total_cmp(&b.abs()))
+}
+
 /// A cyclic error of one axis: pitch (mm), amplitude (µm), and the amplitude's standard error.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Cyclic {

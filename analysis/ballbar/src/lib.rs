@@ -28,5 +28,8 @@ pub mod synthetic;
 pub mod take_up;
 pub mod trace;
 
-pub use diagnosis::{BIAS_DETAIL_PREFIX, Diagnosis, DiagnosisError, Finding, Options, diagnose};
+pub use diagnosis::{
+    BIAS_DETAIL_PREFIX, Diagnosis, DiagnosisError, Finding, Options, SETTLING_RULE, Settling,
+    diagnose,
+};
 pub use trace::{Plane, Sense, Trace, TraceError};

@@ -2,7 +2,7 @@
 //! ranked by their contribution to the circular deviation, then what could not be determined.
 //! As plain text (terminal), Markdown and JSON.
 
-use crate::diagnosis::{Diagnosis, Finding, MIN_CONTRIBUTION_UM};
+use crate::diagnosis::{Diagnosis, Finding, MIN_CONTRIBUTION_UM, SETTLING_RULE};
 use std::fmt::Write;
 
 /// The decision rule, printed with every report.
@@ -16,69 +16,138 @@ this test cannot fit (see above; a drift of the pivot is over the whole test) ad
 value, as the least-squares fit reads it; not in its ± interval. Measured by a test that fits \
 it (a full circle, both directions), the effect corrects the value.";
 
-/// [`RULE`], and [`BIAS_NOTE`] when a finding of `d` states a bias.
+/// [`RULE`], [`SETTLING_RULE`] when it left something out, and [`BIAS_NOTE`] when a finding of
+/// `d` states a bias.
 fn rules(d: &Diagnosis) -> String {
     let biased = d
         .findings
         .iter()
         .any(|f| f.stated_biases().next().is_some());
-    if biased {
-        format!("{RULE} {BIAS_NOTE}")
-    } else {
-        RULE.to_string()
+    let mut s = RULE.to_string();
+    if trimmed(d) {
+        s = format!("{s} {SETTLING_RULE}");
     }
+    if biased {
+        s = format!("{s} {BIAS_NOTE}");
+    }
+    s
+}
+
+/// Whether the settling rule left anything out of the figures.
+fn trimmed(d: &Diagnosis) -> bool {
+    d.settling
+        .iter()
+        .any(|s| s.start_excluded_deg > 0.0 || s.end_excluded_deg > 0.0)
+}
+
+/// What the settling rule left out, per trace: `CW first 2.6 deg, CCW first 2.9 and last
+/// 0.4 deg`.
+pub fn excluded(d: &Diagnosis) -> String {
+    d.settling
+        .iter()
+        .map(|s| {
+            let sense = s.sense.to_uppercase();
+            let mut ends = Vec::new();
+            if s.start_excluded_deg > 0.0 {
+                ends.push(format!("first {:.1}", s.start_excluded_deg));
+            }
+            if s.end_excluded_deg > 0.0 {
+                ends.push(format!("last {:.1}", s.end_excluded_deg));
+            }
+            let what = if ends.is_empty() {
+                "none".to_string()
+            } else {
+                format!("{} deg", ends.join(" and "))
+            };
+            let unsettled = if s.settled {
+                ""
+            } else {
+                " (does not settle within half the run: that end kept)"
+            };
+            format!("{sense} {what}{unsettled}")
+        })
+        .collect::<Vec<_>>()
+        .join(", ")
 }
 
 fn figures_rows(d: &Diagnosis) -> Vec<(String, String)> {
     let mut rows = Vec::new();
-    for dir in &d.iso.directions {
+    let cut = trimmed(d);
+    // The raw figure beside the settled one, where they differ.
+    let raw = |v: f64, r: f64, signed: bool| {
+        let main = if signed {
+            format!("{v:+.2}")
+        } else {
+            format!("{v:.2}")
+        };
+        if cut && (v - r).abs() >= 0.005 {
+            let r = if signed {
+                format!("{r:+.2}")
+            } else {
+                format!("{r:.2}")
+            };
+            format!("{main} µm (raw {r} µm)")
+        } else {
+            format!("{main} µm")
+        }
+    };
+    for (dir, whole) in d.iso.directions.iter().zip(&d.raw_iso.directions) {
         let s = dir.sense.to_uppercase();
-        let sweep = match dir.recorded_sweep_deg {
-            Some(all) => format!("{:.0} of {all:.0} deg", dir.sweep_deg),
-            None => format!("{:.0} deg", dir.sweep_deg),
+        let sweep = match (dir.recorded_sweep_deg, cut) {
+            (Some(all), _) => format!("{:.0} of {all:.0} deg", dir.sweep_deg),
+            (None, true) => format!(
+                "settled, {:.1} of {:.1} deg",
+                dir.sweep_deg, whole.sweep_deg
+            ),
+            (None, false) => format!("{:.0} deg", dir.sweep_deg),
         };
         rows.push((
             format!("Circular deviation G {s} ({sweep})"),
-            format!("{:.2} µm", dir.circular_deviation_um),
+            raw(
+                dir.circular_deviation_um,
+                whole.circular_deviation_um,
+                false,
+            ),
         ));
         rows.push((
             format!("Radial deviation F {s} max / min"),
             format!(
-                "{:+.2} / {:+.2} µm",
-                dir.radial_deviation_max_um, dir.radial_deviation_min_um
+                "{} / {}",
+                raw(
+                    dir.radial_deviation_max_um,
+                    whole.radial_deviation_max_um,
+                    true
+                ),
+                raw(
+                    dir.radial_deviation_min_um,
+                    whole.radial_deviation_min_um,
+                    true
+                )
             ),
         ));
         if let Some(z) = dir.minimum_zone_um {
             rows.push((
                 format!("Minimum-zone circular deviation {s}"),
-                format!("{z:.2} µm"),
+                raw(z, whole.minimum_zone_um.unwrap_or(z), false),
             ));
         }
     }
     if let Some(g) = d.iso.bidirectional_deviation_um {
+        let r = d.raw_iso.bidirectional_deviation_um.unwrap_or(g);
         rows.push((
             "Bidirectional circular deviation G(b)".into(),
-            format!("{g:.2} µm"),
+            raw(g, r, false),
         ));
     }
     if let Some(h) = d.iso.hysteresis_um {
-        rows.push(("Circular hysteresis H".into(), format!("{h:.2} µm")));
+        let r = d.raw_iso.hysteresis_um.unwrap_or(h);
+        rows.push(("Circular hysteresis H".into(), raw(h, r, false)));
     }
-    if let Some(settled) = &d.settled_iso {
-        // A start transient is present: the figures as they would read after an overshoot.
-        for dir in &settled.directions {
-            rows.push((
-                format!(
-                    "G {} without the end transients ({:.0} deg)",
-                    dir.sense.to_uppercase(),
-                    dir.sweep_deg
-                ),
-                format!("{:.2} µm", dir.circular_deviation_um),
-            ));
-        }
-        if let Some(h) = settled.hysteresis_um {
-            rows.push(("H without the end transients".into(), format!("{h:.2} µm")));
-        }
+    if cut {
+        rows.push((
+            "Left out as unsettled (settling rule below)".into(),
+            excluded(d),
+        ));
     }
     rows
 }
@@ -199,11 +268,14 @@ pub fn markdown(d: &Diagnosis) -> String {
     s
 }
 
-/// JSON (the [`Diagnosis`] with the decision rule, and [`BIAS_NOTE`] when it applies).
+/// JSON (the [`Diagnosis`] with the decision rule, and [`BIAS_NOTE`] when it applies; the
+/// figures past the settling as `iso`, the raw ones as `raw_iso`, the settling rule as
+/// `settling_rule`).
 pub fn json(d: &Diagnosis) -> serde_json::Value {
     let mut v = serde_json::to_value(d).unwrap_or(serde_json::Value::Null);
     if let Some(o) = v.as_object_mut() {
         o.insert("decision_rule".into(), rules(d).into());
+        o.insert("settling_rule".into(), SETTLING_RULE.into());
     }
     v
 }

@@ -372,6 +372,20 @@ impl Trace {
         }
     }
 
+    /// The trace of the samples `range` only (their times too).
+    pub fn samples(&self, range: std::ops::Range<usize>) -> Trace {
+        Trace {
+            label: self.label.clone(),
+            plane: self.plane,
+            sense: self.sense,
+            radius_mm: self.radius_mm,
+            feed_mm_min: self.feed_mm_min,
+            angle_deg: self.angle_deg[range.clone()].to_vec(),
+            deviation_um: self.deviation_um[range.clone()].to_vec(),
+            time_s: self.time_s.as_ref().map(|t| t[range].to_vec()),
+        }
+    }
+
     /// With times, the speed along a circle of the bar's length, mm/min: radius × angle swept
     /// over the time taken (the feed, for a bar in the plane of its circle).
     pub fn timed_speed_mm_min(&self) -> Option<f64> {

@@ -67,7 +67,23 @@ impl Default for AccelerometerParams {
     }
 }
 
+/// The anti-alias corner of [`AccelerometerParams::at_rate`], as a fraction of the sample rate
+/// (the default's 9 kHz at 20 kHz: a 4th-order Butterworth there leaves a line at the Nyquist
+/// frequency 3.5 dB down and one at the sample rate 28 dB down).
+pub const ANTI_ALIAS_FRACTION: f64 = 0.45;
+
 impl AccelerometerParams {
+    /// The default sensors sampled at `sample_rate_hz`, with the anti-alias corner at
+    /// [`ANTI_ALIAS_FRACTION`] of it: the signal chain a data acquisition system gives a sensor
+    /// logged at that rate.
+    pub fn at_rate(sample_rate_hz: f64) -> Self {
+        Self {
+            sample_rate_hz,
+            anti_alias_hz: ANTI_ALIAS_FRACTION * sample_rate_hz,
+            ..Self::default()
+        }
+    }
+
     pub(crate) fn validate(&self, modes: usize) -> Result<(), MillingError> {
         let fs = self.sample_rate_hz;
         check("accelerometer sample rate (Hz)", fs, fs > 0.0, "> 0")?;

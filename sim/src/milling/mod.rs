@@ -34,7 +34,7 @@ pub mod process;
 pub mod surface;
 pub mod truth;
 
-pub use accelerometer::{AccelerometerParams, DEFAULT_PARTICIPATION};
+pub use accelerometer::{ANTI_ALIAS_FRACTION, AccelerometerParams, DEFAULT_PARTICIPATION};
 pub use drive::{
     AccelWindow, Feed, MillingDrive, MillingRun, Supervisor, SupervisorCommand, simulate_milling,
     simulate_milling_with,

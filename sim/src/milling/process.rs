@@ -505,6 +505,17 @@ impl CuttingProcess {
         let rpm_mean = r.rpm.iter().sum::<f64>() / r.rpm.len().max(1) as f64;
         let mut truth = chatter_json(&intervals, frequency);
         let (entry, exit) = s.cut.engagement_angles(tool);
+        let modes = |m: &[Mode]| {
+            m.iter()
+                .map(|m| {
+                    json!({
+                        "frequency_hz": m.natural_frequency_hz,
+                        "damping_ratio": m.damping_ratio,
+                        "stiffness_n_per_m": m.stiffness,
+                    })
+                })
+                .collect::<Vec<_>>()
+        };
         let extra = json!({
             "spindle_rpm": rpm0,
             "spindle_rpm_mean": rpm_mean,
@@ -521,6 +532,7 @@ impl CuttingProcess {
             "exit_deg": exit.to_degrees(),
             "feed_per_tooth_mm": s.feed_per_tooth * 1e3,
             "highest_mode_hz": s.highest_mode_hz(),
+            "modes": { "x": modes(&s.dynamics.x), "y": modes(&s.dynamics.y) },
             "step_s": s.step_s,
             "disks": self.disks(),
             "output_rate_hz": fs,

@@ -8,7 +8,8 @@
 //! successive samples converge; regenerative chatter is at a frequency incommensurate with the
 //! tooth passing, so they keep moving. The deviation d_n = |u_n - u_{n-1}| (|u_n - u_{n-N}|,
 //! one revolution back, when the tool has run-out, whose forced response repeats once per
-//! revolution, not per tooth) is compared with thresholds on the feed per tooth: an interval
+//! revolution, not per tooth; with an even tooth count also the alternating component over the
+//! last revolution, where flip chatter, periodic over two teeth, shows: `alternation`) is compared with thresholds on the feed per tooth: an interval
 //! opens at the first of [`CONSECUTIVE`] tooth periods with d > [`ON_FRACTION`]·f_t and closes
 //! at the first of as many with d < [`OFF_FRACTION`]·f_t. It is chatter if d grows in it (see
 //! `growth_onset`): a transient after the start of the cut or a change of speed decays,
@@ -57,7 +58,9 @@ pub(crate) fn chatter_intervals(
     let d: Vec<f64> = (lag..s.u.len())
         .map(|n| {
             let (a, b) = (s.u[n], s.u[n - lag]);
-            (a[0] - b[0]).hypot(a[1] - b[1])
+            (a[0] - b[0])
+                .hypot(a[1] - b[1])
+                .max(alternation(&s.u, n, lag))
         })
         .collect();
     let time = |i: usize| s.times_s[i + lag];
@@ -71,6 +74,27 @@ pub(crate) fn chatter_intervals(
             Some((time(a + onset), b.map(time)))
         })
         .collect()
+}
+
+/// Period doubling seen once per revolution: with run-out the section is taken a revolution
+/// back (`lag` = N teeth), and for an even N the flip chatter of an interrupted cut (the tool
+/// alternating tooth by tooth, period 2 tooth periods) repeats every revolution and leaves
+/// u_n − u_{n−N} at zero. Its alternating component over the last revolution,
+/// a_n = (2/N)·|Σ_{j<N} (−1)^j u_{n−j}|, is 2·A for an alternation of amplitude A (the d of
+/// the once-per-tooth section) and zero for the forced response with run-out, whose tooth-to-
+/// tooth pattern cos(2πj/N + θ) has no (−1)^j component for N ≥ 3 (clipping of the chip adds
+/// a small, constant one). Zero for an odd N or without run-out.
+fn alternation(u: &[[f64; 2]], n: usize, lag: usize) -> f64 {
+    if lag < 4 || !lag.is_multiple_of(2) || n + 1 < lag {
+        return 0.0;
+    }
+    let mut sum = [0.0; 2];
+    for j in 0..lag {
+        let sign = if j % 2 == 0 { 1.0 } else { -1.0 };
+        sum[0] += sign * u[n - j][0];
+        sum[1] += sign * u[n - j][1];
+    }
+    2.0 / lag as f64 * sum[0].hypot(sum[1])
 }
 
 /// Whether `d` (an interval to the end of the cut) holds at `level` or more without decaying:
@@ -250,6 +274,33 @@ mod tests {
             iv[0].1.is_some_and(|e| (e - 0.091).abs() < 1.5e-3),
             "{iv:?}"
         );
+    }
+
+    /// With run-out (section one revolution of 4 teeth back) the forced tooth-to-tooth pattern
+    /// r·cos(2πn/4 + θ) is no chatter, and flip chatter growing on it (±A alternating tooth by
+    /// tooth, which repeats every revolution) is: found by its alternating component, from
+    /// where 2·A passes 2 % of the feed.
+    #[test]
+    fn period_doubling_with_run_out_is_chatter_and_the_run_out_pattern_is_not() {
+        let run = |flip: bool| {
+            let mut s = ToothSamples::default();
+            for n in 0..400 {
+                let forced = 1e-5 * (std::f64::consts::FRAC_PI_2 * n as f64 + 0.4).cos();
+                let a = if flip && n >= 100 {
+                    (1e-8 * 1.1f64.powi(n - 100)).min(2e-5)
+                } else {
+                    0.0
+                };
+                s.times_s.push(n as f64 * 1e-3);
+                s.u.push([3e-6 + forced + if n % 2 == 0 { a } else { -a }, 2e-6]);
+            }
+            chatter_intervals(&s, 4, 1e-4)
+        };
+        assert!(run(false).is_empty(), "{:?}", run(false));
+        let iv = run(true);
+        assert_eq!(iv.len(), 1, "{iv:?}");
+        // 2·1e-8·1.1^k > 2e-6 from k = 49 (tooth 149); the window of 4 teeth lags by up to 3.
+        assert!((iv[0].0 - 0.149).abs() < 4e-3, "{iv:?}");
     }
 
     /// Chatter saturated from the first teeth (the tool leaving the cut at once) is chatter
