@@ -114,11 +114,31 @@ impl Template {
     /// inline table (`law = "gms"` in `machine.axes.x.drive.guide_friction`). The result is
     /// a scenario text for [`crate::parse`], which checks it.
     pub fn with_fragment(&self, table: &str, fragment: &str) -> Result<String, ScenarioError> {
+        let mut doc = self.doc.clone();
+        self.merge_fragment(&mut doc, table, fragment)?;
+        Ok(doc.to_string())
+    }
+
+    /// The scenario text with each `(table, fragment)` merged in turn, as
+    /// [`Template::with_fragment`] merges one.
+    pub fn with_fragments(&self, fragments: &[(String, String)]) -> Result<String, ScenarioError> {
+        let mut doc = self.doc.clone();
+        for (table, fragment) in fragments {
+            self.merge_fragment(&mut doc, table, fragment)?;
+        }
+        Ok(doc.to_string())
+    }
+
+    fn merge_fragment(
+        &self,
+        doc: &mut DocumentMut,
+        table: &str,
+        fragment: &str,
+    ) -> Result<(), ScenarioError> {
         let key = if table.is_empty() { "<root>" } else { table };
         let part: DocumentMut = fragment.parse().map_err(|e: toml_edit::TomlError| {
             self.error(key, format!("the fragment is not TOML: {}", e.message()))
         })?;
-        let mut doc = self.doc.clone();
         let mut at: &mut dyn TableLike = doc.as_table_mut();
         if !table.is_empty() {
             for t in table.split('.') {
@@ -135,7 +155,7 @@ impl Template {
         for (k, item) in part.as_table().iter() {
             merge(at, table, k, item).map_err(|m| self.error(key, m))?;
         }
-        Ok(doc.to_string())
+        Ok(())
     }
 
     /// The scenario text with its top-level table `name` replaced by the table `fragment` (the

@@ -272,13 +272,5 @@ pub fn switch_on(
     size: f64,
     at_mm: Option<f64>,
 ) -> Result<String, ScenarioError> {
-    let mut text: Option<String> = None;
-    for (table, fragment) in fragments(t, key, axis, size, at_mm)? {
-        let now = match &text {
-            None => t.with_fragment(&table, &fragment)?,
-            Some(s) => Template::parse(s, "<withheld>")?.with_fragment(&table, &fragment)?,
-        };
-        text = Some(now);
-    }
-    Ok(text.unwrap_or_default())
+    t.with_fragments(&fragments(t, key, axis, size, at_mm)?)
 }

@@ -520,16 +520,12 @@ pub fn run(
         .collect()
 }
 
-/// Scenario `text` with the withheld physics' `fragments` merged in, in turn.
+/// Scenario `text` with the withheld physics' `fragments` merged in.
 fn with_physics(
     text: &str,
     fragments: &[(String, String)],
 ) -> Result<String, vmt_scenario::ScenarioError> {
-    let mut out = text.to_string();
-    for (table, fragment) in fragments {
-        out = Template::parse(&out, "<withheld physics>")?.with_fragment(table, fragment)?;
-    }
-    Ok(out)
+    Template::parse(text, "<withheld physics>")?.with_fragments(fragments)
 }
 
 /// The bench's figures, with cases below the visibility floor `floor` set apart.

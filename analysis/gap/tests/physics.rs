@@ -28,13 +28,10 @@ fn model(plane: &str) -> (String, ScenarioModel) {
 /// The stretch of angles (deg, unwrapped) around the largest change of the reading with the
 /// case's physics switched on, where the change stays above half its largest value.
 fn changed_span(text: &str, base: &ScenarioModel, case: &Physics) -> (f64, f64) {
-    let mut with = text.to_string();
-    for (table, fragment) in &case.fragments {
-        with = Template::parse(&with, "case")
-            .unwrap()
-            .with_fragment(table, fragment)
-            .unwrap();
-    }
+    let with = Template::parse(text, "case")
+        .unwrap()
+        .with_fragments(&case.fragments)
+        .unwrap();
     let changed = ScenarioModel::new(&with, "case", None)
         .unwrap()
         .traces(&[])
