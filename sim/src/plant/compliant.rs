@@ -380,64 +380,98 @@ impl CompliantPlant {
         self.world.integration_parameters.dt = big_h;
         self.world.step();
         self.macro_steps += 1;
+        // No sync after the step: nothing reads rapier's state between macro steps, and the
+        // next refresh writes the fine integration's state in before it steps again.
         let mut inv = Mat::zeros();
         let mut after = Dofs::zeros();
-        for (j, lj) in self.links.iter().enumerate() {
-            let Some((mb, id)) = self.world.multibody_joints.get(lj.joint) else {
+        for group in self.multibodies() {
+            let Some((mb, _)) = self.world.multibody_joints.get(self.links[group[0]].joint) else {
                 continue;
             };
-            let Some(link) = mb.link(id) else { continue };
-            let aj = link.assembly_id();
-            let vel = mb.joint_velocity(link);
-            for k in 0..6 {
-                after[6 * j + k] = vel[k];
+            // The columns of M⁻¹ of this multibody's coordinates, solved at once.
+            let n = mb.ndofs();
+            let mut cols = DMatrix::<f64>::identity(n, n);
+            if !mb.inv_augmented_mass().solve_mut(&mut cols) {
+                continue;
             }
-            for k in 0..6 {
-                let mut e = rapier3d_f64::na::DVector::zeros(mb.ndofs());
-                e[aj + k] = 1.0;
-                if !mb.inv_augmented_mass().solve_mut(&mut e) {
-                    continue;
+            // Each carriage of it with its coordinates' place in the multibody.
+            let members: Vec<(usize, usize)> = group
+                .iter()
+                .filter_map(|&i| {
+                    let (_, id) = self.world.multibody_joints.get(self.links[i].joint)?;
+                    Some((i, mb.link(id)?.assembly_id()))
+                })
+                .collect();
+            for &(i, ai) in &members {
+                let vel = mb.generalized_velocity();
+                for k in 0..6 {
+                    after[6 * i + k] = vel[ai + k];
                 }
-                for (i, li) in self.links.iter().enumerate() {
-                    let Some((mb2, id2)) = self.world.multibody_joints.get(li.joint) else {
-                        continue;
-                    };
-                    if !std::ptr::eq(mb, mb2) {
-                        continue;
-                    }
-                    let Some(l2) = mb2.link(id2) else { continue };
+                for &(j, aj) in &members {
                     for r in 0..6 {
-                        inv[(6 * i + r, 6 * j + k)] = e[l2.assembly_id() + r];
+                        for k in 0..6 {
+                            inv[(6 * i + r, 6 * j + k)] = cols[(ai + r, aj + k)];
+                        }
                     }
                 }
             }
         }
         self.inv_mass = inv;
         self.bias = (after - self.v) / big_h;
-        self.sync();
+    }
+
+    /// The carriages (indices of `links`) of each of rapier's multibodies: the carriages that
+    /// ride on one another share one.
+    fn multibodies(&self) -> Vec<Vec<usize>> {
+        let mut out: Vec<Vec<usize>> = Vec::new();
+        for (i, l) in self.links.iter().enumerate() {
+            let Some((mb, _)) = self.world.multibody_joints.get(l.joint) else {
+                continue;
+            };
+            let same = |g: &Vec<usize>| {
+                self.world
+                    .multibody_joints
+                    .get(self.links[g[0]].joint)
+                    .is_some_and(|(m, _)| std::ptr::eq(m, mb))
+            };
+            match out.iter_mut().find(|g| same(g)) {
+                Some(g) => g.push(i),
+                None => out.push(vec![i]),
+            }
+        }
+        out
     }
 
     /// Writes the fine integration's coordinates and velocities into the multibody and places
-    /// its bodies.
+    /// its bodies (once per multibody).
     fn sync(&mut self) {
-        for (i, l) in self.links.iter().enumerate() {
-            let Some((mb, id)) = self.world.multibody_joints.get_mut(l.joint) else {
-                continue;
-            };
-            let Some(link) = mb.link(id) else { continue };
-            let a = link.assembly_id();
-            let coords = link.joint().coords();
-            let mut disp = vec![0.0; mb.ndofs()];
-            for k in 0..6 {
-                disp[a + k] = self.x[6 * i + k] - coords[k];
+        for group in self.multibodies() {
+            for &i in &group {
+                let l = &self.links[i];
+                let Some((mb, id)) = self.world.multibody_joints.get_mut(l.joint) else {
+                    continue;
+                };
+                let Some(link) = mb.link(id) else { continue };
+                let a = link.assembly_id();
+                let coords = link.joint().coords();
+                let mut disp = vec![0.0; mb.ndofs()];
+                for k in 0..6 {
+                    disp[a + k] = self.x[6 * i + k] - coords[k];
+                }
+                mb.apply_displacements(&disp);
+                let mut vel = mb.generalized_velocity_mut();
+                for k in 0..6 {
+                    vel[a + k] = self.v[6 * i + k];
+                }
             }
-            mb.apply_displacements(&disp);
-            let mut vel = mb.generalized_velocity_mut();
-            for k in 0..6 {
-                vel[a + k] = self.v[6 * i + k];
+            if let Some((mb, _)) = self
+                .world
+                .multibody_joints
+                .get_mut(self.links[group[0]].joint)
+            {
+                mb.forward_kinematics(&self.world.bodies, false);
+                mb.update_rigid_bodies(&mut self.world.bodies, false);
             }
-            mb.forward_kinematics(&self.world.bodies, false);
-            mb.update_rigid_bodies(&mut self.world.bodies, false);
         }
     }
 }
