@@ -155,7 +155,7 @@ pub struct BallbarJobToml {
     plane: String,
     /// Default: the tool point with every carriage at the middle of its stroke.
     pub center_mm: Option<Numbers<3>>,
-    radius_mm: f64,
+    radius_mm: Radii,
     feed_mm_min: f64,
     #[serde(default = "full")]
     arc_deg: f64,
@@ -167,6 +167,53 @@ pub struct BallbarJobToml {
     feed_in_mm: f64,
     #[serde(default = "both")]
     directions: Vec<String>,
+}
+
+/// The radius of a ball-bar job, or several: the tests then run in turn, one per radius about
+/// the same centre, each in every direction (ISO 230-4 tests at two radii tell an error that
+/// depends on the axis position from one that depends on the path's curvature).
+#[derive(Debug)]
+enum Radii {
+    One(f64),
+    Many(Vec<f64>),
+}
+
+impl<'de> Deserialize<'de> for Radii {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct Visit;
+        impl<'de> serde::de::Visitor<'de> for Visit {
+            type Value = Radii;
+            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                f.write_str("f64, a radius in mm, or a list of radii")
+            }
+            fn visit_f64<E: serde::de::Error>(self, v: f64) -> Result<Radii, E> {
+                Ok(Radii::One(v))
+            }
+            fn visit_i64<E: serde::de::Error>(self, v: i64) -> Result<Radii, E> {
+                Ok(Radii::One(v as f64))
+            }
+            fn visit_u64<E: serde::de::Error>(self, v: u64) -> Result<Radii, E> {
+                Ok(Radii::One(v as f64))
+            }
+            fn visit_seq<A: serde::de::SeqAccess<'de>>(self, mut a: A) -> Result<Radii, A::Error> {
+                let mut v = Vec::new();
+                while let Some(r) = a.next_element::<f64>()? {
+                    v.push(r);
+                }
+                Ok(Radii::Many(v))
+            }
+        }
+        d.deserialize_any(Visit)
+    }
+}
+
+impl Radii {
+    fn list(&self) -> &[f64] {
+        match self {
+            Radii::One(r) => std::slice::from_ref(r),
+            Radii::Many(v) => v,
+        }
+    }
 }
 
 fn overshoot() -> f64 {
@@ -909,20 +956,58 @@ pub fn job(
 
 fn ballbar_job(b: &BallbarJobToml, instruments: &InstrumentsToml, machine: &Machine) -> R<Job> {
     let p = KeyPath::of(&["job"]);
-    let test = circular_test(b, machine, &p)?;
-    let program = parse(&test.gcode(), test.start_point())
+    let radii = b.radius_mm.list();
+    if radii.is_empty() || radii.len() > MAX_RADII {
+        let msg = format!(
+            "{} radii are not accepted; a radius (mm) or a list of 1 to {MAX_RADII} radii is accepted",
+            radii.len()
+        );
+        return Err(Invalid::new(p.key("radius_mm"), msg));
+    }
+    let spec = ballbar_spec(instruments.ballbar.as_ref())?;
+    let (mut text, mut ballbar, mut blocks, mut start) = (String::new(), Vec::new(), 0, None);
+    for (k, &r) in radii.iter().enumerate() {
+        let key = match b.radius_mm {
+            Radii::One(_) => p.key("radius_mm"),
+            Radii::Many(_) => p.key("radius_mm").index(k),
+        };
+        let test = circular_test(b, r, machine, &p, &key)?;
+        // Each test's program without its end, the end once after the last.
+        let gcode: String = test
+            .gcode()
+            .lines()
+            .filter(|l| l.trim() != "M30")
+            .map(|l| format!("{l}\n"))
+            .collect();
+        let own = parse(&gcode, test.start_point())
+            .map_err(|e| Invalid::new(p.clone(), e.to_string()))?;
+        let data = test.data_blocks(&own).unwrap_or_default();
+        ballbar.push(BallbarSetup {
+            name: None,
+            spec,
+            center: test.center,
+            radius_m: test.radius_m,
+            plane: test.plane,
+            feed_m_s: test.feed_m_s,
+            data: data
+                .into_iter()
+                .map(|(d, r)| (d, r.start + blocks..r.end + blocks))
+                .collect(),
+            circle: None,
+        });
+        blocks += own.blocks.len();
+        start.get_or_insert(test.start_point());
+        text.push_str(&gcode);
+    }
+    text.push_str("M30\n");
+    let program = parse(&text, start.unwrap_or_default())
         .map_err(|e| Invalid::new(p.clone(), e.to_string()))?;
-    let data = test.data_blocks(&program).unwrap_or_default();
-    let ballbar = vec![BallbarSetup {
-        name: None,
-        spec: ballbar_spec(instruments.ballbar.as_ref())?,
-        center: test.center,
-        radius_m: test.radius_m,
-        plane: test.plane,
-        feed_m_s: test.feed_m_s,
-        data,
-        circle: None,
-    }];
+    if program.blocks.len() != blocks {
+        return Err(Invalid::new(
+            p.key("radius_mm"),
+            "the joined program of the circles does not parse as its parts",
+        ));
+    }
     Ok(Job {
         program,
         ballbar,
@@ -931,14 +1016,20 @@ fn ballbar_job(b: &BallbarJobToml, instruments: &InstrumentsToml, machine: &Mach
 }
 
 /// The ball-bar job's test, validated, each refusal at its key.
-fn circular_test(b: &BallbarJobToml, machine: &Machine, p: &KeyPath) -> R<CircularTest> {
+fn circular_test(
+    b: &BallbarJobToml,
+    radius_mm: f64,
+    machine: &Machine,
+    p: &KeyPath,
+    radius_key: &KeyPath,
+) -> R<CircularTest> {
     let plane = plane_of(&b.plane, p.key("plane"))?;
     let center = match &b.center_mm {
         Some(c) => Vector3::from(c.0) * 1e-3,
         None => machine.mid_stroke_tool_point(),
     };
     let mut test =
-        CircularTest::iso230_4(plane, center, b.radius_mm * 1e-3, b.feed_mm_min / 60_000.0);
+        CircularTest::iso230_4(plane, center, radius_mm * 1e-3, b.feed_mm_min / 60_000.0);
     test.arc_deg = b.arc_deg;
     test.start_deg = b
         .start_deg
@@ -950,7 +1041,7 @@ fn circular_test(b: &BallbarJobToml, machine: &Machine, p: &KeyPath) -> R<Circul
         use vmt_sim::nc::ballbar::TestParameter as T;
         let key = match e.parameter {
             T::Center => p.key("center_mm"),
-            T::Radius => p.key("radius_mm"),
+            T::Radius => radius_key.clone(),
             T::Feed => p.key("feed_mm_min"),
             T::Arc => p.key("arc_deg"),
             T::Start => p.key("start_deg"),
@@ -1104,6 +1195,9 @@ pub fn instrument_notes(j: &JobToml, instruments: &InstrumentsToml, job: &Job) -
 
 /// Most circles of one ball-bar job.
 const MAX_DIRECTIONS: usize = 8;
+
+/// Most radii of one ball-bar job.
+const MAX_RADII: usize = 8;
 
 /// Most targets and runs of an ISO 230-2 job, bounded before its program (two dwells per target
 /// and run) is generated. The standard asks for 5 runs over at least 5 targets per metre: a 5 m

@@ -305,3 +305,63 @@ fn a_written_program_gives_the_ball_bar_jobs_traces() {
         );
     }
 }
+
+/// A list of radii runs a test at each about the same centre, in turn: each test's data arcs
+/// are arcs of its own radius about that centre (checked on the program's arc blocks, not on
+/// what the job builder says of them), in the directions given, and later tests' arcs come
+/// after earlier ones' in the program.
+#[test]
+fn a_list_of_radii_runs_a_test_at_each_about_one_centre() {
+    let keys = "plane = \"XY\"\ncenter_mm = [250.0, 200.0, 200.0]\nradius_mm = [150.0, 75.0]\n\
+                feed_mm_min = 1000.0\ndirections = [\"cw\", \"ccw\"]\n";
+    let s = load(&with_job(keys), None).unwrap();
+    let job = job_of(&s);
+    assert_eq!(job.ballbar.len(), 2);
+    let centre = Vector3::new(0.25, 0.2, 0.2);
+    let mut last_end = 0;
+    for (bar, radius) in job.ballbar.iter().zip([0.15, 0.075]) {
+        assert!((bar.radius_m - radius).abs() < 1e-15);
+        let dirs: Vec<ArcDirection> = bar.data.iter().map(|(d, _)| *d).collect();
+        assert_eq!(dirs, [ArcDirection::Cw, ArcDirection::Ccw]);
+        for (dir, range) in &bar.data {
+            assert!(range.start >= last_end, "the tests run in turn");
+            last_end = range.end;
+            for b in &job.program.blocks[range.clone()] {
+                let Motion::Arc {
+                    to,
+                    center,
+                    direction,
+                    ..
+                } = b.motion
+                else {
+                    panic!("a data block that is no arc: {:?}", b.motion);
+                };
+                assert_eq!(direction, *dir);
+                assert!((center.xy() - centre.xy()).norm() < 1e-9, "{center:?}");
+                let r = (to - center).xy().norm();
+                assert!((r - radius).abs() < 1e-9, "{r} against {radius}");
+            }
+        }
+    }
+}
+
+/// A radius list that is empty, too long or holds a circle that leaves the strokes is refused
+/// at its key (the element's for a bad radius).
+#[test]
+fn a_bad_radius_list_is_refused_at_its_key() {
+    let job = |radii: &str| {
+        with_job(&format!(
+            "plane = \"XY\"\nradius_mm = {radii}\nfeed_mm_min = 1000.0\n"
+        ))
+    };
+    let e = load(&job("[]"), None).expect_err("empty");
+    assert_eq!(e.key.as_deref(), Some("job.radius_mm"), "{e}");
+    assert!(e.message.contains("a list of 1 to 8 radii"), "{e}");
+    let e = load(&job(&format!("{:?}", vec![50.0; 9])), None).expect_err("nine");
+    assert!(e.message.contains("9 radii are not accepted"), "{e}");
+    let e = load(&job("[100.0, 0.0]"), None).expect_err("zero");
+    assert_eq!(e.key.as_deref(), Some("job.radius_mm[1]"), "{e}");
+    let e = load(&job("[100.0, 250.0]"), None).expect_err("too big");
+    assert_eq!(e.key.as_deref(), Some("job.radius_mm"), "{e}");
+    assert!(e.message.contains("beyond its stroke"), "{e}");
+}
