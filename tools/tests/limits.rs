@@ -143,6 +143,20 @@ fn gap_bench_settings_are_bounded() {
         &["gap-bench", "--radius-mm", "0", "--quiet"],
         &["--radius-mm 0: from 50 to 600 mm"],
     );
+    // Each of several radii is checked, and their count.
+    refused(
+        &["gap-bench", "--radius-mm", "100,40", "--quiet"],
+        &["--radius-mm 40: from 50 to 600 mm"],
+    );
+    refused(
+        &[
+            "gap-bench",
+            "--radius-mm",
+            "60,70,80,90,100,110,120,130,140",
+            "--quiet",
+        ],
+        &["--radius-mm: 9 radii given; 1 to 8 are accepted"],
+    );
     refused(
         &["gap-bench", "--feed-mm-min", "1e9", "--quiet"],
         &["--feed-mm-min 1000000000: from 0.1 to 100000 mm/min"],

@@ -56,6 +56,8 @@ pub struct Circle {
 pub struct Peak {
     /// The test, e.g. `XY 150 mm 1000 mm/min`.
     pub test: String,
+    /// The test's radius, mm.
+    pub radius_mm: f64,
     /// Angle of the peak, deg in [0, 360).
     pub angle_deg: f64,
     /// Width where its energy stays above half its height, deg.
@@ -260,6 +262,7 @@ pub fn peaks(pairs: &[TracePair], circles: &[Option<Circle>], min_rms_um: f64) -
             let angle = k as f64 + 0.5;
             out.push(Peak {
                 test: name.clone(),
+                radius_mm: first.radius_mm,
                 angle_deg: angle,
                 width_deg: (hi - lo + 1) as f64,
                 share: if total > 0.0 { energy / total } else { 0.0 },

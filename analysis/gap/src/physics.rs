@@ -16,7 +16,7 @@
 //!   blocks) is outside the library: unexplained, wherever it shows.
 
 use crate::align::GapError;
-use crate::bench::{Answer, Physics};
+use crate::bench::{Answer, Physics, Where};
 use crate::model::ScenarioModel;
 use crate::peaks::Circle;
 use vmt_ballbar::Plane;
@@ -53,6 +53,13 @@ pub fn cases(model: &ScenarioModel, plane: Plane) -> Result<Vec<Physics>, GapErr
         .circles()
         .first()
         .ok_or_else(|| GapError::Model("the model's job has no circular test".into()))?;
+    // Each test's circle once (its runs share it).
+    let mut circles: Vec<Circle> = Vec::new();
+    for c in model.circles() {
+        if !circles.contains(c) {
+            circles.push(*c);
+        }
+    }
     let (a, b) = plane.axes();
     let plane_axes = [axis_of(a)?, axis_of(b)?];
     let scenario_error = |e: vmt_scenario::ScenarioError| GapError::Model(e.to_string());
@@ -62,8 +69,12 @@ pub fn cases(model: &ScenarioModel, plane: Plane) -> Result<Vec<Physics>, GapErr
             let letter = axis.to_string().to_lowercase();
             for (k, size) in sizes(e).into_iter().enumerate() {
                 let (at_mm, answer) = if e.placed {
-                    let (at, angles) = defect_place(&circle, side, axis, k);
-                    (Some(at), Answer::Unexplained { angles_deg: angles })
+                    let at = defect_place(&circle, side, axis, k);
+                    let places = circles
+                        .iter()
+                        .flat_map(|c| passes(c, side, axis, at))
+                        .collect();
+                    (Some(at), Answer::Unexplained { places })
                 } else {
                     (None, answer_of(e, axis))
                 };
@@ -90,9 +101,7 @@ pub fn cases(model: &ScenarioModel, plane: Plane) -> Result<Vec<Physics>, GapErr
         name: "compliant structure".into(),
         effect: "compliant_structure".into(),
         fragments: vec![("simulation".into(), "fidelity = \"compliant\"\n".into())],
-        answer: Answer::Unexplained {
-            angles_deg: Vec::new(),
-        },
+        answer: Answer::Unexplained { places: Vec::new() },
     });
     Ok(out)
 }
@@ -110,30 +119,34 @@ fn axis_of(c: char) -> Result<Axis, GapError> {
 fn answer_of(e: &WithheldEffect, axis: Axis) -> Answer {
     match e.like_for(axis) {
         Some(effect) => Answer::Library { effect },
-        None => Answer::Unexplained {
-            angles_deg: Vec::new(),
-        },
+        None => Answer::Unexplained { places: Vec::new() },
     }
 }
 
 /// Where a defect of size number `k` sits on `axis` (the plane's first axis for `side` 0, its
-/// second for 1), mm, and the circle's angles where a block passes it, deg: one block passes it
-/// at [`DEFECT_ANGLES_DEG`]`[k]`, the other outside the circle.
-fn defect_place(circle: &Circle, side: usize, axis: Axis, k: usize) -> (f64, Vec<f64>) {
+/// second for 1), mm: one block of the carriage passes it at [`DEFECT_ANGLES_DEG`]`[k]` of the
+/// job's first circle, the other outside that circle.
+fn defect_place(circle: &Circle, side: usize, axis: Axis, k: usize) -> f64 {
     let theta = DEFECT_ANGLES_DEG[k].to_radians();
-    let r = circle.radius_mm;
     let c = circle.centre_mm[axis.index()];
-    let along = |t: f64| if side == 0 { t.cos() } else { t.sin() };
-    let passed = c + r * along(theta);
+    let along = if side == 0 { theta.cos() } else { theta.sin() };
+    let passed = c + circle.radius_mm * along;
     let half = 0.5 * block_spacing_mm(axis);
     // The block centre over the defect, on the side of the passing point away from the
     // circle's centre, so that the other block's passing point lies outside the circle.
-    let at = if passed >= c {
+    if passed >= c {
         passed + half
     } else {
         passed - half
-    };
-    let mut angles = Vec::new();
+    }
+}
+
+/// The angles where `circle` takes a block of the carriage over a defect at `at` mm on `axis`
+/// (the blocks' centre there, a block at `at ± s/2`).
+fn passes(circle: &Circle, side: usize, axis: Axis, at: f64) -> Vec<Where> {
+    let (r, c) = (circle.radius_mm, circle.centre_mm[axis.index()]);
+    let half = 0.5 * block_spacing_mm(axis);
+    let mut out = Vec::new();
     for p in [at - half, at + half] {
         let u = (p - c) / r;
         if u.abs() > 1.0 {
@@ -146,8 +159,11 @@ fn defect_place(circle: &Circle, side: usize, axis: Axis, k: usize) -> (f64, Vec
             [t, std::f64::consts::PI - t]
         };
         for x in both {
-            angles.push(x.to_degrees().rem_euclid(360.0));
+            out.push(Where {
+                radius_mm: r,
+                angle_deg: x.to_degrees().rem_euclid(360.0),
+            });
         }
     }
-    (at, angles)
+    out
 }

@@ -82,20 +82,20 @@ fn a_rail_bump_changes_the_bar_where_the_case_says_the_circle_passes_it() {
             .collect();
         assert_eq!(bumps.len(), 2, "one per axis of the plane");
         for case in bumps {
-            let Answer::Unexplained { angles_deg } = &case.answer else {
+            let Answer::Unexplained { places } = &case.answer else {
                 panic!("{}: a rail defect is outside the library", case.name);
             };
             let (lo, hi) = changed_span(&text, &m, case);
             // The truth within the stretch (±10°), wherever the circle's angles start.
-            let inside = angles_deg.iter().any(|t| {
+            let inside = places.iter().any(|t| {
                 (-2..=2).any(|k| {
-                    let t = t + 360.0 * f64::from(k);
+                    let t = t.angle_deg + 360.0 * f64::from(k);
                     t >= lo - 10.0 && t <= hi + 10.0
                 })
             });
             assert!(
                 inside,
-                "{plane} {}: the reading changes over {lo:.1}..{hi:.1} deg, the case says {angles_deg:?}",
+                "{plane} {}: the reading changes over {lo:.1}..{hi:.1} deg, the case says {places:?}",
                 case.name
             );
         }
