@@ -34,6 +34,7 @@
 //! | `/machine/y_axis/x_axis/workpiece/tool_path` | static `LineStrips3D`: (`tool_x`, `tool_y`, `tool_z`), m, in workpiece coordinates |
 //! | `/machine/z_axis` | spindle head Z: translation (0, 0, +position_z) |
 //! | `/machine/z_axis/tool` | static box: the tool; origin = tool point |
+//! | `/machine/.../<a>_axis/deflection_x10000` | a run with a `structure` stream (the compliant plant): a wireframe copy of the carriage's box, turned about its centre by 10 000 × the carriage's tilt (`tilt_a_*`, rad, as an axis and angle) and moved by 10 000 × its offset (`offset_a_*`, m) per structure sample: 1 µm shows as 10 mm, 10 µrad as 5.7° |
 //!
 //! In general: `/machine/<ground-side axis>_axis/.../<workpiece-side axis>_axis/workpiece` and
 //! `/machine/<ground-side axis>_axis/.../tool`, e.g. `WGXYZT` (gantry) gives
@@ -96,6 +97,10 @@ use vmt_sim::run::{BallbarTrace, Channel, LaserReading, LaserRun, MachineSummary
 
 /// Name of the timeline of simulation time.
 pub const TIMELINE: &str = "sim_time";
+
+/// The magnification of the carriages' tilts and offsets in the 3D scene (the compliant plant's
+/// µrad and µm would not show at 1:1 on carriages of hundreds of mm).
+pub const DEFLECTION_MAGNIFICATION: f64 = 1e4;
 
 /// Application id of the recordings.
 pub const APPLICATION_ID: &str = "vmt";
@@ -220,6 +225,9 @@ impl RunFile for RrdFile {
         let log = file.logger();
         log.info(opening)?;
         log.machine(&file.layout)?;
+        if structure(&opening.streams).is_some() {
+            log.deflection_boxes(&file.layout)?;
+        }
         if let Some(servo) = servo(&opening.streams) {
             log.servo_styles(servo)?;
         }
@@ -256,6 +264,14 @@ impl RunFile for RrdFile {
                 log.carriage_motion(entity, servo, first, *axis, *sign)?;
             }
             log.servo_series(servo, first)?;
+        }
+        if let Some(st) = structure(streams) {
+            let first = self.rows_sent(st);
+            for (entity, axis, _) in &self.layout.carriages {
+                if let Some(part) = self.layout.parts.iter().find(|p| &p.entity == entity) {
+                    log.carriage_deflection(entity, part.centre, st, first, *axis)?;
+                }
+            }
         }
         for s in streams {
             let first = self.rows_sent(s);
@@ -335,6 +351,16 @@ fn servo(streams: &[Stream]) -> Option<&Stream> {
 }
 
 /// The finite points of the servo stream's `tool_x`, `tool_y`, `tool_z` appended to `path`.
+/// The compliant plant's `structure` stream, if the run has one.
+fn structure(streams: &[Stream]) -> Option<&Stream> {
+    streams.iter().find(|s| s.name == "structure")
+}
+
+/// The entity of a carriage's magnified deflection.
+fn deflection_entity(carriage: &str) -> String {
+    format!("{carriage}/deflection_x{DEFLECTION_MAGNIFICATION}")
+}
+
 fn extend_tool_path(path: &mut Vec<[f32; 3]>, servo: &Stream) {
     let (Some(x), Some(y), Some(z)) = (
         servo.channel("tool_x"),
@@ -581,6 +607,73 @@ impl Logger<'_> {
             self.log_static(part.entity.clone(), &boxes)?;
         }
         Ok(())
+    }
+
+    /// A wireframe copy of each carriage's box, centred on its entity's origin, which
+    /// [`Logger::carriage_deflection`] moves.
+    fn deflection_boxes(&self, layout: &Layout) -> Result<(), FileError> {
+        for (entity, axis, _) in &layout.carriages {
+            let Some(part) = layout.parts.iter().find(|p| &p.entity == entity) else {
+                continue;
+            };
+            let boxes = Boxes3D::from_centers_and_sizes([[0.0; 3]], [part.size])
+                .with_colors([scale(part.colour, 0.6)])
+                .with_fill_mode(FillMode::MajorWireframe)
+                .with_labels([format!(
+                    "{} carriage: tilt and offset x{DEFLECTION_MAGNIFICATION}",
+                    axis.letter()
+                )]);
+            self.log_static(deflection_entity(entity), &boxes)?;
+        }
+        Ok(())
+    }
+
+    /// A carriage's tilt and offset over time, magnified ([`DEFLECTION_MAGNIFICATION`]): the
+    /// copy of its box turned about its centre (`centre`, in the carriage entity's frame) and
+    /// moved from it.
+    fn carriage_deflection(
+        &self,
+        entity: &str,
+        centre: [f32; 3],
+        structure: &Stream,
+        first_row: usize,
+        axis: Axis,
+    ) -> Result<(), FileError> {
+        let a = axis.letter().to_ascii_lowercase();
+        let channels = |kind: &str| -> Option<[&Channel; 3]> {
+            let [x, y, z] = ["x", "y", "z"].map(|c| structure.channel(&format!("{kind}_{a}_{c}")));
+            Some([x?, y?, z?])
+        };
+        let (Some(tilt), Some(offset)) = (channels("tilt"), channels("offset")) else {
+            return Ok(());
+        };
+        let k = DEFLECTION_MAGNIFICATION;
+        self.send_blocks(
+            &deflection_entity(entity),
+            (&structure.times_s, first_row),
+            &structure.name,
+            |rows| {
+                let translations = rows.clone().map(|i| {
+                    std::array::from_fn::<f32, 3, _>(|c| {
+                        centre[c] + (k * offset[c].values[i]) as f32
+                    })
+                });
+                let rotations = rows.map(|i| {
+                    let t = [0, 1, 2].map(|c| k * tilt[c].values[i]);
+                    let angle = (t[0] * t[0] + t[1] * t[1] + t[2] * t[2]).sqrt();
+                    let axis = if angle > 0.0 {
+                        t.map(|v| (v / angle) as f32)
+                    } else {
+                        [0.0, 0.0, 1.0]
+                    };
+                    rerun::RotationAxisAngle::new(axis, rerun::Angle::from_radians(angle as f32))
+                });
+                Transform3D::update_fields()
+                    .with_many_translation(translations)
+                    .with_many_rotation_axis_angle(rotations)
+                    .columns_of_unit_batches()
+            },
+        )
     }
 
     /// The translation of a carriage over time: `sign · position_a` along its axis.

@@ -655,3 +655,70 @@ fn laser_readings_are_written_to_mcap_and_rrd() {
         assert_eq!(e["rows"], 4, "{d}");
     }
 }
+
+/// A compliant run's `structure` stream: the X table tilting about Y by a growing angle (0 to
+/// 3 µrad) and sinking (0 to 2 µm), the other carriages still.
+fn structure_stream(times_s: &[f64]) -> Stream {
+    let n = times_s.len();
+    let ramp = |to: f64| (0..n).map(|i| to * i as f64 / (n - 1) as f64).collect();
+    let mut channels = Vec::new();
+    for a in ["x", "y", "z"] {
+        for (kind, unit) in [("tilt", "rad"), ("offset", "m")] {
+            for c in ["x", "y", "z"] {
+                let values = match (a, kind, c) {
+                    ("x", "tilt", "y") => ramp(3e-6),
+                    ("x", "offset", "z") => ramp(-2e-6),
+                    _ => vec![0.0; n],
+                };
+                channels.push(Channel {
+                    name: format!("{kind}_{a}_{c}"),
+                    unit: unit.into(),
+                    values,
+                });
+            }
+        }
+    }
+    Stream {
+        name: "structure".into(),
+        description: "the carriages on their guide blocks".into(),
+        times_s: times_s.to_vec(),
+        channels,
+    }
+}
+
+/// Rerun's own reader finds the magnified deflection of each carriage of a compliant run: the
+/// copy of its box, and a transform per structure sample that turns it by 10 000 × the tilt
+/// (the last X sample: 0.03 rad about +Y) and moves it by 10 000 × the offset (20 mm down over
+/// the run).
+#[test]
+fn rrd_shows_the_carriages_tilt_and_offset_magnified() {
+    let mut run = test_run();
+    run.fidelity = "compliant".into();
+    let times = run.streams[0].times_s.clone();
+    run.streams.push(structure_stream(&times));
+    let dir = tempfile::tempdir().expect("temp dir");
+    let path = dir.path().join("run.rrd");
+    write_rrd(&run, &path).expect("write rrd");
+    let s = python("read_rrd.py", &path);
+    let e = &s["entities"];
+    for carriage in [
+        "/machine/y_axis",
+        "/machine/y_axis/x_axis",
+        "/machine/z_axis",
+    ] {
+        let d = &e[format!("{carriage}/deflection_x10000").as_str()];
+        assert_eq!(d["rows"], times.len(), "{carriage}: {d}");
+        assert_eq!(d["static"], true, "{carriage} has its box");
+        assert!(d["components"].to_string().contains("Boxes3D:half_sizes"));
+    }
+    let x = &e["/machine/y_axis/x_axis/deflection_x10000"];
+    let (first, last) = (&x["first_transform"], &x["last_transform"]);
+    let turn = &last["rotation_axis_angle"];
+    let axis: Vec<f64> = serde_json::from_value(turn["axis"].clone()).expect("an axis");
+    let angle = turn["angle"].as_f64().expect("an angle");
+    assert!((angle - 0.03).abs() < 1e-6, "{turn}");
+    assert!((axis[1] - 1.0).abs() < 1e-6, "{turn}");
+    let z = |t: &Value| t["translation"][2].as_f64().expect("a translation");
+    assert!((z(last) - z(first) + 0.02).abs() < 1e-6, "{first} {last}");
+    assert_eq!(first["rotation_axis_angle"]["angle"].as_f64(), Some(0.0));
+}

@@ -45,6 +45,20 @@ def scalar_samples(chunk):
     return [(t, v[0]) for t, v in zip(times, values) if v]
 
 
+def transform_samples(chunk):
+    """(sim_time ns, translation, rotation axis-angle) of a temporal chunk with both
+    `Transform3D:translation` and `Transform3D:rotation_axis_angle` columns."""
+    rb = chunk.to_record_batch()
+    names = rb.schema.names
+    wanted = ["sim_time", "Transform3D:translation", "Transform3D:rotation_axis_angle"]
+    if chunk.is_static or any(n not in names for n in wanted):
+        return []
+    times = rb.column(names.index(wanted[0])).cast("int64").to_pylist()
+    moves = rb.column(names.index(wanted[1])).to_pylist()
+    turns = rb.column(names.index(wanted[2])).to_pylist()
+    return [(t, m[0], r[0]) for t, m, r in zip(times, moves, turns) if m and r]
+
+
 def main(path):
     reader = RrdReader(path)
     recordings = reader.recordings()
@@ -56,6 +70,7 @@ def main(path):
             {"rows": 0, "static": False, "timelines": set(), "components": set(), "scalars": []},
         )
         e["scalars"].extend(scalar_samples(chunk))
+        e.setdefault("transforms", []).extend(transform_samples(chunk))
         if chunk.is_static:
             e["static"] = True
         else:
@@ -63,6 +78,11 @@ def main(path):
         e["timelines"].update(chunk.timeline_names)
         e["components"].update(components(chunk))
     for e in entities.values():
+        moves = sorted(e.pop("transforms"), key=lambda x: x[0])
+        for name, k in (("first_transform", 0), ("last_transform", -1)):
+            if moves:
+                t, m, r = moves[k]
+                e[name] = {"time_ns": t, "translation": m, "rotation_axis_angle": r}
         samples = sorted(e.pop("scalars"))
         if samples:
             e["first_scalar"] = {"time_ns": samples[0][0], "value": samples[0][1]}
