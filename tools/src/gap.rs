@@ -198,6 +198,9 @@ fn localisation_text(out: &mut String, l: &Localisation) {
     for a in &l.axis_places {
         let _ = writeln!(out, "  a place on {}: {a} ({})", a.axis, a.test);
     }
+    if let Some(c) = &l.axis_change {
+        let _ = writeln!(out, "  along an axis: {c}");
+    }
     if let Some(w) = l.whiteness {
         let _ = writeln!(out, "{}", whiteness_line(&w, ""));
     }
@@ -413,6 +416,7 @@ fn localisation_json(l: &Localisation) -> Value {
         "concentrations": places_json(&l.concentrations),
         "peaks": serde_json::to_value(&l.peaks).unwrap_or(Value::Null),
         "axis_places": serde_json::to_value(&l.axis_places).unwrap_or(Value::Null),
+        "axis_change": serde_json::to_value(&l.axis_change).unwrap_or(Value::Null),
         "whiteness": l.whiteness.map(|w| json!({"q": w.q, "dof": w.dof, "p_value": w.p_value})),
     })
 }
@@ -971,7 +975,7 @@ fn bench_report(
     );
     let _ = writeln!(
         out,
-        "| Withheld physics outside the library: unexplained, a peak within {} deg of the truth | {} | >= 90 % | {} |",
+        "| Withheld physics outside the library: unexplained, a peak (its span) or the middle of a change along an axis within {} deg of the truth | {} | >= 90 % | {} |",
         vmt_gap::bench::WHERE_TOLERANCE_DEG,
         pct(f.physics_unexplained),
         f.physics_outside_cases
@@ -1006,7 +1010,7 @@ fn bench_report(
     }
     let _ = writeln!(
         out,
-        "\n## Cases\n\n| Case | Visible ({unit}) | Found | Equally good | Partial | Right | Held-out RMS before ({unit}) | after ({unit}) | Shrink | Peaks (deg) |\n|---|---|---|---|---|---|---|---|---|---|"
+        "\n## Cases\n\n| Case | Visible ({unit}) | Found | Equally good | Partial | Right | Held-out RMS before ({unit}) | after ({unit}) | Shrink | Peaks (deg); where along an axis |\n|---|---|---|---|---|---|---|---|---|---|"
     );
     for o in outcomes {
         let right = match o.physics_right() {
@@ -1018,7 +1022,7 @@ fn bench_report(
             .peak_radii_mm
             .iter()
             .any(|r| Some(r) != o.peak_radii_mm.first());
-        let peaks: Vec<String> = o
+        let mut peaks: Vec<String> = o
             .peaks_deg
             .iter()
             .zip(&o.peak_radii_mm)
@@ -1027,6 +1031,12 @@ fn bench_report(
                 false => format!("{p:.0}"),
             })
             .collect();
+        if let Some(c) = &o.axis_change {
+            peaks.push(format!(
+                "{} changes along {} at {:.0} mm over {:.0} mm",
+                c.direction, c.axis, c.at_mm, c.width_mm
+            ));
+        }
         let _ = writeln!(
             out,
             "| {} | {:.3} | {} | {} | {} | {right} | {:.3} | {:.3} | {} | {} |",

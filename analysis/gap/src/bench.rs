@@ -25,10 +25,12 @@
 //! seed differs. Random draws come from a generator seeded per case.
 
 use crate::align::GapError;
+use crate::axis_change::{AxisChange, angles_at};
 use crate::effects::Effect;
 use crate::localise::{self, Localisation};
 use crate::model::{Forward, ScenarioModel};
-use crate::select::{Linearisation, Options, Selection, select_without};
+use crate::peaks::Circle;
+use crate::select::{self, Linearisation, Options, Selection, select_without};
 use crate::split::Split;
 use rand::SeedableRng;
 use rand::rngs::StdRng;
@@ -344,12 +346,16 @@ pub struct Outcome {
     pub peak_widths_deg: Vec<f64>,
     /// The radius of each peak's test, mm.
     pub peak_radii_mm: Vec<f64>,
+    /// Where along an axis the residual before any effect changes ([`crate::axis_change`]).
+    pub axis_change: Option<AxisChange>,
+    /// Where the tests' circles pass the middle of that change.
+    pub change_at: Vec<Where>,
 }
 
 impl Outcome {
     fn of(
         case: &Case,
-        s: &Selection,
+        (s, circles): (&Selection, &[Option<Circle>]),
         o: &Options,
         visible_um: f64,
         library: &[Effect],
@@ -379,10 +385,27 @@ impl Outcome {
         }
         let accepted: Vec<&str> = s.steps.iter().map(|x| x.effect.as_str()).collect();
         out.implausible_accepted = implausible_values(&s.final_values, &accepted, library, model);
-        let before = Localisation::of(&s.initial_pairs, &localise::Options::default())?;
+        let before =
+            Localisation::on_circles(&s.initial_pairs, circles, &localise::Options::default())?;
         out.peaks_deg = before.peaks.iter().map(|p| p.angle_deg).collect();
         out.peak_widths_deg = before.peaks.iter().map(|p| p.width_deg).collect();
         out.peak_radii_mm = before.peaks.iter().map(|p| p.radius_mm).collect();
+        if let (Some(c), Some(first)) = (&before.axis_change, s.initial_pairs.first()) {
+            let mut seen: Vec<Circle> = Vec::new();
+            for circle in circles.iter().flatten() {
+                if seen.contains(circle) {
+                    continue;
+                }
+                seen.push(*circle);
+                for angle_deg in angles_at(first.plane, circle, c.axis, c.at_mm) {
+                    out.change_at.push(Where {
+                        radius_mm: circle.radius_mm,
+                        angle_deg,
+                    });
+                }
+            }
+        }
+        out.axis_change = before.axis_change;
         Ok(out)
     }
 
@@ -418,6 +441,8 @@ impl Outcome {
             peaks_deg: Vec::new(),
             peak_widths_deg: Vec::new(),
             peak_radii_mm: Vec::new(),
+            axis_change: None,
+            change_at: Vec::new(),
         }
     }
 
@@ -432,8 +457,21 @@ impl Outcome {
                 self.found.first() == Some(effect) || self.ambiguous.contains(effect)
             }
             Answer::Unexplained { places } => {
-                self.found.is_empty() && (places.is_empty() || self.a_peak_at(places))
+                self.found.is_empty()
+                    && (places.is_empty() || self.a_peak_at(places) || self.a_change_at(places))
             }
+        })
+    }
+
+    /// Whether the axis change's middle passes within [`WHERE_TOLERANCE_DEG`] of one of
+    /// `places` on the same test's circle.
+    fn a_change_at(&self, places: &[Where]) -> bool {
+        self.change_at.iter().any(|c| {
+            places.iter().any(|t| {
+                t.radius_mm == c.radius_mm
+                    && ((c.angle_deg - t.angle_deg + 180.0).rem_euclid(360.0) - 180.0).abs()
+                        <= WHERE_TOLERANCE_DEG
+            })
         })
     }
 
@@ -533,8 +571,12 @@ pub fn run(
                     .map_or(0.0, |(_, v)| *v),
                 None => lin.visibility(library, &c.withheld_offsets, o)?,
             };
+            let circles: Vec<Option<Circle>> = select::partners(&measured, lin.base())?
+                .into_iter()
+                .map(|i| model.circles().get(i).copied())
+                .collect();
             progress();
-            Outcome::of(c, &s, o, visible, library, model)
+            Outcome::of(c, (&s, &circles), o, visible, library, model)
         })
         .collect()
 }

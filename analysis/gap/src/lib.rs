@@ -6,6 +6,7 @@
 //!   are not the same test;
 //! - [`localise`]: where the residual's energy sits, and where it concentrates;
 //! - [`peaks`]: the angles where it concentrates within a few degrees, as axis positions;
+//! - [`axis_change`]: where along an axis its error changes over a stretch of the travel;
 //! - [`whiteness`]: the Ljung–Box test of the residual left after the structured parts;
 //! - [`effects`]: the library of candidate effects, as the scenario keys they change;
 //! - [`model`]: a scenario re-simulated with parameter offsets (the forward model);
@@ -21,6 +22,7 @@
 //! - [`vibration_bench`]: the withheld-effect check of the vibration gap.
 
 pub mod align;
+pub mod axis_change;
 pub mod bench;
 pub mod discriminate;
 pub mod effects;

@@ -35,6 +35,7 @@
 //! the gap sits.
 
 use crate::align::{GapError, TracePair};
+use crate::axis_change::AxisChange;
 use crate::peaks::{AxisPlace, Circle, Peak, axis_places, peaks};
 use crate::whiteness::{Whiteness, ljung_box};
 use nalgebra::{DMatrix, DVector};
@@ -123,6 +124,9 @@ pub struct Localisation {
     pub peaks: Vec<Peak>,
     /// Places on an axis the circle passes twice with a peak at both passes.
     pub axis_places: Vec<AxisPlace>,
+    /// Where along an axis its error changes over a stretch of the travel, when the circles
+    /// are known and such a change explains most of the residual ([`crate::axis_change`]).
+    pub axis_change: Option<AxisChange>,
 }
 
 impl Localisation {
@@ -181,9 +185,11 @@ impl Localisation {
         concentrations.sort_by(|a, b| b.share.total_cmp(&a.share));
         let peaks = peaks(pairs, circles, o.min_peak_um);
         let axis_places = axis_places(&peaks, pairs, circles);
+        let axis_change = crate::axis_change::scan(pairs, circles, o.min_peak_um);
         Ok(Self {
             peaks,
             axis_places,
+            axis_change,
             rms_um: (total / pairs.len() as f64).sqrt(),
             by_run,
             by_quadrant,
