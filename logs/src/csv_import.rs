@@ -151,6 +151,31 @@ pub struct Column {
     pub required: bool,
 }
 
+/// The columns of an accelerometer log: its time (s) and one or more of the accelerations
+/// along X, Y and Z (m/s²).
+pub const ACCELEROMETER_COLUMNS: [Column; 4] = [
+    Column {
+        name: "time_s",
+        quantity: Quantity::Time,
+        required: true,
+    },
+    Column {
+        name: "ax",
+        quantity: Quantity::Acceleration,
+        required: false,
+    },
+    Column {
+        name: "ay",
+        quantity: Quantity::Acceleration,
+        required: false,
+    },
+    Column {
+        name: "az",
+        quantity: Quantity::Acceleration,
+        required: false,
+    },
+];
+
 /// Why an export cannot be read as mapped.
 #[derive(Debug, Error, Clone, PartialEq)]
 pub enum ImportError {
@@ -537,29 +562,6 @@ pub fn resolve(
 mod tests {
     use super::*;
 
-    const ACCEL: [Column; 4] = [
-        Column {
-            name: "time_s",
-            quantity: Quantity::Time,
-            required: true,
-        },
-        Column {
-            name: "ax",
-            quantity: Quantity::Acceleration,
-            required: false,
-        },
-        Column {
-            name: "ay",
-            quantity: Quantity::Acceleration,
-            required: false,
-        },
-        Column {
-            name: "az",
-            quantity: Quantity::Acceleration,
-            required: false,
-        },
-    ];
-
     const EXPORT: [&str; 5] = [
         "Time (s)",
         "Accel X (m/s^2)",
@@ -577,7 +579,7 @@ mod tests {
     fn the_exported_header_is_read_through_the_mapping() {
         let r = resolve(
             &EXPORT,
-            &ACCEL,
+            &ACCELEROMETER_COLUMNS,
             &map(),
             &Units::default(),
             "an accelerometer log",
@@ -599,7 +601,14 @@ mod tests {
         let header = ["t [ms]", "x (g)", "y"];
         let map = ColumnMap::parse("time_s=t [ms],ax=x (g),ay=y").unwrap();
         let units = Units::parse("ay=g").unwrap();
-        let r = resolve(&header, &ACCEL, &map, &units, "an accelerometer log").unwrap();
+        let r = resolve(
+            &header,
+            &ACCELEROMETER_COLUMNS,
+            &map,
+            &units,
+            "an accelerometer log",
+        )
+        .unwrap();
         assert_eq!(r.factor("time_s"), 1e-3);
         assert_eq!(r.factor("ax"), STANDARD_GRAVITY);
         assert_eq!(r.factor("ay"), STANDARD_GRAVITY);
@@ -623,7 +632,7 @@ mod tests {
     fn bad_mappings_and_units_are_refused_naming_them() {
         let e = resolve(
             &EXPORT,
-            &ACCEL,
+            &ACCELEROMETER_COLUMNS,
             &ColumnMap::parse("time_s=Time (s),ax=Accel Q (m/s^2)").unwrap(),
             &Units::default(),
             "an accelerometer log",
@@ -636,7 +645,7 @@ mod tests {
         );
         let e = resolve(
             &EXPORT,
-            &ACCEL,
+            &ACCELEROMETER_COLUMNS,
             &map(),
             &Units::parse("ax=furlong").unwrap(),
             "an accelerometer log",
@@ -646,7 +655,7 @@ mod tests {
         assert!(e.to_string().contains("m/s² or g"), "{e}");
         let e = resolve(
             &EXPORT,
-            &ACCEL,
+            &ACCELEROMETER_COLUMNS,
             &map(),
             &Units::parse("ax=g").unwrap(),
             "an accelerometer log",
@@ -655,7 +664,7 @@ mod tests {
         assert!(matches!(e, ImportError::UnitConflict { .. }), "{e}");
         let e = resolve(
             &EXPORT,
-            &ACCEL,
+            &ACCELEROMETER_COLUMNS,
             &ColumnMap::parse("bx=Accel X (m/s^2)").unwrap(),
             &Units::default(),
             "an accelerometer log",
@@ -664,7 +673,7 @@ mod tests {
         assert!(e.to_string().contains("time_s, ax, ay, az"), "{e}");
         let e = resolve(
             &EXPORT,
-            &ACCEL,
+            &ACCELEROMETER_COLUMNS,
             &ColumnMap::default(),
             &Units::default(),
             "an accelerometer log",
@@ -675,7 +684,7 @@ mod tests {
         assert!(ColumnMap::parse("ax=a,ax=b").is_err());
         let e = resolve(
             &EXPORT,
-            &ACCEL,
+            &ACCELEROMETER_COLUMNS,
             &ColumnMap::parse("time_s=Time (s),ax=Time (s)").unwrap(),
             &Units::default(),
             "an accelerometer log",

@@ -24,7 +24,7 @@ use vmt_chatter::detect::DetectError;
 use vmt_chatter::detect::forced::AliasBand;
 use vmt_chatter::detect::kim::{self, KimResult, KimSettings, weakest_mode};
 use vmt_chatter::detect::spectral::{self, SpectralResult, SpectralSettings, TeethCheck};
-use vmt_logs::csv_import::{Column, Quantity};
+use vmt_logs::csv_import::ACCELEROMETER_COLUMNS;
 use vmt_logs::input::{self, Input};
 use vmt_model::cutting::Mode;
 
@@ -127,30 +127,6 @@ pub struct Log {
 
 const AXES: [&str; 3] = ["ax", "ay", "az"];
 
-/// The columns of an accelerometer CSV.
-const COLUMNS: [Column; 4] = [
-    Column {
-        name: "time_s",
-        quantity: Quantity::Time,
-        required: true,
-    },
-    Column {
-        name: "ax",
-        quantity: Quantity::Acceleration,
-        required: false,
-    },
-    Column {
-        name: "ay",
-        quantity: Quantity::Acceleration,
-        required: false,
-    },
-    Column {
-        name: "az",
-        quantity: Quantity::Acceleration,
-        required: false,
-    },
-];
-
 const CSV_FORMAT: &str = "a header with time_s (s) and one or more of ax, ay, az (m/s²), then one row of numbers per sample (an export's own headers and units through --columns and --units)";
 
 /// Reads an MCAP run or a CSV log (`import`: the CSV's columns and units).
@@ -185,7 +161,12 @@ fn read_csv(bytes: &[u8], file: &str, import: &Import) -> Result<Log, CliError> 
         })?
         .clone();
     crate::traces::unique_columns(&header, file)?;
-    let cols = import.resolve(&header, &COLUMNS, "an accelerometer log", file)?;
+    let cols = import.resolve(
+        &header,
+        &ACCELEROMETER_COLUMNS,
+        "an accelerometer log",
+        file,
+    )?;
     let time = cols.get("time_s").map_or(0, |c| c.index);
     let time_factor = cols.factor("time_s");
     let axes: Vec<(&str, usize, f64)> = AXES
