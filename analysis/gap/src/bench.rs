@@ -391,19 +391,7 @@ impl Outcome {
         out.peak_widths_deg = before.peaks.iter().map(|p| p.width_deg).collect();
         out.peak_radii_mm = before.peaks.iter().map(|p| p.radius_mm).collect();
         if let (Some(c), Some(first)) = (&before.axis_change, s.initial_pairs.first()) {
-            let mut seen: Vec<Circle> = Vec::new();
-            for circle in circles.iter().flatten() {
-                if seen.contains(circle) {
-                    continue;
-                }
-                seen.push(*circle);
-                for angle_deg in angles_at(first.plane, circle, c.axis, c.at_mm) {
-                    out.change_at.push(Where {
-                        radius_mm: circle.radius_mm,
-                        angle_deg,
-                    });
-                }
-            }
+            out.change_at = passes(c, first.plane, circles);
         }
         out.axis_change = before.axis_change;
         Ok(out)
@@ -491,6 +479,26 @@ impl Outcome {
             })
         })
     }
+}
+
+/// Where each of `circles` (each test's once) passes the middle of the change `c`, in a test
+/// of `plane`.
+fn passes(c: &AxisChange, plane: vmt_ballbar::Plane, circles: &[Option<Circle>]) -> Vec<Where> {
+    let mut seen: Vec<Circle> = Vec::new();
+    let mut out = Vec::new();
+    for circle in circles.iter().flatten() {
+        if seen.contains(circle) {
+            continue;
+        }
+        seen.push(*circle);
+        for angle_deg in angles_at(plane, circle, c.axis, c.at_mm) {
+            out.push(Where {
+                radius_mm: circle.radius_mm,
+                angle_deg,
+            });
+        }
+    }
+    out
 }
 
 /// The `accepted` effects whose final values (absolute, by key) a machine of the model's class
