@@ -100,6 +100,9 @@ pub struct CompliantPlant {
     tool_offset: Vector3<f64>,
     /// The carriages and their blocks.
     structure: Structure,
+    /// The carriages of each of rapier's multibodies ([`CompliantPlant::multibodies`]), fixed
+    /// once the multibody is built.
+    groups: Vec<Vec<usize>>,
     fine_per_macro: usize,
     fine_done: usize,
     elapsed_s: f64,
@@ -217,11 +220,13 @@ impl CompliantPlant {
             process: Dofs::zeros(),
             tool_offset,
             structure: structure.clone(),
+            groups: Vec::new(),
             fine_per_macro,
             fine_done: 0,
             elapsed_s: 0.0,
             macro_steps: 0,
         };
+        plant.groups = plant.multibodies();
         plant.refresh(h);
         plant.check_step(h)?;
         plant.settle_under_gravity()?;
@@ -384,7 +389,7 @@ impl CompliantPlant {
         // next refresh writes the fine integration's state in before it steps again.
         let mut inv = Mat::zeros();
         let mut after = Dofs::zeros();
-        for group in self.multibodies() {
+        for group in &self.groups {
             let Some((mb, _)) = self.world.multibody_joints.get(self.links[group[0]].joint) else {
                 continue;
             };
@@ -445,8 +450,8 @@ impl CompliantPlant {
     /// Writes the fine integration's coordinates and velocities into the multibody and places
     /// its bodies (once per multibody).
     fn sync(&mut self) {
-        for group in self.multibodies() {
-            for &i in &group {
+        for group in &self.groups {
+            for &i in group {
                 let l = &self.links[i];
                 let Some((mb, id)) = self.world.multibody_joints.get_mut(l.joint) else {
                     continue;
