@@ -267,10 +267,8 @@ impl RunFile for RrdFile {
         }
         if let Some(st) = structure(streams) {
             let first = self.rows_sent(st);
-            for (entity, axis, _) in &self.layout.carriages {
-                if let Some(part) = self.layout.parts.iter().find(|p| &p.entity == entity) {
-                    log.carriage_deflection(entity, part.centre, st, first, *axis)?;
-                }
+            for (entity, axis, part) in self.layout.carriage_parts() {
+                log.carriage_deflection(entity, part.centre, st, first, axis)?;
             }
         }
         for s in streams {
@@ -350,7 +348,6 @@ fn servo(streams: &[Stream]) -> Option<&Stream> {
     streams.iter().find(|s| s.name == "servo")
 }
 
-/// The finite points of the servo stream's `tool_x`, `tool_y`, `tool_z` appended to `path`.
 /// The compliant plant's `structure` stream, if the run has one.
 fn structure(streams: &[Stream]) -> Option<&Stream> {
     streams.iter().find(|s| s.name == "structure")
@@ -361,6 +358,7 @@ fn deflection_entity(carriage: &str) -> String {
     format!("{carriage}/deflection_x{DEFLECTION_MAGNIFICATION}")
 }
 
+/// The finite points of the servo stream's `tool_x`, `tool_y`, `tool_z` appended to `path`.
 fn extend_tool_path(path: &mut Vec<[f32; 3]>, servo: &Stream) {
     let (Some(x), Some(y), Some(z)) = (
         servo.channel("tool_x"),
@@ -612,10 +610,7 @@ impl Logger<'_> {
     /// A wireframe copy of each carriage's box, centred on its entity's origin, which
     /// [`Logger::carriage_deflection`] moves.
     fn deflection_boxes(&self, layout: &Layout) -> Result<(), FileError> {
-        for (entity, axis, _) in &layout.carriages {
-            let Some(part) = layout.parts.iter().find(|p| &p.entity == entity) else {
-                continue;
-            };
+        for (entity, axis, part) in layout.carriage_parts() {
             let boxes = Boxes3D::from_centers_and_sizes([[0.0; 3]], [part.size])
                 .with_colors([scale(part.colour, 0.6)])
                 .with_fill_mode(FillMode::MajorWireframe)
@@ -1053,6 +1048,14 @@ impl Strokes {
 }
 
 impl Layout {
+    /// Each carriage's entity and axis with its box.
+    fn carriage_parts(&self) -> impl Iterator<Item = (&str, Axis, &Part)> {
+        self.carriages.iter().filter_map(|(entity, axis, _)| {
+            let part = self.parts.iter().find(|p| &p.entity == entity)?;
+            Some((entity.as_str(), *axis, part))
+        })
+    }
+
     /// The assemblies of `topology` as nested entities, their boxes placed so that with every
     /// axis at mid-stroke the stack under the workpiece and the head above the tool line up.
     fn new(m: &MachineSummary, topology: Topology) -> Self {
