@@ -29,7 +29,7 @@ use crate::axis_change::{AxisChange, angles_at};
 use crate::effects::Effect;
 use crate::localise::{self, Localisation};
 use crate::model::{Forward, ScenarioModel};
-use crate::peaks::Circle;
+use crate::peaks::{Circle, distinct};
 use crate::select::{self, Linearisation, Options, Selection, select_without};
 use crate::split::Split;
 use rand::SeedableRng;
@@ -484,21 +484,17 @@ impl Outcome {
 /// Where each of `circles` (each test's once) passes the middle of the change `c`, in a test
 /// of `plane`.
 fn passes(c: &AxisChange, plane: vmt_ballbar::Plane, circles: &[Option<Circle>]) -> Vec<Where> {
-    let mut seen: Vec<Circle> = Vec::new();
-    let mut out = Vec::new();
-    for circle in circles.iter().flatten() {
-        if seen.contains(circle) {
-            continue;
-        }
-        seen.push(*circle);
-        for angle_deg in angles_at(plane, circle, c.axis, c.at_mm) {
-            out.push(Where {
-                radius_mm: circle.radius_mm,
-                angle_deg,
-            });
-        }
-    }
-    out
+    distinct(circles.iter().flatten())
+        .iter()
+        .flat_map(|circle| {
+            angles_at(plane, circle, c.axis, c.at_mm)
+                .into_iter()
+                .map(|angle_deg| Where {
+                    radius_mm: circle.radius_mm,
+                    angle_deg,
+                })
+        })
+        .collect()
 }
 
 /// The `accepted` effects whose final values (absolute, by key) a machine of the model's class

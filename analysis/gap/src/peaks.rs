@@ -51,6 +51,17 @@ pub struct Circle {
     pub radius_mm: f64,
 }
 
+/// Each of `circles` once, in the order they first come (the runs of a test share one).
+pub fn distinct<'a>(circles: impl IntoIterator<Item = &'a Circle>) -> Vec<Circle> {
+    let mut out: Vec<Circle> = Vec::new();
+    for c in circles {
+        if !out.contains(c) {
+            out.push(*c);
+        }
+    }
+    out
+}
+
 /// A place on the circle where the residual concentrates.
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct Peak {

@@ -16,9 +16,10 @@
 //!   blocks) is outside the library: unexplained, wherever it shows.
 
 use crate::align::GapError;
+use crate::axis_change::angles_at;
 use crate::bench::{Answer, Physics, Where};
 use crate::model::ScenarioModel;
-use crate::peaks::Circle;
+use crate::peaks::{Circle, distinct};
 use vmt_ballbar::Plane;
 use vmt_model::Axis;
 use vmt_scenario::withheld::{WITHHELD, WithheldEffect, fragments};
@@ -53,13 +54,7 @@ pub fn cases(model: &ScenarioModel, plane: Plane) -> Result<Vec<Physics>, GapErr
         .circles()
         .first()
         .ok_or_else(|| GapError::Model("the model's job has no circular test".into()))?;
-    // Each test's circle once (its runs share it).
-    let mut circles: Vec<Circle> = Vec::new();
-    for c in model.circles() {
-        if !circles.contains(c) {
-            circles.push(*c);
-        }
-    }
+    let circles = distinct(model.circles());
     let (a, b) = plane.axes();
     let plane_axes = [axis_of(a)?, axis_of(b)?];
     let scenario_error = |e: vmt_scenario::ScenarioError| GapError::Model(e.to_string());
@@ -72,7 +67,7 @@ pub fn cases(model: &ScenarioModel, plane: Plane) -> Result<Vec<Physics>, GapErr
                     let at = defect_place(&circle, side, axis, k);
                     let places = circles
                         .iter()
-                        .flat_map(|c| passes(c, side, axis, at))
+                        .flat_map(|c| passes(plane, c, axis, at))
                         .collect();
                     (Some(at), Answer::Unexplained { places })
                 } else {
@@ -141,29 +136,16 @@ fn defect_place(circle: &Circle, side: usize, axis: Axis, k: usize) -> f64 {
     }
 }
 
-/// The angles where `circle` takes a block of the carriage over a defect at `at` mm on `axis`
-/// (the blocks' centre there, a block at `at ± s/2`).
-fn passes(circle: &Circle, side: usize, axis: Axis, at: f64) -> Vec<Where> {
-    let (r, c) = (circle.radius_mm, circle.centre_mm[axis.index()]);
+/// The angles where `circle` (of a test in `plane`) takes a block of the carriage over a defect
+/// at `at` mm on `axis` (the blocks' centre there, a block at `at ± s/2`).
+fn passes(plane: Plane, circle: &Circle, axis: Axis, at: f64) -> Vec<Where> {
     let half = 0.5 * block_spacing_mm(axis);
-    let mut out = Vec::new();
-    for p in [at - half, at + half] {
-        let u = (p - c) / r;
-        if u.abs() > 1.0 {
-            continue;
-        }
-        let t = if side == 0 { u.acos() } else { u.asin() };
-        let both = if side == 0 {
-            [t, -t]
-        } else {
-            [t, std::f64::consts::PI - t]
-        };
-        for x in both {
-            out.push(Where {
-                radius_mm: r,
-                angle_deg: x.to_degrees().rem_euclid(360.0),
-            });
-        }
-    }
-    out
+    [at - half, at + half]
+        .into_iter()
+        .flat_map(|p| angles_at(plane, circle, axis.letter(), p))
+        .map(|angle_deg| Where {
+            radius_mm: circle.radius_mm,
+            angle_deg,
+        })
+        .collect()
 }
