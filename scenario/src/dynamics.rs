@@ -1197,7 +1197,7 @@ pub fn instrument_notes(j: &JobToml, instruments: &InstrumentsToml, job: &Job) -
 const MAX_DIRECTIONS: usize = 8;
 
 /// Most radii of one ball-bar job.
-const MAX_RADII: usize = 8;
+pub const MAX_RADII: usize = 8;
 
 /// Most targets and runs of an ISO 230-2 job, bounded before its program (two dwells per target
 /// and run) is generated. The standard asks for 5 runs over at least 5 targets per metre: a 5 m

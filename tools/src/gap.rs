@@ -639,9 +639,6 @@ fn vibration_command(a: &GapArgs) -> Result<(), CliError> {
     Ok(())
 }
 
-/// Most radii of `vmt gap-bench`'s test (as a ball-bar job takes).
-const MAX_RADII: usize = 8;
-
 /// `vmt gap-bench` arguments.
 #[derive(clap::Args, Debug)]
 pub struct BenchArgs {
@@ -690,10 +687,11 @@ impl BenchArgs {
     fn check(&self) -> Result<(), CliError> {
         use crate::error::{check_count, check_range};
         use vmt_sim::nc::ballbar::{BALLBAR_MAX_RADIUS_M, BALLBAR_MIN_RADIUS_M, FEED_RANGE_MM_MIN};
-        if self.radius_mm.len() > MAX_RADII {
+        if self.radius_mm.len() > vmt_scenario::MAX_RADII {
             return Err(CliError::Argument(format!(
-                "--radius-mm: {} radii given; 1 to {MAX_RADII} are accepted, each a test about the same centre",
-                self.radius_mm.len()
+                "--radius-mm: {} radii given; 1 to {} are accepted, each a test about the same centre",
+                self.radius_mm.len(),
+                vmt_scenario::MAX_RADII
             )));
         }
         for &r in &self.radius_mm {
