@@ -20,7 +20,7 @@
 //! (250, 200, −250) mm, Y's 350 mm apart at (0, 200, −350) mm, Z's 300 mm apart at
 //! (0, 400, 200) mm, each block 100 mm long; the screws span their stroke and 100 mm beyond
 //! each end, fixed where the lumped expansion is (`machine.thermal.expansion.<axis>`).
-//! [`WithheldEffect::like`] names the candidate of the gap library that is physically the same
+//! [`WithheldEffect::like`] names the candidates of the gap library that are physically the same
 //! thing (a backlash by another mechanism, say), where one is.
 
 use crate::edit::Template;
@@ -44,9 +44,9 @@ pub struct WithheldEffect {
     pub plausible: (f64, f64),
     /// Whether it sits at one place along the axis (`at_mm` of [`fragments`]).
     pub placed: bool,
-    /// The gap library's effect that is physically the same thing, `{a}` for the axis letter
-    /// (`backlash_{a}`), if any.
-    pub like: Option<&'static str>,
+    /// The gap library's effects that are physically the same thing, `{a}` for the axis
+    /// letter (`backlash_{a}`); none when none is.
+    pub like: &'static [&'static str],
 }
 
 /// The withheld effects.
@@ -59,7 +59,7 @@ pub const WITHHELD: [WithheldEffect; 7] = [
         typical: 0.04,
         plausible: (0.02, 0.12),
         placed: false,
-        like: None,
+        like: &[],
     },
     WithheldEffect {
         key: "interpolation",
@@ -69,7 +69,7 @@ pub const WITHHELD: [WithheldEffect; 7] = [
         typical: 1.0,
         plausible: (0.5, 2.0),
         placed: false,
-        like: None,
+        like: &[],
     },
     WithheldEffect {
         key: "rail_bump",
@@ -79,7 +79,7 @@ pub const WITHHELD: [WithheldEffect; 7] = [
         typical: 2.0,
         plausible: (1.0, 3.0),
         placed: true,
-        like: None,
+        like: &[],
     },
     WithheldEffect {
         key: "rail_step",
@@ -89,7 +89,7 @@ pub const WITHHELD: [WithheldEffect; 7] = [
         typical: 2.0,
         plausible: (1.0, 5.0),
         placed: true,
-        like: None,
+        like: &[],
     },
     WithheldEffect {
         key: "screw_warming",
@@ -99,7 +99,7 @@ pub const WITHHELD: [WithheldEffect; 7] = [
         typical: 2.0,
         plausible: (0.0, 5.0),
         placed: false,
-        like: Some("scale_mismatch"),
+        like: &["scale_mismatch", "screw_heating_{a}"],
     },
     WithheldEffect {
         key: "nut_preload",
@@ -109,7 +109,7 @@ pub const WITHHELD: [WithheldEffect; 7] = [
         typical: 0.0,
         plausible: (0.0, 50.0),
         placed: false,
-        like: Some("backlash_{a}"),
+        like: &["backlash_{a}"],
     },
     WithheldEffect {
         key: "gms_friction",
@@ -119,7 +119,7 @@ pub const WITHHELD: [WithheldEffect; 7] = [
         typical: 4.0,
         plausible: (2.0, 8.0),
         placed: false,
-        like: Some("friction_{a}"),
+        like: &["friction_{a}"],
     },
 ];
 
@@ -130,9 +130,9 @@ impl WithheldEffect {
     }
 
     /// [`WithheldEffect::like`] for `axis`.
-    pub fn like_for(&self, axis: Axis) -> Option<String> {
-        self.like
-            .map(|l| l.replace("{a}", &axis.to_string().to_lowercase()))
+    pub fn like_for(&self, axis: Axis) -> Vec<String> {
+        let a = axis.to_string().to_lowercase();
+        self.like.iter().map(|l| l.replace("{a}", &a)).collect()
     }
 }
 

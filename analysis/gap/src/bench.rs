@@ -59,11 +59,12 @@ pub enum Withheld {
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
 #[serde(tag = "answer", rename_all = "snake_case")]
 pub enum Answer {
-    /// The library effect that is physically the same thing, by another mechanism: found
-    /// first, or in the ambiguity set of the effect found first.
+    /// A library effect that is physically the same thing, by another mechanism: one of
+    /// them found first, or in the ambiguity set of the effect found first.
     Library {
-        /// Its key.
-        effect: String,
+        /// Their keys (a screw's warming is a scale mismatch, and a scale that grows during
+        /// the test).
+        effects: Vec<String>,
     },
     /// Outside the library: left unexplained, with a peak of the residual of a test whose span
     /// (its angle ± half its width) comes within [`WHERE_TOLERANCE_DEG`] of one of the angles
@@ -304,9 +305,20 @@ fn nuisance(
     for (k, v) in offsets {
         *values.entry(k.clone()).or_insert(0.0) += v;
     }
+    // Offsets are of the parameters; a key takes its parameter's value at the offset.
+    let param_of = |k: &str| {
+        available
+            .iter()
+            .flat_map(|e| &e.params)
+            .find(|p| p.keys.iter().any(|key| key == k))
+    };
     values
         .into_iter()
-        .filter_map(|(k, v)| model.value(&k).map(|m| (k, m + v)))
+        .filter_map(|(k, v)| {
+            let m = model.value(&k)?;
+            let value = param_of(&k).map_or(m + v, |p| p.key_value(m, v));
+            Some((k, value))
+        })
         .collect()
 }
 
@@ -441,9 +453,9 @@ impl Outcome {
             return None;
         };
         Some(match answer {
-            Answer::Library { effect } => {
-                self.found.first() == Some(effect) || self.ambiguous.contains(effect)
-            }
+            Answer::Library { effects } => effects
+                .iter()
+                .any(|e| self.found.first() == Some(e) || self.ambiguous.contains(e)),
             Answer::Unexplained { places } => {
                 self.found.is_empty()
                     && (places.is_empty() || self.a_peak_at(places) || self.a_change_at(places))
@@ -513,8 +525,9 @@ fn implausible_values(
         {
             for p in e.params.iter().filter(|p| p.keys.contains(key)) {
                 let Some(m) = model.value(key) else { continue };
+                let (m, value) = (p.scale.of_key(m), p.scale.of_key(*value));
                 let (lo, hi) = p.plausible.range(m);
-                if !(lo..=hi).contains(value) && !out.contains(&e.key) {
+                if !(lo..=hi).contains(&value) && !out.contains(&e.key) {
                     out.push(e.key.clone());
                 }
             }
@@ -707,9 +720,10 @@ pub fn figures(outcomes: &[Outcome], floor: f64) -> Figures {
             Withheld::Physics(effect, answer) => {
                 let right = usize::from(o.physics_right() == Some(true));
                 match answer {
-                    Answer::Library { effect } => {
+                    Answer::Library { effects } => {
                         (lib_cases, lib_right) = (lib_cases + 1, lib_right + right);
-                        let partly = o.found.is_empty() && o.partial.first() == Some(effect);
+                        let partly = o.found.is_empty()
+                            && o.partial.first().is_some_and(|p| effects.contains(p));
                         lib_partial += right.max(usize::from(partly));
                     }
                     Answer::Unexplained { .. } => {

@@ -1,6 +1,8 @@
 //! The library of candidate effects: each a switch of the model with its free parameters,
 //! written as the scenario keys it changes. A parameter's value is an offset added to what the
-//! model file sets at each of its keys, so a candidate at zero is the model unchanged.
+//! model file sets at each of its keys, so a candidate at zero is the model unchanged; a
+//! parameter whose signature is linear in the reciprocal of its key (a heat capacity) is that
+//! reciprocal instead ([`Scale`]).
 //!
 //! The keys follow the scenario format of `scenarios/vmc500.toml`; a candidate whose keys the
 //! model file does not set is reported as unavailable rather than invented.
@@ -31,8 +33,39 @@ pub struct Param {
     pub typical: f64,
     /// Whether only increases are physical (a backlash, a friction force above the model's).
     pub increase_only: bool,
-    /// The values a machine of the model's class can have.
+    /// The values a machine of the model's class can have, in the parameter's own terms.
     pub plausible: Plausible,
+    /// How the parameter maps to its keys.
+    pub scale: Scale,
+}
+
+/// How a parameter's value maps to its keys' values.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Scale {
+    /// The keys take the parameter itself.
+    Same,
+    /// The parameter is `factor / key`: a heat capacity `C` is fitted as `1/C`, in which the
+    /// warming `Q t / C` of a node heated for a time short against its time constant is linear
+    /// (so the Gauss–Newton steps of the selection reach it from a value several times off).
+    Reciprocal(f64),
+}
+
+impl Scale {
+    /// The parameter's value where its key holds `key`.
+    pub fn of_key(self, key: f64) -> f64 {
+        match self {
+            Scale::Same => key,
+            Scale::Reciprocal(f) => f / key,
+        }
+    }
+
+    /// The key's value where the parameter holds `value`.
+    pub fn to_key(self, value: f64) -> f64 {
+        match self {
+            Scale::Same => value,
+            Scale::Reciprocal(f) => f / value,
+        }
+    }
 }
 
 /// The values a parameter can take on a machine of the model's class, and why.
@@ -81,13 +114,19 @@ impl Plausible {
 }
 
 impl Param {
-    /// Whether the machine can have this parameter at the model's value `model` plus `offset`
-    /// (every key of the parameter shares the offset, each from its own model value); the
-    /// first key outside its range is named.
+    /// The value a key whose model value is `model` takes at the parameter's `offset`.
+    pub fn key_value(&self, model: f64, offset: f64) -> f64 {
+        self.scale.to_key(self.scale.of_key(model) + offset)
+    }
+
+    /// Whether the machine can have this parameter at the model's value plus `offset`, the
+    /// keys' model values being `models` (every key of the parameter shares the offset, each
+    /// from its own model value); the first key outside its range is named.
     pub fn check(&self, models: &[f64], offset: f64) -> Result<(), Implausible> {
         for (key, model) in self.keys.iter().zip(models) {
+            let model = self.scale.of_key(*model);
             let value = model + offset;
-            let (lo, hi) = self.plausible.range(*model);
+            let (lo, hi) = self.plausible.range(model);
             if !(lo..=hi).contains(&value) {
                 let name = match self.keys.len() {
                     1 => self.name.clone(),
@@ -96,7 +135,7 @@ impl Param {
                 return Err(Implausible {
                     name,
                     value,
-                    model: *model,
+                    model,
                     unit: self.unit.to_string(),
                     range: (lo, hi),
                     reason: self.plausible.reason.to_string(),
@@ -156,6 +195,7 @@ fn param(
         typical,
         increase_only: false,
         plausible,
+        scale: Scale::Same,
     }
 }
 
@@ -509,6 +549,46 @@ pub fn thermal_drift(node: usize) -> Effect {
     )
 }
 
+/// The reciprocal of a screw's effective heat capacity, K/kJ.
+const SCREW_WARMING: Plausible = absolute(
+    0.1,
+    3.0,
+    "a ball screw of 25-40 mm on a 500 mm axis warms 0.35-10 kJ/K of steel (volumetric heat \
+     capacity 3.6 MJ/(m3 K)): in a test of minutes only the section its nut runs over and a \
+     few cm beyond (heat spreads sqrt(a t), 3 cm in a minute), up to the whole screw with its \
+     nut and bearings after hours",
+);
+
+/// Screw heating during the runs: the nut's and bearings' friction heat `c |v|` warms the
+/// axis' screw, whose growth `α ΔT (q − q_f)` stretches the axis as the test goes on. The
+/// lumped node of the model (`node`, its capacity `C`) holds the screw with its nut and
+/// bearings; in a test of minutes the heat stays in the screw's running section (Fourier's
+/// penetration depth `√(a t)`, 3 cm in a minute for steel), so the effective capacity is a few
+/// times smaller and the warming `c |v| t / C` a few times faster. The parameter is `1/C` in
+/// K per kJ ([`Scale::Reciprocal`]): the warming is linear in it, and it only grows, as no
+/// more than the node's steel can warm.
+pub fn screw_heating(axis: char, node: usize) -> Effect {
+    let up = axis.to_ascii_uppercase();
+    effect(
+        &format!("screw_heating_{axis}"),
+        &format!(
+            "{up} screw heating during the runs: less of the screw warms than the model's node (its effective heat capacity)"
+        ),
+        vec![growing(Param {
+            scale: Scale::Reciprocal(1000.0),
+            ..param(
+                &format!("{up} screw warming per kJ (1/effective heat capacity)"),
+                "K/kJ",
+                &[format!("machine.thermal.nodes[{node}].capacity_j_per_k")],
+                // 0.25 K/kJ over the built-in 6.9 kJ/K (0.145 K/kJ): 2.5 kJ/K; three times
+                // it, 1.1 kJ/K, is about a 28 mm screw's 0.7 m of bare steel.
+                (0.1, 0.25),
+                SCREW_WARMING,
+            )
+        })],
+    )
+}
+
 fn axis_index(a: char) -> usize {
     match a {
         'x' => 0,
@@ -525,4 +605,37 @@ fn squareness_key(p: char, q: char) -> String {
         _ => "machine.errors.squareness.EA0Z_urad",
     }
     .to_string()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    proptest! {
+        /// A reciprocal parameter maps back to the key it came from, and at zero offset
+        /// leaves the key as the model has it.
+        #[test]
+        fn a_reciprocal_scale_round_trips(key in 1.0e2..1.0e6_f64, factor in 1.0..1.0e4_f64) {
+            let s = Scale::Reciprocal(factor);
+            prop_assert!((s.to_key(s.of_key(key)) - key).abs() <= 1e-9 * key);
+            let p = Param { scale: s, ..screw_heating('x', 3).params[0].clone() };
+            prop_assert!((p.key_value(key, 0.0) - key).abs() <= 1e-9 * key);
+        }
+    }
+
+    /// The screw heating's offset is of `1/C` in K/kJ: +0.5 K/kJ on 6.9 kJ/K is
+    /// 1000 / (1000/6900 + 0.5) = 1550 J/K, a 28 mm screw's 0.7 m of steel (plausible); a
+    /// capacity of 200 J/K, less than 100 mm of such a screw, is not.
+    #[test]
+    fn screw_heating_is_judged_on_the_capacity_it_implies() {
+        let p = &screw_heating('x', 3).params[0];
+        assert!((p.key_value(6900.0, 0.5) - 1550.0).abs() < 1.0);
+        assert!(p.check(&[6900.0], 0.5).is_ok());
+        let e = p
+            .check(&[6900.0], 1000.0 / 200.0 - 1000.0 / 6900.0)
+            .unwrap_err();
+        assert!((e.value - 5.0).abs() < 1e-9 && e.unit == "K/kJ", "{e}");
+        assert!((e.model - 1000.0 / 6900.0).abs() < 1e-12);
+    }
 }

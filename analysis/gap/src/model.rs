@@ -12,7 +12,7 @@
 //! about 1e-3 of the change; a test checks 2 %); what the selection reports is simulated.
 
 use crate::align::GapError;
-use crate::effects::{Effect, library_for, thermal_drift};
+use crate::effects::{Effect, library_for, screw_heating, thermal_drift};
 use crate::peaks::Circle;
 use std::path::PathBuf;
 use std::sync::OnceLock;
@@ -54,6 +54,9 @@ pub struct ScenarioModel {
     replays: AtomicUsize,
     /// The thermal node the spindle's losses heat, if the model has one.
     spindle_node: Option<usize>,
+    /// Per axis X, Y, Z: the lumped node its motion heats and whose temperature its scale
+    /// grows with, if the model has one (and no distributed screw in its place).
+    screw_nodes: [Option<usize>; 3],
     /// Per axis X, Y, Z under a motor encoder: the screw's lead and periodic lead error
     /// `[e_c, e_s]` as given, m (for [`vmt_sim::replay::replay_lead_error`]).
     leads: [Option<(f64, [f64; 2])>; 3],
@@ -67,6 +70,16 @@ const KINEMATIC: [&str; 3] = [
     "instruments.ballbar.setup_",
     "instruments.ballbar.bar_",
 ];
+
+/// The lumped node that axis `i`'s motion heats and whose temperature its scale grows with,
+/// where the machine has no distributed screw for the axis.
+fn screw_node(t: &vmt_model::machine::ThermalMachine, i: usize) -> Option<usize> {
+    let expands = t.deformation.joints[i].expansion.as_ref()?.node;
+    let heated = t.network.sources().iter().any(
+        |h| matches!(h, HeatSource::Axis { node, axis, .. } if *node == expands && *axis == i),
+    );
+    (heated && t.screws[i].is_none()).then_some(expands)
+}
 
 impl ScenarioModel {
     /// The model of scenario `text` (named `file`; table files resolved in `base_dir`), its
@@ -121,6 +134,7 @@ impl ScenarioModel {
             base: OnceLock::new(),
             replays: AtomicUsize::new(0),
             spindle_node: None,
+            screw_nodes: [None; 3],
             leads: [None; 3],
             circles: Vec::new(),
         };
@@ -146,12 +160,13 @@ impl ScenarioModel {
                 (d.feedback == Feedback::MotorEncoder).then_some((d.screw.lead_m, d.screw.cyclic_m))
             });
         }
-        model.spindle_node = s.machine.thermal.as_ref().and_then(|t| {
-            t.network.sources().iter().find_map(|h| match h {
+        if let Some(t) = &s.machine.thermal {
+            model.spindle_node = t.network.sources().iter().find_map(|h| match h {
                 HeatSource::Spindle { node, .. } => Some(*node),
                 HeatSource::Axis { .. } => None,
-            })
-        });
+            });
+            model.screw_nodes = std::array::from_fn(|i| screw_node(t, i));
+        }
         Ok(model)
     }
 
@@ -162,10 +177,17 @@ impl ScenarioModel {
     }
 
     /// The candidate library for tests in `planes` ([`library_for`]), with the thermal drift
-    /// of the spindle head when the model has a thermal node the spindle heats.
+    /// of the spindle head when the model has a thermal node the spindle heats, and the
+    /// heating of each tested axis' screw whose lumped node its motion heats.
     pub fn library(&self, planes: &[(char, char)]) -> Vec<Effect> {
         let mut out = library_for(planes);
         out.extend(self.spindle_node.map(thermal_drift));
+        let axes: Vec<char> = planes.iter().flat_map(|&(p, q)| [p, q]).collect();
+        for (i, a) in ['x', 'y', 'z'].into_iter().enumerate() {
+            if let (true, Some(node)) = (axes.contains(&a), self.screw_nodes[i]) {
+                out.push(screw_heating(a, node));
+            }
+        }
         out
     }
 

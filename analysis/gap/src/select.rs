@@ -643,14 +643,16 @@ impl Selector<'_> {
 
     /// The absolute values of the keys of `params` at offsets `beta`.
     /// A key two parameters share (a guide's static force: friction level and stick-slip)
-    /// takes the sum of their offsets.
+    /// takes the sum of their offsets' changes to it.
     fn values(&self, params: &[usize], beta: &[f64]) -> Vec<(String, f64)> {
         let mut out: Vec<(String, f64)> = Vec::new();
         for (p, b) in params.iter().zip(beta) {
-            for (k, v) in &self.available[*p].keys {
+            let a = &self.available[*p];
+            for (k, v) in &a.keys {
+                let change = a.param.key_value(*v, *b) - v;
                 match out.iter_mut().find(|(key, _)| key == k) {
-                    Some((_, total)) => *total += b,
-                    None => out.push((k.clone(), v + b)),
+                    Some((_, total)) => *total += change,
+                    None => out.push((k.clone(), v + change)),
                 }
             }
         }
@@ -758,11 +760,13 @@ impl Selector<'_> {
     }
 
     /// The rivals of each chosen effect that explain the judging bins as well (module doc);
-    /// `chosen_bins` are the simulated residual with the chosen effects.
+    /// `chosen_bins` are the simulated residual with the chosen effects, `initial_bins` that
+    /// of the model as given with its set-up fitted (the gap a rival must explain).
     fn alternatives(
         &mut self,
         chosen: &[usize],
         chosen_bins: &[Vec<f64>],
+        initial_bins: &[Vec<f64>],
         hidden: &[&str],
     ) -> Result<Vec<Alternative>, GapError> {
         let (role, segments) = self.judging();
@@ -780,7 +784,7 @@ impl Selector<'_> {
             for (k, a) in pool.iter().enumerate() {
                 sets.extend(pool[k + 1..].iter().map(|b| vec![*a, *b]));
             }
-            let before = rms(self.given(role));
+            let before = rms(&stack(initial_bins, self.rows.of(role)));
             let as_good = |r: &[f64], test: (f64, f64)| {
                 test.1 > self.o.ambiguity_level
                     && explained(
@@ -920,7 +924,7 @@ impl Linearisation {
             let values: Vec<(String, f64)> = p
                 .keys
                 .iter()
-                .map(|(k, v)| (k.clone(), v + p.param.step))
+                .map(|(k, v)| (k.clone(), p.param.key_value(*v, p.param.step)))
                 .collect();
             model.sensitivity_traces(&values)
         };
@@ -1237,7 +1241,7 @@ pub fn select_without(
         before_um,
         after_um: sel.judge_rms(&final_bins).unwrap_or(before_um),
     });
-    let alternatives = sel.alternatives(&chosen, &final_bins, hidden)?;
+    let alternatives = sel.alternatives(&chosen, &final_bins, &initial_bins, hidden)?;
     let final_values = sel.edits(&best_so_far);
     let alternatives_judged_on = if sel.rows.can_judge() {
         "judge"

@@ -28,7 +28,7 @@
 //!   cells where the residual peaks.
 
 use crate::align::GapError;
-use crate::effects::{Effect, Implausible, Param, Plausible};
+use crate::effects::{Effect, Implausible, Param, Plausible, Scale};
 use crate::select::{bic, explained, rss};
 use crate::spectrum::{Band, band_levels, bands};
 use crate::whiteness::{Whiteness, ljung_box};
@@ -222,6 +222,7 @@ impl MillingModel {
                         typical: typ * v,
                         increase_only: false,
                         plausible,
+                        scale: Scale::Same,
                     }
                 };
                 out.push(Effect {
@@ -257,6 +258,7 @@ impl MillingModel {
                 typical: 0.25 * kr,
                 increase_only: false,
                 plausible: RADIAL_COEFFICIENT,
+                scale: Scale::Same,
             }],
             baseline: false,
         });
