@@ -268,11 +268,7 @@ pub fn text(r: &GapReport) -> String {
         s.fit_before_um, s.select_before_um
     );
     if !s.baseline.is_empty() {
-        let values: Vec<String> = s
-            .baseline
-            .iter()
-            .map(|v| format!("{} {:+.3} {}", v.name, v.value, v.unit))
-            .collect();
+        let values: Vec<String> = s.baseline.iter().map(|v| v.to_string()).collect();
         let _ = writeln!(
             out,
             "  baseline (the bar's set-up and length, fitted with every candidate): {}",
@@ -280,11 +276,7 @@ pub fn text(r: &GapReport) -> String {
         );
     }
     for (i, step) in s.steps.iter().enumerate() {
-        let values: Vec<String> = step
-            .values
-            .iter()
-            .map(|v| format!("{} {:+.3} {}", v.name, v.value, v.unit))
-            .collect();
+        let values: Vec<String> = step.values.iter().map(|v| v.to_string()).collect();
         let judge = step
             .judge_rms_um
             .map_or(String::new(), |j| format!(", judge RMS {j:.3} um"));
@@ -369,11 +361,7 @@ fn alternatives_text(out: &mut String, r: &GapReport) {
             s.alternatives_judged_on, step.effect
         );
         for a in good {
-            let values: Vec<String> = a
-                .values
-                .iter()
-                .map(|v| format!("{} {:+.3} {}", v.name, v.value, v.unit))
-                .collect();
+            let values: Vec<String> = a.values.iter().map(|v| v.to_string()).collect();
             let _ = writeln!(
                 out,
                 "    {} ({}): RMS {:.3} um against {:.3} um, p = {:.2}",

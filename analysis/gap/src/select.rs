@@ -42,7 +42,7 @@
 //! whose size is implausible is reported as such and is not an explanation.
 
 use crate::align::{GapError, TracePair};
-use crate::effects::{Effect, Implausible, Param};
+use crate::effects::{Effect, Implausible, Param, Scale};
 use crate::model::Forward;
 use crate::split::{Role, Rows, Split};
 use nalgebra::{DMatrix, DVector};
@@ -107,6 +107,20 @@ pub struct Fitted {
     pub value: f64,
     /// Unit.
     pub unit: String,
+    /// The values its keys take, where the parameter is in other terms than its keys (a heat
+    /// capacity fitted as its reciprocal, [`crate::effects::Scale::Reciprocal`]); empty
+    /// otherwise.
+    pub keys: Vec<(String, f64)>,
+}
+
+impl std::fmt::Display for Fitted {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{} {:+.3} {}", self.name, self.value, self.unit)?;
+        for (key, value) in &self.keys {
+            write!(f, " (`{key}` = {value:.1})")?;
+        }
+        Ok(())
+    }
 }
 
 /// One accepted effect.
@@ -709,10 +723,22 @@ impl Selector<'_> {
             .iter()
             .zip(&c.beta)
             .filter(|(p, _)| only(self.available[**p].effect))
-            .map(|(p, b)| Fitted {
-                name: self.available[*p].param.name.clone(),
-                value: *b,
-                unit: self.available[*p].param.unit.into(),
+            .map(|(p, b)| {
+                let a = &self.available[*p];
+                let keys = match a.param.scale {
+                    Scale::Same => Vec::new(),
+                    Scale::Reciprocal(_) => a
+                        .keys
+                        .iter()
+                        .map(|(k, v)| (k.clone(), a.param.key_value(*v, *b)))
+                        .collect(),
+                };
+                Fitted {
+                    name: a.param.name.clone(),
+                    value: *b,
+                    unit: a.param.unit.into(),
+                    keys,
+                }
             })
             .collect()
     }

@@ -183,19 +183,21 @@ fn a_warm_screw_is_a_scale_mismatch_and_the_heating_of_the_screws_own_steel() {
         "{found:?}"
     );
     assert!(s.explained(&Options::default()), "{:?}", s.judged);
-    let per_kj = s
+    let heating = s
         .steps
         .last()
         .unwrap()
         .values
         .iter()
         .find(|v| v.unit == "K/kJ")
-        .unwrap()
-        .value;
+        .unwrap();
     let model_c = m
         .value("machine.thermal.nodes[3].capacity_j_per_k")
         .unwrap();
-    let capacity = 1000.0 / (1000.0 / model_c + per_kj);
+    let capacity = 1000.0 / (1000.0 / model_c + heating.value);
+    // The report states the capacity the fitted warming per kJ means.
+    assert_eq!(heating.keys.len(), 1);
+    assert!((heating.keys[0].1 - capacity).abs() < 1e-6 * capacity);
     // Steel: ρc = 3.6 MJ/(m³·K); the fragment's 28 mm screw spans the 500 mm stroke and
     // 100 mm beyond each end; the nut (100 mm) runs over X 150-350 mm on this circle.
     let steel = |length_m: f64| 3.6e6 * std::f64::consts::PI / 4.0 * 0.028_f64.powi(2) * length_m;
