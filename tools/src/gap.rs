@@ -917,61 +917,43 @@ fn bench_report(
         out,
         "| Figure | Measured | Goal | Cases |\n|---|---|---|---|"
     );
-    let _ = writeln!(
-        out,
-        "| Top-1 attribution (one effect withheld) | {} | >= 95 % | {} |",
-        pct(f.top1),
-        f.single_cases
-    );
-    let _ = writeln!(
-        out,
-        "| False attribution (nothing withheld) | {} | <= 5 % | {} |",
-        pct(f.false_attribution_null),
-        f.null_cases
-    );
-    let _ = writeln!(
-        out,
-        "| Median held-out shrink (in-library cases) | {} | >= 80 % | {} |",
-        pct(f.median_shrink),
-        f.single_cases + f.pair_cases
-    );
-    let _ = writeln!(
-        out,
-        "| Out-of-library effect left unexplained | {} | >= 90 % | {} |",
-        pct(f.unexplained_outside),
-        f.outside_cases
-    );
-    let _ = writeln!(
-        out,
-        "| Pairs: both effects found | {} | - | {} |",
-        pct(f.pairs_both_found),
-        f.pair_cases
-    );
-    let _ = writeln!(
-        out,
-        "| Withheld physics that is a library effect by another mechanism: attributed to it or to an ambiguity set holding it | {} | >= 90 % | {} |",
-        pct(f.physics_attributed),
-        f.physics_library_cases
-    );
-    let _ = writeln!(
-        out,
-        "| The same, counting an attribution of part of the gap to it (the rest left unexplained) | {} | - | {} |",
-        pct(f.physics_attributed_or_partial),
-        f.physics_library_cases
-    );
-    let _ = writeln!(
-        out,
-        "| Withheld physics outside the library: unexplained, a peak (its span) or the middle of a change along an axis within {} deg of the truth | {} | >= 90 % | {} |",
-        vmt_gap::bench::WHERE_TOLERANCE_DEG,
-        pct(f.physics_unexplained),
-        f.physics_outside_cases
-    );
-    let _ = writeln!(
-        out,
-        "| Cases with an effect accepted at an implausible size | {} | 0 | {} |",
-        f.implausible_accepted,
-        outcomes.len()
-    );
+    let rows = [
+        ("Top-1 attribution (one effect withheld)".to_string(), pct(f.top1), ">= 95 %", f.single_cases),
+        ("False attribution (nothing withheld)".into(), pct(f.false_attribution_null), "<= 5 %", f.null_cases),
+        ("Median held-out shrink (in-library cases)".into(), pct(f.median_shrink), ">= 80 %", f.single_cases + f.pair_cases),
+        ("Out-of-library effect left unexplained".into(), pct(f.unexplained_outside), ">= 90 %", f.outside_cases),
+        ("Pairs: both effects found".into(), pct(f.pairs_both_found), "-", f.pair_cases),
+        (
+            "Withheld physics that is a library effect by another mechanism: attributed to it or to an ambiguity set holding it".into(),
+            pct(f.physics_attributed),
+            ">= 90 %",
+            f.physics_library_cases,
+        ),
+        (
+            "The same, counting an attribution of part of the gap to it (the rest left unexplained)".into(),
+            pct(f.physics_attributed_or_partial),
+            "-",
+            f.physics_library_cases,
+        ),
+        (
+            format!(
+                "Withheld physics outside the library: unexplained, a peak (its span) or the middle of a change along an axis within {} deg of the truth",
+                vmt_gap::bench::WHERE_TOLERANCE_DEG
+            ),
+            pct(f.physics_unexplained),
+            ">= 90 %",
+            f.physics_outside_cases,
+        ),
+        (
+            "Cases with an effect accepted at an implausible size".into(),
+            f.implausible_accepted.to_string(),
+            "0",
+            outcomes.len(),
+        ),
+    ];
+    for (figure, measured, goal, cases) in rows {
+        let _ = writeln!(out, "| {figure} | {measured} | {goal} | {cases} |");
+    }
     let _ = writeln!(
         out,
         "\nHeld-out figures are of the judge data, used neither to fit nor to choose ({} of {} cases had too few and are of the select data).\n",
