@@ -1,5 +1,5 @@
-//! Reading the ball bar of a finished run again, on a machine with other geometric errors or
-//! with another bar set-up, without simulating the motion again.
+//! Reading the ball bar of a finished run again, on a machine with other geometric errors,
+//! another thermal network or another bar set-up, without simulating the motion again.
 //!
 //! The geometric errors (ISO 230-1: the axis error functions and squareness) act only through
 //! the error chain `P_tool = f(q, d, thermal state)` and the bar's set-up (pivot offset and
@@ -9,6 +9,14 @@
 //! their values. A [`Replay`] keeps them (from [`simulate_with_replay`]); [`replay`] evaluates
 //! the chain and the bar again with the new values, and gives the traces the simulation would
 //! give, to rounding (a test compares both).
+//!
+//! The lumped thermal network does not enter the motion either: its heat comes from the
+//! spindle speed and the axes' mean speeds of each thermal step, which the motion sets, and its
+//! temperatures act through the error chain alone. A [`Replay`] keeps what drove each step, and
+//! [`replay`] steps the given machine's network again with it (capacities, conductances,
+//! sources, start temperatures, links' and joints' sensitivities of its own). A run with a screw
+//! simulated along its length keeps its recorded thermal states instead, since that screw's
+//! heat follows the nut cell by cell.
 //!
 //! A change `Δe` of a screw's periodic lead error `e(x) = e_c cos(2πx/lead) + e_s sin(2πx/lead)`
 //! does change the motion, but under a motor encoder the control does not see it and the
@@ -22,7 +30,10 @@
 //! [`simulate_with_replay`]: crate::simulate::simulate_with_replay
 
 use crate::run::BallbarTrace;
-use crate::simulate::{Job, SimError, SimSettings, job_traces, push_sample, test_bar};
+use crate::simulate::{
+    HeatStep, Job, SimError, SimSettings, THERMAL_PERIOD_S, job_traces, push_sample, test_bar,
+};
+use std::borrow::Cow;
 use vmt_model::kinematics::AxisState;
 use vmt_model::machine::Machine;
 use vmt_model::thermal_deformation::ThermalDeformation;
@@ -40,22 +51,67 @@ struct Sample {
 pub struct Replay {
     /// The thermal states of the run in order; a sample names the one in effect.
     thermal: Vec<ThermalDeformation>,
+    /// What drove each step of the thermal network (`thermal[k + 1]` followed step `k`), when
+    /// the network alone set the thermal states (no screw simulated along its length, whose
+    /// heat follows the nut cell by cell): then a machine with another network re-derives them.
+    steps: Option<Vec<HeatStep>>,
     /// Per trace, its samples in order.
     samples: Vec<Vec<Sample>>,
 }
 
 impl Replay {
-    /// An empty record of `traces` traces starting in thermal state `initial`.
-    pub(crate) fn new(initial: ThermalDeformation, traces: usize) -> Self {
+    /// An empty record of `traces` traces starting in thermal state `initial`; `network_only`
+    /// when the lumped network alone sets the thermal states.
+    pub(crate) fn new(initial: ThermalDeformation, traces: usize, network_only: bool) -> Self {
         Self {
             thermal: vec![initial],
+            steps: network_only.then(Vec::new),
             samples: vec![Vec::new(); traces],
         }
     }
 
-    /// The thermal state changed.
-    pub(crate) fn thermal_state(&mut self, d: ThermalDeformation) {
+    /// The thermal network took `step`, and the thermal state is now `d`.
+    pub(crate) fn thermal_state(&mut self, d: ThermalDeformation, step: HeatStep) {
         self.thermal.push(d);
+        if let Some(steps) = self.steps.as_mut() {
+            steps.push(step);
+        }
+    }
+
+    /// The thermal states of the run on `machine`: its lumped network stepped again with the
+    /// run's heat, where the record allows (the same arithmetic, so the run's own states to the
+    /// bit on the machine that ran), else the recorded ones.
+    fn thermal_on<'a>(
+        &'a self,
+        machine: &Machine,
+    ) -> Result<Cow<'a, [ThermalDeformation]>, SimError> {
+        let (Some(steps), Some(t)) = (&self.steps, &machine.thermal) else {
+            return Ok(Cow::Borrowed(&self.thermal));
+        };
+        if t.screws.iter().any(Option::is_some) {
+            return Err(SimError::Settings(
+                "replay: the machine simulates a screw along its length, the recorded run did not"
+                    .into(),
+            ));
+        }
+        let thermal_error = |e: String| SimError::Thermal(e);
+        let stepper = t
+            .network
+            .discretize(THERMAL_PERIOD_S)
+            .map_err(|e| thermal_error(e.to_string()))?;
+        let mut temps_c = t.network.initial_temperatures();
+        let deform = |temps_c: &[f64]| {
+            machine
+                .thermal_deformation(temps_c)
+                .map_err(|e| thermal_error(e.to_string()))
+        };
+        let mut out = Vec::with_capacity(steps.len() + 1);
+        out.push(deform(&temps_c)?);
+        for step in steps {
+            step.step(&stepper, &mut temps_c, t);
+            out.push(deform(&temps_c)?);
+        }
+        Ok(Cow::Owned(out))
     }
 
     /// The bar read trace `trace` at `time_s` with the axes in `state`.
@@ -140,12 +196,13 @@ fn replay_moved(
         .enumerate()
         .map(|(i, b)| test_bar(b, i, settings))
         .collect();
+    let thermal = replay.thermal_on(machine)?;
     let mut current: Option<(u32, _)> = None;
     let mut out = Vec::with_capacity(traces.len());
     for ((test, mut trace), samples) in traces.into_iter().zip(&replay.samples) {
         for s in samples {
             if current.as_ref().is_none_or(|(k, _)| *k != s.thermal) {
-                let d = &replay.thermal[s.thermal as usize];
+                let d = &thermal[s.thermal as usize];
                 current = Some((s.thermal, machine.volumetric.evaluator(d)));
             }
             let (_, evaluator) = current.as_ref().expect("set above");

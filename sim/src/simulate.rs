@@ -248,7 +248,7 @@ impl SimError {
 }
 
 /// Thermal update interval during a job, s.
-const THERMAL_PERIOD_S: f64 = 1.0;
+pub(crate) const THERMAL_PERIOD_S: f64 = 1.0;
 
 /// Runs `job` on `machine` and returns what was recorded. `progress` is called with the fraction
 /// done (0 to 1) about a hundred times.
@@ -389,7 +389,13 @@ impl JobRun<'_> {
         let mut heat = HeatTracker::new(machine, axes)?;
         // Link and joint matrices of the current thermal state, rebuilt only when it changes.
         let mut evaluator = machine.volumetric.evaluator(&heat.deformation);
-        let mut replay = replayable.then(|| Replay::new(heat.deformation, recorder.traces.len()));
+        let mut replay = replayable.then(|| {
+            Replay::new(
+                heat.deformation,
+                recorder.traces.len(),
+                heat.screws.is_empty(),
+            )
+        });
         // The thermal state at the start, middle and end of each circular test's data: the
         // middle for the truth's figures, the ends for the drift over the test.
         let spans = test_spans(job, &interpolator.block_times());
@@ -428,7 +434,7 @@ impl JobRun<'_> {
             if heat.accumulate(&sp, &carriages, period, machine)? {
                 evaluator = machine.volumetric.evaluator(&heat.deformation);
                 if let Some(r) = replay.as_mut() {
-                    r.thermal_state(heat.deformation);
+                    r.thermal_state(heat.deformation, heat.last_step);
                 }
             }
             while next_moment < moments.len() && sp.time_s >= moments[next_moment] {
@@ -891,6 +897,8 @@ struct HeatTracker {
     /// The screws simulated along their length (`thermal::screw`).
     screws: Vec<ScrewTracker>,
     deformation: vmt_model::thermal_deformation::ThermalDeformation,
+    /// What drove the network's last step.
+    last_step: HeatStep,
 }
 
 /// One screw's temperatures along its length and the heat its nut and bearings left in each
@@ -943,6 +951,7 @@ impl HeatTracker {
             spindle_rpm_s: 0.0,
             screws,
             deformation: Default::default(),
+            last_step: HeatStep::default(),
         };
         tracker.deformation = tracker.deform(machine)?;
         Ok(tracker)
@@ -997,12 +1006,11 @@ impl HeatTracker {
             spindle_rpm: self.spindle_rpm_s / self.elapsed_s,
             axis_speed_m_s: self.distance_m.map(|d| d / self.elapsed_s),
         };
-        let heat = thermal.network.heat_input_w(&op);
-        let ambient = thermal
-            .network
-            .ambient()
-            .celsius_at(self.time_s + 0.5 * self.elapsed_s);
-        stepper.step(&mut self.temps_c, &heat, ambient);
+        self.last_step = HeatStep {
+            operating: op,
+            mid_time_s: self.time_s + 0.5 * self.elapsed_s,
+        };
+        let ambient = self.last_step.step(stepper, &mut self.temps_c, thermal);
         for s in &mut self.screws {
             let watts: Vec<f64> = s.heat_j.iter().map(|j| j / self.elapsed_s).collect();
             s.model.step(&mut s.temps_c, &watts, ambient);
@@ -1014,6 +1022,30 @@ impl HeatTracker {
         self.spindle_rpm_s = 0.0;
         self.deformation = self.deform(machine)?;
         Ok(true)
+    }
+}
+
+/// What drives one step of the thermal network: the period's mean operating point and the
+/// middle of the period, at which the ambient is taken.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub(crate) struct HeatStep {
+    operating: Operating,
+    mid_time_s: f64,
+}
+
+impl HeatStep {
+    /// Steps the network of `thermal` (discretised in `stepper`) from `temps_c`; returns the
+    /// ambient temperature used.
+    pub(crate) fn step(
+        &self,
+        stepper: &ThermalStepper,
+        temps_c: &mut [f64],
+        thermal: &vmt_model::machine::ThermalMachine,
+    ) -> f64 {
+        let heat = thermal.network.heat_input_w(&self.operating);
+        let ambient = thermal.network.ambient().celsius_at(self.mid_time_s);
+        stepper.step(temps_c, &heat, ambient);
+        ambient
     }
 }
 

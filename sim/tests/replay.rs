@@ -79,3 +79,51 @@ fn a_replay_reads_what_a_new_simulation_reads() {
     // The changes are seen: several µm on a 100 mm circle.
     assert!(largest_change > 3.0, "{largest_change}");
 }
+
+/// The lumped thermal network does not enter the motion: with another screw capacity, screw
+/// heat and a spindle head that starts warm, a replay steps the network again with the run's
+/// heat and reads what a new simulation reads, to rounding; and the change is there to see.
+#[test]
+fn a_replay_with_another_thermal_network_reads_what_a_new_simulation_reads() {
+    let text = scenario_text();
+    let s = vmt_scenario::parse(&text, "replay.toml", None).expect("loads");
+    let e = s.execution.as_ref().expect("a job");
+    let (base, rec) = simulate_with_replay(
+        &s.machine,
+        &e.axes,
+        &e.controller,
+        &e.job,
+        &e.settings,
+        &text,
+        &mut |_| {},
+        true,
+    )
+    .expect("runs");
+    let rec = rec.expect("recorded when asked");
+    let changed = Template::parse(&text, "replay.toml")
+        .unwrap()
+        .with(&[
+            ("machine.thermal.nodes[3].capacity_j_per_k", 1200.0),
+            ("machine.thermal.sources[1].w_per_mm_s", 0.8),
+            ("machine.thermal.nodes[0].initial_c", 35.0),
+        ])
+        .unwrap();
+    let s2 = vmt_scenario::parse(&changed, "replay.toml", None).expect("loads");
+    let e2 = s2.execution.as_ref().expect("a job");
+    let replayed = replay(&s2.machine, &e2.job, &e2.settings, &rec).expect("replays");
+    let simulated = run(&changed);
+    let mut largest_change = 0.0f64;
+    for ((r, n), b) in replayed.iter().zip(&simulated).zip(&base.ballbar) {
+        assert_eq!(r.times_s, n.times_s);
+        for ((x, y), z) in r
+            .deviation_um
+            .iter()
+            .zip(&n.deviation_um)
+            .zip(&b.deviation_um)
+        {
+            assert!((x - y).abs() < 1e-9, "{x} vs {y} µm");
+            largest_change = largest_change.max((x - z).abs());
+        }
+    }
+    assert!(largest_change > 0.3, "{largest_change}");
+}

@@ -6,8 +6,9 @@
 //! Offsets of geometric errors (`machine.errors.…`) and of the bar's set-up
 //! (`instruments.ballbar.setup_…`, `instruments.ballbar.bar_…`) do not change the motion, only
 //! what the bar reads: they are read again from the recorded motion of the model as given
-//! (`vmt_sim::replay`, the same traces as a new simulation to rounding) instead of simulated.
-//! For the finite-difference sensitivities only, a change of a screw's periodic lead error
+//! (`vmt_sim::replay`, the same traces as a new simulation to rounding) instead of simulated;
+//! so are offsets of the lumped thermal network (`machine.thermal.…`) where it alone sets the
+//! thermal state, its steps taken again with the run's heat. For the finite-difference sensitivities only, a change of a screw's periodic lead error
 //! under a motor encoder is replayed too, the carriages moved by it quasi-statically (within
 //! about 1e-3 of the change; a test checks 2 %); what the selection reports is simulated.
 
@@ -57,6 +58,9 @@ pub struct ScenarioModel {
     /// Per axis X, Y, Z: the lumped node its motion heats and whose temperature its scale
     /// grows with, if the model has one (and no distributed screw in its place).
     screw_nodes: [Option<usize>; 3],
+    /// Whether the lumped thermal network alone sets the thermal state (no screw simulated
+    /// along its length): then a change of its keys replays exactly ([`vmt_sim::replay`]).
+    network_thermal: bool,
     /// Per axis X, Y, Z under a motor encoder: the screw's lead and periodic lead error
     /// `[e_c, e_s]` as given, m (for [`vmt_sim::replay::replay_lead_error`]).
     leads: [Option<(f64, [f64; 2])>; 3],
@@ -135,6 +139,7 @@ impl ScenarioModel {
             replays: AtomicUsize::new(0),
             spindle_node: None,
             screw_nodes: [None; 3],
+            network_thermal: false,
             leads: [None; 3],
             circles: Vec::new(),
         };
@@ -166,6 +171,7 @@ impl ScenarioModel {
                 HeatSource::Axis { .. } => None,
             });
             model.screw_nodes = std::array::from_fn(|i| screw_node(t, i));
+            model.network_thermal = t.screws.iter().all(Option::is_none);
         }
         Ok(model)
     }
@@ -202,6 +208,14 @@ impl ScenarioModel {
         self.leads[axis].map(|_| axis)
     }
 
+    /// Whether an offset at `key` changes what the bar reads but not the motion: a replay of
+    /// the recorded motion gives what a simulation would, to rounding (the geometric errors,
+    /// the bar's set-up, and the lumped thermal network where it alone sets the thermal state).
+    fn exact_replay(&self, key: &str) -> bool {
+        KINEMATIC.iter().any(|p| key.starts_with(p))
+            || (self.network_thermal && key.starts_with("machine.thermal."))
+    }
+
     /// The model with `values` written in, parsed, and its text.
     fn with_values(
         &self,
@@ -234,7 +248,7 @@ impl Forward for ScenarioModel {
     }
 
     fn replayable(&self, key: &str) -> bool {
-        exact_replay(key) || self.lead_axis(key).is_some()
+        self.exact_replay(key) || self.lead_axis(key).is_some()
     }
 
     fn sensitivity_traces(&self, values: &[(String, f64)]) -> Result<Vec<Trace>, GapError> {
@@ -276,7 +290,7 @@ impl Forward for ScenarioModel {
         };
         let sim_error =
             |e: vmt_sim::simulate::SimError| GapError::Model(format!("{}: {e}", self.file));
-        let kinematic = values.iter().all(|(k, _)| exact_replay(k));
+        let kinematic = values.iter().all(|(k, _)| self.exact_replay(k));
         let ballbar: Vec<BallbarTrace> = match self.base.get() {
             Some(base) if kinematic => {
                 self.replays.fetch_add(1, Ordering::Relaxed);
@@ -304,12 +318,6 @@ impl Forward for ScenarioModel {
         };
         to_traces(&ballbar)
     }
-}
-
-/// Whether an offset at `key` changes what the bar reads but not the motion: a replay of the
-/// recorded motion gives what a simulation would, to rounding.
-fn exact_replay(key: &str) -> bool {
-    KINEMATIC.iter().any(|p| key.starts_with(p))
 }
 
 fn to_traces(ballbar: &[BallbarTrace]) -> Result<Vec<Trace>, GapError> {
