@@ -636,7 +636,7 @@ pub struct BenchArgs {
     /// Radius of the circular test every case runs, mm (written into the model's job); several,
     /// comma-separated, run a test at each about the same centre: by default two, which tell
     /// an error that depends on the axis position (a rail step) or on the path's acceleration
-    /// (the structure's compliance) from the library's smooth shapes that mimic it on one.
+    /// (v²/R) from the library's smooth shapes that mimic it on one.
     #[arg(long, value_delimiter = ',', default_value = "100,50")]
     pub radius_mm: Vec<f64>,
     /// Feed of that test, mm/min.
