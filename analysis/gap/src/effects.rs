@@ -565,8 +565,9 @@ const SCREW_WARMING: Plausible = absolute(
 /// bearings; in a test of minutes the heat stays in the screw's running section (Fourier's
 /// penetration depth `√(a t)`, 3 cm in a minute for steel), so the effective capacity is a few
 /// times smaller and the warming `c |v| t / C` a few times faster. The parameter is `1/C` in
-/// K per kJ ([`Scale::Reciprocal`]): the warming is linear in it, and it only grows, as no
-/// more than the node's steel can warm.
+/// K per kJ ([`Scale::Reciprocal`]): the warming is linear in it. The bench injects it growing
+/// (less steel warming than the node holds); a fit may find more, up to the 10 kJ/K of its
+/// plausible range.
 pub fn screw_heating(axis: char, node: usize) -> Effect {
     let up = axis.to_ascii_uppercase();
     effect(
