@@ -86,7 +86,7 @@ fn bins(pairs: &[TracePair], circles: &[Option<Circle>]) -> Vec<Bin> {
     for (p, c) in pairs.iter().zip(circles) {
         let Some(c) = c else { continue };
         let (a, b) = p.plane.axes();
-        let centre = [c.centre_mm[index(a)], c.centre_mm[index(b)]];
+        let centre = [c.centre_mm[axis_index(a)], c.centre_mm[axis_index(b)]];
         let mut sum = [0.0; 360];
         let mut n = [0usize; 360];
         for (deg, r) in p.angle_deg.iter().zip(&p.residual_um) {
@@ -106,12 +106,10 @@ fn bins(pairs: &[TracePair], circles: &[Option<Circle>]) -> Vec<Bin> {
     out
 }
 
-fn index(c: char) -> usize {
-    match c {
-        'X' => 0,
-        'Y' => 1,
-        _ => 2,
-    }
+/// The index (0, 1, 2) of axis letter `c` (either case) in X, Y, Z coordinates; Z for a
+/// letter that names none, as a plane's axes always do.
+pub(crate) fn axis_index(c: char) -> usize {
+    vmt_model::Axis::from_letter(c).map_or(2, |a| a.index())
 }
 
 /// The residual sum of squares of `y` fitted by the columns `a` (least squares), and the
@@ -220,7 +218,7 @@ pub fn scan(pairs: &[TracePair], circles: &[Option<Circle>], min_um: f64) -> Opt
 /// `plane` about `circle`.
 pub fn angles_at(plane: vmt_ballbar::Plane, circle: &Circle, axis: char, at_mm: f64) -> Vec<f64> {
     let (a, b) = plane.axes();
-    let u = (at_mm - circle.centre_mm[index(axis)]) / circle.radius_mm;
+    let u = (at_mm - circle.centre_mm[axis_index(axis)]) / circle.radius_mm;
     if u.abs() > 1.0 || (axis != a && axis != b) {
         return Vec::new();
     }

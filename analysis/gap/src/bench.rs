@@ -29,7 +29,7 @@ use crate::axis_change::{AxisChange, angles_at};
 use crate::effects::Effect;
 use crate::localise::{self, Localisation};
 use crate::model::{Forward, ScenarioModel};
-use crate::peaks::{Circle, distinct};
+use crate::peaks::{Circle, distinct, wrapped_deg};
 use crate::select::{self, Linearisation, Options, Selection, select_without};
 use crate::split::Split;
 use rand::SeedableRng;
@@ -469,8 +469,7 @@ impl Outcome {
         self.change_at.iter().any(|c| {
             places.iter().any(|t| {
                 t.radius_mm == c.radius_mm
-                    && ((c.angle_deg - t.angle_deg + 180.0).rem_euclid(360.0) - 180.0).abs()
-                        <= WHERE_TOLERANCE_DEG
+                    && wrapped_deg(c.angle_deg - t.angle_deg).abs() <= WHERE_TOLERANCE_DEG
             })
         })
     }
@@ -486,8 +485,7 @@ impl Outcome {
         peaks.into_iter().any(|((p, w), r)| {
             places.iter().any(|t| {
                 t.radius_mm == *r
-                    && ((p - t.angle_deg + 180.0).rem_euclid(360.0) - 180.0).abs()
-                        <= 0.5 * w + WHERE_TOLERANCE_DEG
+                    && wrapped_deg(p - t.angle_deg).abs() <= 0.5 * w + WHERE_TOLERANCE_DEG
             })
         })
     }

@@ -218,7 +218,7 @@ fn place(plane: &str, t: f64) -> String {
         return String::new();
     };
     let (a, b) = p.axes();
-    let near = |at: f64| ((t - at + 180.0).rem_euclid(360.0) - 180.0).abs() <= 10.0;
+    let near = |at: f64| crate::peaks::wrapped_deg(t - at).abs() <= 10.0;
     if [0.0, 180.0].into_iter().any(near) {
         format!("at the {a} reversals")
     } else if [90.0, 270.0].into_iter().any(near) {

@@ -14,6 +14,8 @@
 //! each with the catalogue, standard or physics it comes from. A fit outside them is not an
 //! explanation: the selection reports it as one that would need an implausible value.
 
+use crate::axis_change::axis_index;
+
 /// One free parameter of a candidate.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Param {
@@ -59,12 +61,9 @@ impl Scale {
         }
     }
 
-    /// The key's value where the parameter holds `value`.
+    /// The key's value where the parameter holds `value` (each map is its own inverse).
     pub fn to_key(self, value: f64) -> f64 {
-        match self {
-            Scale::Same => value,
-            Scale::Reciprocal(f) => f / value,
-        }
+        self.of_key(value)
     }
 }
 
@@ -588,14 +587,6 @@ pub fn screw_heating(axis: char, node: usize) -> Effect {
             )
         })],
     )
-}
-
-fn axis_index(a: char) -> usize {
-    match a {
-        'x' => 0,
-        'y' => 1,
-        _ => 2,
-    }
 }
 
 /// The ISO squareness key of a plane: EC0Y for XY, EB0Z for ZX, EA0Z for YZ.

@@ -8,9 +8,10 @@
 //! what the bar reads: they are read again from the recorded motion of the model as given
 //! (`vmt_sim::replay`, the same traces as a new simulation to rounding) instead of simulated;
 //! so are offsets of the lumped thermal network (`machine.thermal.…`) where it alone sets the
-//! thermal state, its steps taken again with the run's heat. For the finite-difference sensitivities only, a change of a screw's periodic lead error
-//! under a motor encoder is replayed too, the carriages moved by it quasi-statically (within
-//! about 1e-3 of the change; a test checks 2 %); what the selection reports is simulated.
+//! thermal state, its steps taken again with the run's heat. For the finite-difference
+//! sensitivities only, a change of a screw's periodic lead error under a motor encoder is
+//! replayed too, the carriages moved by it quasi-statically (within about 1e-3 of the change;
+//! a test checks 2 %); what the selection reports is simulated.
 
 use crate::align::GapError;
 use crate::effects::{Effect, library_for, screw_heating, thermal_drift};

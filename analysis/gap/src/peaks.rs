@@ -29,6 +29,7 @@
 //!    `q` axis: the circle passes a place on an axis twice.
 
 use crate::align::TracePair;
+use crate::axis_change::axis_index;
 use vmt_ballbar::Sense;
 
 /// Width of the moving median a bump is read against, deg.
@@ -49,6 +50,11 @@ pub struct Circle {
     pub centre_mm: [f64; 3],
     /// Radius, mm.
     pub radius_mm: f64,
+}
+
+/// An angle difference, deg, wrapped into [−180, 180).
+pub fn wrapped_deg(x: f64) -> f64 {
+    (x + 180.0).rem_euclid(360.0) - 180.0
 }
 
 /// Each of `circles` once, in the order they first come (the runs of a test share one).
@@ -349,11 +355,6 @@ fn directions(
 /// The plane's axes' positions over the angles `from..to` (deg) of `circle`.
 fn positions(p: &TracePair, circle: &Circle, from: f64, to: f64) -> Vec<(char, f64, f64)> {
     let (a, b) = p.plane.axes();
-    let index = |c: char| match c {
-        'X' => 0,
-        'Y' => 1,
-        _ => 2,
-    };
     let samples: Vec<f64> = (0..=20)
         .map(|i| (from + (to - from) * i as f64 / 20.0).to_radians())
         .collect();
@@ -366,13 +367,13 @@ fn positions(p: &TracePair, circle: &Circle, from: f64, to: f64) -> Vec<(char, f
     let (p0, p1) = span(
         samples
             .iter()
-            .map(|t| circle.centre_mm[index(a)] + r * t.cos())
+            .map(|t| circle.centre_mm[axis_index(a)] + r * t.cos())
             .collect(),
     );
     let (q0, q1) = span(
         samples
             .iter()
-            .map(|t| circle.centre_mm[index(b)] + r * t.sin())
+            .map(|t| circle.centre_mm[axis_index(b)] + r * t.sin())
             .collect(),
     );
     vec![(a, p0, p1), (b, q0, q1)]
@@ -397,38 +398,32 @@ pub fn axis_places(
                 continue;
             };
             let (p, q) = run.plane.axes();
-            let gap = |x: f64| (x + 180.0).rem_euclid(360.0) - 180.0;
             let (ta, tb) = (a.angle_deg, b.angle_deg);
-            let index = |c: char| match c {
-                'X' => 0,
-                'Y' => 1,
-                _ => 2,
-            };
             let r = circle.radius_mm;
             // Both passes at the reversals of the other axis (p reverses at 0° and 180°, q
             // at 90° and 270°).
-            let near = |t: f64, at: f64| gap(t - at).abs() <= PAIR_TOLERANCE_DEG;
+            let near = |t: f64, at: f64| wrapped_deg(t - at).abs() <= PAIR_TOLERANCE_DEG;
             let reversals = |axis: char, at: [f64; 2]| {
                 [ta, tb]
                     .iter()
                     .all(|t| at.iter().any(|x| near(*t, *x)))
                     .then_some(axis)
             };
-            if gap(ta + tb).abs() <= PAIR_TOLERANCE_DEG {
+            if wrapped_deg(ta + tb).abs() <= PAIR_TOLERANCE_DEG {
                 let at = 0.5 * (ta.to_radians().cos() + tb.to_radians().cos());
                 out.push(AxisPlace {
                     test: a.test.clone(),
                     axis: p,
-                    at_mm: circle.centre_mm[index(p)] + r * at,
+                    at_mm: circle.centre_mm[axis_index(p)] + r * at,
                     angles_deg: [ta, tb],
                     also_reversals_of: reversals(q, [90.0, 270.0]),
                 });
-            } else if gap(ta + tb - 180.0).abs() <= PAIR_TOLERANCE_DEG {
+            } else if wrapped_deg(ta + tb - 180.0).abs() <= PAIR_TOLERANCE_DEG {
                 let at = 0.5 * (ta.to_radians().sin() + tb.to_radians().sin());
                 out.push(AxisPlace {
                     test: a.test.clone(),
                     axis: q,
-                    at_mm: circle.centre_mm[index(q)] + r * at,
+                    at_mm: circle.centre_mm[axis_index(q)] + r * at,
                     angles_deg: [ta, tb],
                     also_reversals_of: reversals(p, [0.0, 180.0]),
                 });
