@@ -30,9 +30,7 @@
 //! [`simulate_with_replay`]: crate::simulate::simulate_with_replay
 
 use crate::run::BallbarTrace;
-use crate::simulate::{
-    HeatStep, Job, SimError, SimSettings, THERMAL_PERIOD_S, job_traces, push_sample, test_bar,
-};
+use crate::simulate::{HeatStep, Job, SimError, SimSettings, job_traces, push_sample, test_bar};
 use std::borrow::Cow;
 use vmt_model::kinematics::AxisState;
 use vmt_model::machine::Machine;
@@ -94,16 +92,11 @@ impl Replay {
                     .into(),
             ));
         }
-        let thermal_error = |e: String| SimError::Thermal(e);
-        let stepper = t
-            .network
-            .discretize(THERMAL_PERIOD_S)
-            .map_err(|e| thermal_error(e.to_string()))?;
-        let mut temps_c = t.network.initial_temperatures();
+        let (stepper, mut temps_c) = HeatStep::start(t)?;
         let deform = |temps_c: &[f64]| {
             machine
                 .thermal_deformation(temps_c)
-                .map_err(|e| thermal_error(e.to_string()))
+                .map_err(|e| SimError::Thermal(e.to_string()))
         };
         let mut out = Vec::with_capacity(steps.len() + 1);
         out.push(deform(&temps_c)?);

@@ -248,7 +248,7 @@ impl SimError {
 }
 
 /// Thermal update interval during a job, s.
-pub(crate) const THERMAL_PERIOD_S: f64 = 1.0;
+const THERMAL_PERIOD_S: f64 = 1.0;
 
 /// Runs `job` on `machine` and returns what was recorded. `progress` is called with the fraction
 /// done (0 to 1) about a hundred times.
@@ -914,14 +914,10 @@ impl HeatTracker {
     fn new(machine: &Machine, axes: &[AxisDynamics; 3]) -> Result<Self, SimError> {
         let thermal_error = |e: String| SimError::Thermal(e);
         let (stepper, temps_c) = match &machine.thermal {
-            Some(t) => (
-                Some(
-                    t.network
-                        .discretize(THERMAL_PERIOD_S)
-                        .map_err(|e| SimError::Thermal(e.to_string()))?,
-                ),
-                t.network.initial_temperatures(),
-            ),
+            Some(t) => {
+                let (stepper, temps_c) = HeatStep::start(t)?;
+                (Some(stepper), temps_c)
+            }
             None => (None, Vec::new()),
         };
         let mut screws = Vec::new();
@@ -1034,6 +1030,18 @@ pub(crate) struct HeatStep {
 }
 
 impl HeatStep {
+    /// The network of `thermal` discretised for the job's thermal period, and its start
+    /// temperatures.
+    pub(crate) fn start(
+        thermal: &vmt_model::machine::ThermalMachine,
+    ) -> Result<(ThermalStepper, Vec<f64>), SimError> {
+        let stepper = thermal
+            .network
+            .discretize(THERMAL_PERIOD_S)
+            .map_err(|e| SimError::Thermal(e.to_string()))?;
+        Ok((stepper, thermal.network.initial_temperatures()))
+    }
+
     /// Steps the network of `thermal` (discretised in `stepper`) from `temps_c`; returns the
     /// ambient temperature used.
     pub(crate) fn step(

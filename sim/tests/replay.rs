@@ -3,8 +3,8 @@
 //! whole new simulation gives, since neither enters the motion.
 
 use vmt_scenario::edit::Template;
-use vmt_sim::replay::replay;
-use vmt_sim::run::BallbarTrace;
+use vmt_sim::replay::{Replay, replay};
+use vmt_sim::run::{BallbarTrace, Run};
 use vmt_sim::simulate::simulate_with_replay;
 
 /// The built-in machine on a short XY test (100 mm, 2000 mm/min, CW and CCW), with noise.
@@ -28,26 +28,60 @@ fn run(text: &str) -> Vec<BallbarTrace> {
         .ballbar
 }
 
-#[test]
-fn a_replay_reads_what_a_new_simulation_reads() {
-    let text = scenario_text();
-    let s = vmt_scenario::parse(&text, "replay.toml", None).expect("loads");
+/// The run of scenario `text`, recorded for replays.
+fn recorded(text: &str) -> (Run, Replay) {
+    let s = vmt_scenario::parse(text, "replay.toml", None).expect("loads");
     let e = s.execution.as_ref().expect("a job");
-    let (base, rec) = simulate_with_replay(
+    let (run, rec) = simulate_with_replay(
         &s.machine,
         &e.axes,
         &e.controller,
         &e.job,
         &e.settings,
-        &text,
+        text,
         &mut |_| {},
         true,
     )
     .expect("runs");
-    let rec = rec.expect("recorded when asked");
+    (run, rec.expect("recorded when asked"))
+}
+
+/// The traces `rec` gives when read again on scenario `text`'s machine.
+fn replayed_on(text: &str, rec: &Replay) -> Vec<BallbarTrace> {
+    let s = vmt_scenario::parse(text, "replay.toml", None).expect("loads");
+    let e = s.execution.as_ref().expect("a job");
+    replay(&s.machine, &e.job, &e.settings, rec).expect("replays")
+}
+
+/// Asserts that `rec` read again on scenario `changed` gives what a new simulation of it gives,
+/// to 1e-9 µm at the same times; returns the largest change from the recorded run's `base`
+/// traces, µm.
+fn replays_as_simulated(changed: &str, rec: &Replay, base: &[BallbarTrace]) -> f64 {
+    let replayed = replayed_on(changed, rec);
+    let simulated = run(changed);
+    assert_eq!(replayed.len(), simulated.len());
+    let mut largest_change = 0.0f64;
+    for ((r, n), b) in replayed.iter().zip(&simulated).zip(base) {
+        assert_eq!(r.times_s, n.times_s);
+        for ((x, y), z) in r
+            .deviation_um
+            .iter()
+            .zip(&n.deviation_um)
+            .zip(&b.deviation_um)
+        {
+            assert!((x - y).abs() < 1e-9, "{x} vs {y} µm");
+            largest_change = largest_change.max((x - z).abs());
+        }
+    }
+    largest_change
+}
+
+#[test]
+fn a_replay_reads_what_a_new_simulation_reads() {
+    let text = scenario_text();
+    let (base, rec) = recorded(&text);
     // The machine as it ran: the same traces, noise draws included, to the bit.
-    let same = replay(&s.machine, &e.job, &e.settings, &rec).expect("replays");
-    assert_eq!(same, base.ballbar);
+    assert_eq!(replayed_on(&text, &rec), base.ballbar);
     // Squareness, an X scale error and another pivot offset and bar temperature.
     let changed = Template::parse(&text, "replay.toml")
         .unwrap()
@@ -58,24 +92,7 @@ fn a_replay_reads_what_a_new_simulation_reads() {
             ("instruments.ballbar.bar_temperature_c", 21.5),
         ])
         .unwrap();
-    let s2 = vmt_scenario::parse(&changed, "replay.toml", None).expect("loads");
-    let e2 = s2.execution.as_ref().expect("a job");
-    let replayed = replay(&s2.machine, &e2.job, &e2.settings, &rec).expect("replays");
-    let simulated = run(&changed);
-    assert_eq!(replayed.len(), simulated.len());
-    let mut largest_change = 0.0f64;
-    for ((r, n), b) in replayed.iter().zip(&simulated).zip(&base.ballbar) {
-        assert_eq!(r.times_s, n.times_s);
-        for ((x, y), z) in r
-            .deviation_um
-            .iter()
-            .zip(&n.deviation_um)
-            .zip(&b.deviation_um)
-        {
-            assert!((x - y).abs() < 1e-9, "{x} vs {y} µm");
-            largest_change = largest_change.max((x - z).abs());
-        }
-    }
+    let largest_change = replays_as_simulated(&changed, &rec, &base.ballbar);
     // The changes are seen: several µm on a 100 mm circle.
     assert!(largest_change > 3.0, "{largest_change}");
 }
@@ -86,20 +103,7 @@ fn a_replay_reads_what_a_new_simulation_reads() {
 #[test]
 fn a_replay_with_another_thermal_network_reads_what_a_new_simulation_reads() {
     let text = scenario_text();
-    let s = vmt_scenario::parse(&text, "replay.toml", None).expect("loads");
-    let e = s.execution.as_ref().expect("a job");
-    let (base, rec) = simulate_with_replay(
-        &s.machine,
-        &e.axes,
-        &e.controller,
-        &e.job,
-        &e.settings,
-        &text,
-        &mut |_| {},
-        true,
-    )
-    .expect("runs");
-    let rec = rec.expect("recorded when asked");
+    let (base, rec) = recorded(&text);
     let changed = Template::parse(&text, "replay.toml")
         .unwrap()
         .with(&[
@@ -108,22 +112,6 @@ fn a_replay_with_another_thermal_network_reads_what_a_new_simulation_reads() {
             ("machine.thermal.nodes[0].initial_c", 35.0),
         ])
         .unwrap();
-    let s2 = vmt_scenario::parse(&changed, "replay.toml", None).expect("loads");
-    let e2 = s2.execution.as_ref().expect("a job");
-    let replayed = replay(&s2.machine, &e2.job, &e2.settings, &rec).expect("replays");
-    let simulated = run(&changed);
-    let mut largest_change = 0.0f64;
-    for ((r, n), b) in replayed.iter().zip(&simulated).zip(&base.ballbar) {
-        assert_eq!(r.times_s, n.times_s);
-        for ((x, y), z) in r
-            .deviation_um
-            .iter()
-            .zip(&n.deviation_um)
-            .zip(&b.deviation_um)
-        {
-            assert!((x - y).abs() < 1e-9, "{x} vs {y} µm");
-            largest_change = largest_change.max((x - z).abs());
-        }
-    }
+    let largest_change = replays_as_simulated(&changed, &rec, &base.ballbar);
     assert!(largest_change > 0.3, "{largest_change}");
 }
