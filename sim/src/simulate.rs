@@ -276,7 +276,9 @@ pub fn simulate(
 /// [`simulate`], and with `replayable` also what the ball bar read at every sample (axis
 /// states, thermal state, time), so that the traces can be read again on a machine with other
 /// geometric errors or another bar set-up without simulating the motion again (see
-/// [`crate::replay`]).
+/// [`crate::replay`]). With `path` (the job's program planned before, under `ipo`) its
+/// setpoints are read instead of interpolated again; a path of another program or controller
+/// is not used.
 #[allow(clippy::too_many_arguments)]
 pub fn simulate_with_replay(
     machine: &Machine,
@@ -285,7 +287,7 @@ pub fn simulate_with_replay(
     job: &Job,
     settings: &SimSettings,
     scenario_toml: &str,
-    progress: &mut dyn FnMut(f64),
+    path: Option<&PlannedPath>,
     replayable: bool,
 ) -> Result<(Run, Option<Replay>), SimError> {
     let job_run = JobRun {
@@ -296,7 +298,36 @@ pub fn simulate_with_replay(
         settings,
         scenario_toml,
     };
-    job_run.execute(progress, replayable, None)
+    let path = path.and_then(|p| p.of(&job.program, ipo));
+    job_run.execute(&mut |_| {}, replayable, None, path)
+}
+
+/// A job's program planned once (path, feed profiles and IPO samples), for many runs of the
+/// same program and controller on machines that differ elsewhere (the model evaluations of a
+/// fit): each run then computes only its servo setpoints. Memory: the IPO samples, 16 bytes per
+/// IPO period.
+#[derive(Clone, Debug)]
+pub struct PlannedPath {
+    program: Program,
+    config: InterpolatorConfig,
+    interpolator: Interpolator,
+}
+
+impl PlannedPath {
+    /// Plans `program` under `config`.
+    pub fn new(program: &Program, config: &InterpolatorConfig) -> Result<Self, SimError> {
+        let interpolator = Interpolator::new(program, config)?;
+        Ok(Self {
+            program: program.clone(),
+            config: *config,
+            interpolator,
+        })
+    }
+
+    /// The planned interpolator, if it is of `program` under `config`.
+    fn of(&self, program: &Program, config: &InterpolatorConfig) -> Option<&Interpolator> {
+        (self.program == *program && self.config == *config).then_some(&self.interpolator)
+    }
 }
 
 /// [`simulate`] handing the run's records to `sink`, if there is one, while the job runs (see
@@ -321,7 +352,7 @@ pub fn simulate_logged(
         settings,
         scenario_toml,
     };
-    Ok(job_run.execute(progress, false, sink)?.0)
+    Ok(job_run.execute(progress, false, sink, None)?.0)
 }
 
 /// What a job runs on.
@@ -340,6 +371,7 @@ impl JobRun<'_> {
         progress: &mut dyn FnMut(f64),
         replayable: bool,
         mut sink: Option<&mut dyn LogSink>,
+        planned: Option<&Interpolator>,
     ) -> Result<(Run, Option<Replay>), SimError> {
         let JobRun {
             machine,
@@ -349,9 +381,16 @@ impl JobRun<'_> {
             settings,
             scenario_toml,
         } = *self;
-        let interpolator = Interpolator::new(&job.program, ipo)?;
+        let built;
+        let interpolator = match planned {
+            Some(p) => p,
+            None => {
+                built = Interpolator::new(&job.program, ipo)?;
+                &built
+            }
+        };
         let tcp = machine.volumetric.kinematics.tool_offset;
-        check_strokes(machine, &interpolator, &job.program, &tcp)?;
+        check_strokes(machine, interpolator, &job.program, &tcp)?;
         let period = interpolator.servo_period_s();
         let substeps = settings.plant_substeps.max(1);
         let h = period / substeps as f64;
@@ -415,7 +454,7 @@ impl JobRun<'_> {
         let mut last = None;
         for k in 0.. {
             let Some(sp) = setpoint_or_settle(
-                &interpolator,
+                interpolator,
                 k,
                 &mut cursor,
                 &mut last,

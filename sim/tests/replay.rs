@@ -5,7 +5,7 @@
 use vmt_scenario::edit::Template;
 use vmt_sim::replay::{Replay, replay};
 use vmt_sim::run::{BallbarTrace, Run};
-use vmt_sim::simulate::simulate_with_replay;
+use vmt_sim::simulate::{PlannedPath, simulate_with_replay};
 
 /// The built-in machine on a short XY test (100 mm, 2000 mm/min, CW and CCW), with noise.
 fn scenario_text() -> String {
@@ -30,20 +30,32 @@ fn run(text: &str) -> Vec<BallbarTrace> {
 
 /// The run of scenario `text`, recorded for replays.
 fn recorded(text: &str) -> (Run, Replay) {
+    let (run, rec) = run_on(text, None);
+    (run, rec.expect("recorded when asked"))
+}
+
+/// The run of scenario `text`, recorded, on `path` if given.
+fn run_on(text: &str, path: Option<&PlannedPath>) -> (Run, Option<Replay>) {
     let s = vmt_scenario::parse(text, "replay.toml", None).expect("loads");
     let e = s.execution.as_ref().expect("a job");
-    let (run, rec) = simulate_with_replay(
+    simulate_with_replay(
         &s.machine,
         &e.axes,
         &e.controller,
         &e.job,
         &e.settings,
         text,
-        &mut |_| {},
+        path,
         true,
     )
-    .expect("runs");
-    (run, rec.expect("recorded when asked"))
+    .expect("runs")
+}
+
+/// Scenario `text`'s program planned under its controller.
+fn planned(text: &str) -> PlannedPath {
+    let s = vmt_scenario::parse(text, "replay.toml", None).expect("loads");
+    let e = s.execution.as_ref().expect("a job");
+    PlannedPath::new(&e.job.program, &e.controller).expect("plans")
 }
 
 /// The traces `rec` gives when read again on scenario `text`'s machine.
@@ -114,4 +126,25 @@ fn a_replay_with_another_thermal_network_reads_what_a_new_simulation_reads() {
         .unwrap();
     let largest_change = replays_as_simulated(&changed, &rec, &base.ballbar);
     assert!(largest_change > 0.3, "{largest_change}");
+}
+
+/// A program planned once and run on a machine with other drives gives that machine's run bit
+/// for bit, as does a path planned for another program (a smaller circle), which is not used.
+#[test]
+fn a_planned_path_runs_as_the_program_interpolated_anew() {
+    let text = scenario_text();
+    let edit = |pairs: &[(&str, f64)]| {
+        Template::parse(&text, "replay.toml")
+            .unwrap()
+            .with(pairs)
+            .unwrap()
+    };
+    let machine = edit(&[("machine.axes.x.drive.backlash_um", 6.0)]);
+    let (fresh, _) = run_on(&machine, None);
+    let (on_path, _) = run_on(&machine, Some(&planned(&text)));
+    assert_eq!(on_path.ballbar, fresh.ballbar);
+    let smaller = edit(&[("job.radius_mm", 80.0)]);
+    let (elsewhere, _) = run_on(&machine, Some(&planned(&smaller)));
+    assert_eq!(elsewhere.ballbar, fresh.ballbar);
+    assert_ne!(run_on(&smaller, None).0.ballbar, fresh.ballbar);
 }

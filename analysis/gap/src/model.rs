@@ -25,6 +25,7 @@ use vmt_model::thermal::HeatSource;
 use vmt_scenario::edit::Template;
 use vmt_sim::replay::{LeadErrorChange, Replay};
 use vmt_sim::run::BallbarTrace;
+use vmt_sim::simulate::PlannedPath;
 
 /// Simulates a model's job with parameter offsets.
 pub trait Forward: Sync {
@@ -52,6 +53,9 @@ pub struct ScenarioModel {
     base_dir: Option<PathBuf>,
     /// The recorded motion of the model as given, once simulated.
     base: OnceLock<Replay>,
+    /// The job's program planned once for all its simulations (none if it cannot be planned:
+    /// the simulation then says why).
+    path: OnceLock<Option<PlannedPath>>,
     /// Evaluations answered by a replay instead of a simulation.
     replays: AtomicUsize,
     /// The thermal node the spindle's losses heat, if the model has one.
@@ -137,6 +141,7 @@ impl ScenarioModel {
             file: file.to_string(),
             base_dir,
             base: OnceLock::new(),
+            path: OnceLock::new(),
             replays: AtomicUsize::new(0),
             spindle_node: None,
             screw_nodes: [None; 3],
@@ -307,7 +312,9 @@ impl Forward for ScenarioModel {
                     &exec.job,
                     &exec.settings,
                     &text,
-                    &mut |_| {},
+                    self.path
+                        .get_or_init(|| PlannedPath::new(&exec.job.program, &exec.controller).ok())
+                        .as_ref(),
                     values.is_empty(),
                 )
                 .map_err(sim_error)?;

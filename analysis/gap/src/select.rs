@@ -999,7 +999,7 @@ impl Linearisation {
         o: &Options,
     ) -> Result<Vec<Vec<Vec<f64>>>, GapError> {
         self.available
-            .iter()
+            .par_iter()
             .zip(&self.stepped)
             .map(|(p, traces)| {
                 let (_, bins) = residuals(measured, traces, o.bin_deg, Some(grid))?;

@@ -69,6 +69,7 @@ pub mod planning;
 pub mod profile;
 
 use std::ops::Range;
+use std::sync::OnceLock;
 
 use nalgebra::Vector3;
 
@@ -140,7 +141,8 @@ pub struct Interpolator {
     start: Vector3<f64>,
     segments: Vec<Segment>,
     items: Vec<Item>,
-    samples: IpoSamples,
+    /// Sampled on first use: a check of the path's bounds needs none.
+    samples: OnceLock<IpoSamples>,
     ipo_period_s: f64,
     servo_period_s: f64,
     ticks_per_ipo: usize,
@@ -354,18 +356,16 @@ impl Interpolator {
             }
         }
         builder.close()?;
-        let mut interpolator = Interpolator {
+        Ok(Interpolator {
             start: program.start,
             segments: builder.segments,
             items: builder.items,
-            samples: IpoSamples::default(),
+            samples: OnceLock::new(),
             ipo_period_s: config.ipo_period_s,
             servo_period_s: config.servo_period_s,
             ticks_per_ipo,
             window_s,
-        };
-        interpolator.samples = interpolator.sample_ipo();
-        Ok(interpolator)
+        })
     }
 
     /// Total duration, s: the last IPO tick, at which the machine is at rest at the end point.
@@ -445,7 +445,7 @@ impl Interpolator {
         range: Range<f64>,
         cursor: &mut Cursor,
     ) -> Setpoint {
-        let mut state = self.samples.at(m, tau);
+        let mut state = self.samples().at(m, tau);
         state.s = state.s.clamp(range.start, range.end);
         let at_end = state.s >= range.end;
         self.on_path(time_s, segments.clone(), state, at_end, cursor)
@@ -526,7 +526,7 @@ impl Interpolator {
         range: Range<f64>,
         cursor: &mut Cursor,
     ) -> Option<AxisEnds> {
-        let samples = [self.samples.sample(m)?, self.samples.sample(m + 1)?];
+        let samples = [self.samples().sample(m)?, self.samples().sample(m + 1)?];
         if !samples.iter().all(|e| range.contains(&e.s)) {
             return None;
         }
@@ -534,7 +534,7 @@ impl Interpolator {
         let guess = cursor.segment.saturating_sub(segments.start);
         let [i0, i1] = samples.map(|e| partition_from(run.len(), guess, |j| run[j].s_end() <= e.s));
         let seg = run.get(i0).filter(|_| i0 == i1)?;
-        let cubic = [self.samples.at(m, 0.0), self.samples.at(m, 1.0)];
+        let cubic = [self.samples().at(m, 0.0), self.samples().at(m, 1.0)];
         if remainder_bound(&seg.geometry, &cubic, self.ipo_period_s) > AXIS_HERMITE_TOLERANCE_M {
             return None;
         }
@@ -591,6 +591,10 @@ impl Interpolator {
     }
 
     /// The filtered path state at every IPO tick.
+    fn samples(&self) -> &IpoSamples {
+        self.samples.get_or_init(|| self.sample_ipo())
+    }
+
     fn sample_ipo(&self) -> IpoSamples {
         let total = self.ipo_ticks();
         let mut samples = IpoSamples::with_capacity(self.ipo_period_s, total + 1);
