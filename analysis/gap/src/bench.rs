@@ -545,6 +545,11 @@ pub fn run(
     progress: &(dyn Fn() + Sync),
 ) -> Result<Vec<Outcome>, GapError> {
     let lin = Linearisation::new(model, library)?;
+    // The cases run side by side: no core is idle for a selection to verify ahead on.
+    let o = &Options {
+        speculate: false,
+        ..*o
+    };
     let template = Template::parse(text, "model").map_err(|e| GapError::Model(e.to_string()))?;
     let scenario_error = |e: vmt_scenario::ScenarioError| GapError::Model(e.to_string());
     // The physics' visibility: the model with it, noise-free, against the model as given; the

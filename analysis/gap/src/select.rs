@@ -49,6 +49,7 @@ use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
 use statrs::distribution::{ContinuousCDF, StudentsT};
 use std::sync::OnceLock;
+use std::sync::atomic::{AtomicUsize, Ordering};
 use vmt_ballbar::Trace;
 
 /// Rivals of a chosen effect simulated to confirm an ambiguity, at most.
@@ -81,6 +82,10 @@ pub struct Options {
     pub explained_fraction: f64,
     /// Significance level of the paired test that calls a rival worse than the chosen effect.
     pub ambiguity_level: f64,
+    /// While a step verifies its candidate, verify beside it the one the next step would
+    /// verify first if this one is taken: the same answer, sooner where a core is otherwise
+    /// idle, and wasted work where it is not (many selections run side by side).
+    pub speculate: bool,
 }
 
 impl Default for Options {
@@ -94,6 +99,7 @@ impl Default for Options {
             explained_floor_um: 0.2,
             explained_fraction: 0.15,
             ambiguity_level: 0.05,
+            speculate: true,
         }
     }
 }
@@ -534,6 +540,14 @@ struct Candidate {
 /// The residual bins of a simulation: per measured trace.
 type Simulated = (Vec<TracePair>, Vec<Vec<f64>>);
 
+/// A candidate verified ahead of its step ([`Options::speculate`]): its fit as the step makes
+/// it, its offsets after verification and the outcome.
+struct Ahead {
+    fit: Candidate,
+    beta: Vec<f64>,
+    outcome: Result<Simulated, GapError>,
+}
+
 /// The state of a forward selection.
 struct Selector<'a> {
     model: &'a dyn Forward,
@@ -548,7 +562,7 @@ struct Selector<'a> {
     grid: Grid,
     /// The residual of the model as given on the fit, select and judge bins.
     given: [Vec<f64>; 3],
-    simulations: usize,
+    simulations: AtomicUsize,
 }
 
 impl Selector<'_> {
@@ -632,7 +646,7 @@ impl Selector<'_> {
 
     /// Simulates the candidate at its fitted values, then once more after a Gauss–Newton step
     /// from the simulated residual on the fit bins, and keeps the better of the two.
-    fn verify(&mut self, c: &mut Candidate) -> Result<Simulated, GapError> {
+    fn verify(&self, c: &mut Candidate) -> Result<Simulated, GapError> {
         let first = self.simulate(&c.params, &c.beta)?;
         let fit = self.columns(&c.params, Role::Fit);
         let Some(delta) = solve(&slices(&fit), &stack(&first.1, &self.rows.fit)) else {
@@ -649,8 +663,58 @@ impl Selector<'_> {
         }
     }
 
-    fn simulate(&mut self, params: &[usize], beta: &[f64]) -> Result<Simulated, GapError> {
-        self.simulations += 1;
+    /// [`Selector::verify`] of `c`, taken from `ahead` if it was verified there, else
+    /// simulated; with [`Options::speculate`], beside it the next step's likeliest candidate
+    /// if `c` joins `chosen` (the best on the select bins of the plausible ones), kept in
+    /// `ahead`. Verification is a function of the fit alone, so the answer is the same.
+    fn verify_ahead(
+        &self,
+        c: &mut Candidate,
+        chosen: &[usize],
+        hidden: &[&str],
+        ahead: &mut Option<Ahead>,
+    ) -> Result<Simulated, GapError> {
+        if ahead
+            .as_ref()
+            .is_some_and(|a| a.fit.params == c.params && a.fit.beta == c.beta)
+            && let Some(a) = ahead.take()
+        {
+            c.beta = a.beta;
+            return a.outcome;
+        }
+        let next = (self.o.speculate && chosen.len() + 1 < self.o.max_effects)
+            .then(|| self.likeliest_after(chosen, c, hidden))
+            .flatten();
+        let Some(fit) = next else {
+            return self.verify(c);
+        };
+        let mut verified = fit.clone();
+        let (outcome, next_outcome) = rayon::join(|| self.verify(c), || self.verify(&mut verified));
+        *ahead = Some(Ahead {
+            fit,
+            beta: verified.beta,
+            outcome: next_outcome,
+        });
+        outcome
+    }
+
+    /// The candidate the step after `c` joins `chosen` would verify first, but for the BIC
+    /// gate, which needs `c`'s simulation: of the plausible fits, the best on the select bins.
+    fn likeliest_after(
+        &self,
+        chosen: &[usize],
+        c: &Candidate,
+        hidden: &[&str],
+    ) -> Option<Candidate> {
+        let with: Vec<usize> = chosen.iter().chain(&c.effects).copied().collect();
+        self.candidates(&with, &self.pool(&with, hidden), 0.0)
+            .into_iter()
+            .filter(|n| self.implausible(n).is_none())
+            .min_by(|a, b| a.select_rss.total_cmp(&b.select_rss))
+    }
+
+    fn simulate(&self, params: &[usize], beta: &[f64]) -> Result<Simulated, GapError> {
+        self.simulations.fetch_add(1, Ordering::Relaxed);
         let traces = self.model.traces(&self.values(params, beta))?;
         residuals(self.measured, &traces, self.o.bin_deg, Some(&self.grid))
     }
@@ -686,7 +750,7 @@ impl Selector<'_> {
 
     /// Fits the baseline parameters (the set-up) alone and simulates them: the model as given,
     /// measured as it was set up. Without baseline parameters, the model as given.
-    fn baseline(&mut self, given: Vec<TracePair>) -> Result<(Candidate, Simulated), GapError> {
+    fn baseline(&self, given: Vec<TracePair>) -> Result<(Candidate, Simulated), GapError> {
         let params = self.params(&[], &[]);
         let fit = self.columns(&params, Role::Fit);
         let beta = match solve(&slices(&fit), self.given(Role::Fit)) {
@@ -789,7 +853,7 @@ impl Selector<'_> {
     /// `chosen_bins` are the simulated residual with the chosen effects, `initial_bins` that
     /// of the model as given with its set-up fitted (the gap a rival must explain).
     fn alternatives(
-        &mut self,
+        &self,
         chosen: &[usize],
         chosen_bins: &[Vec<f64>],
         initial_bins: &[Vec<f64>],
@@ -1173,13 +1237,13 @@ pub fn select_without(
     }
     let sensitivities = lin.sensitivities(measured, &grid, o)?;
     let given = [Role::Fit, Role::Select, Role::Judge].map(|r| stack(&base_bins, rows.of(r)));
-    let mut sel = Selector {
+    let sel = Selector {
         model,
         measured,
         library,
         rows,
         o,
-        simulations: 0,
+        simulations: AtomicUsize::new(0),
         available: lin.available.clone(),
         sensitivities,
         grid,
@@ -1200,6 +1264,7 @@ pub fn select_without(
         (Vec::new(), Vec::new(), Vec::new(), Vec::new());
     let (mut final_pairs, mut final_bins, mut best_so_far) =
         (initial_pairs.clone(), initial_bins.clone(), base);
+    let mut ahead = None;
     // A gap already at the explained floor needs no effect: the model as given explains the
     // measurement to the level of its small mismatches.
     while chosen.len() < o.max_effects
@@ -1224,7 +1289,7 @@ pub fn select_without(
                 rejected.push(r);
                 continue;
             }
-            match sel.verify(&mut c) {
+            match sel.verify_ahead(&mut c, &chosen, hidden, &mut ahead) {
                 Ok(simulated) => match sel.implausible(&c) {
                     Some(r) => rejected.push(r),
                     None => {
@@ -1293,7 +1358,7 @@ pub fn select_without(
         final_pairs,
         initial_pairs,
         final_values,
-        simulations: sel.simulations,
+        simulations: sel.simulations.into_inner(),
         split,
     })
 }

@@ -6,7 +6,7 @@
 use vmt_ballbar::Trace;
 use vmt_gap::effects::{Effect, library};
 use vmt_gap::model::{Forward, ScenarioModel};
-use vmt_gap::select::{Linearisation, Options, select};
+use vmt_gap::select::{Linearisation, Options, Selection, select};
 use vmt_gap::split::Split;
 
 fn short_test() -> String {
@@ -66,20 +66,25 @@ fn added_backlash_is_found_sized_and_closes_the_held_out_gap() {
         "scale_mismatch",
     ]);
     let split = Split::automatic(&real).unwrap();
-    let s = select(
-        &model,
-        &Linearisation::new(&model, &lib).unwrap(),
-        &real,
-        &lib,
-        split,
-        &Options::default(),
-    )
-    .unwrap();
+    let lin = Linearisation::new(&model, &lib).unwrap();
+    let run = |o: &Options| select(&model, &lin, &real, &lib, split.clone(), o).unwrap();
+    let s = run(&Options::default());
     assert_eq!(
         s.steps.first().map(|s| s.effect.as_str()),
         Some("backlash_x"),
         "{s:#?}"
     );
+    // Verifying the next step's candidate ahead changes how many simulations ran, not the
+    // answer.
+    let plain = run(&Options {
+        speculate: false,
+        ..Options::default()
+    });
+    let uncounted = |s: &Selection| Selection {
+        simulations: 0,
+        ..s.clone()
+    };
+    assert_eq!(uncounted(&s), uncounted(&plain));
     let b = s.steps[0].values[0].value;
     assert!((b - 4.0).abs() < 0.4, "fitted {b} um, injected 4 um");
     let shrink = s
