@@ -2,17 +2,17 @@
 //! in XY, ZX and YZ): the "measured" runs come from the model with 3 µm more X backlash, the
 //! library is that of the three planes. (Not Z: gravity holds the Z nut on one flank, so 3 µm
 //! more Z backlash changes the held-out traces by 0.026 µm RMS, and nothing is to be found.)
-//! Goal (issue 6): at most 30 s on 2 cores. Measured November 2026 on the 2-core machine,
-//! otherwise idle: 22.0–25.6 s (three runs; linearisation 15.8–17.5 s: 10 simulations and 17 replays), with the
-//! library now holding thermal drift too; 31.0–36.4 s before the screws' lead-error
-//! sensitivities were replayed (quasi-statically, `vmt_sim::replay::replay_lead_error`),
-//! 49.9 s at the start of the session, 71.3 s before the geometric and bar set-up parameters
-//! were replayed. Since then also: the reduced plant about 1.36× faster (sim/benches/circle.rs),
-//! the model's servo log at 10 Hz (only the bar's traces are read), the motion-changing
-//! parameters simulated beside the model as given, and no candidate simulated once the residual
-//! is below what any effect could change. backlash_x 3.05 µm, held-out shrink 99.8 % (the
-//! same to the last digit). Profile of the simulations: the drive step 44 %, the simulation
-//! loop 10 %, `sincos` of the arcs 10 %, the interpolator 11 %, the controllers 7 %.
+//! Goal (issues 6 and 27): at most 30 s on 2 cores. Measured 29 November 2026 on the 2-core
+//! machine, otherwise idle: 17.7–24.3 s, median 21.3 s (five runs; linearisation 13.3–16.6 s:
+//! 11 simulations and 21 replays), against 22.4–27.0 s for the commit before, run in turn with
+//! it (the host's speed swings by a quarter from hour to hour). It gained from the program
+//! planned once for all evaluations (`vmt_sim::simulate::PlannedPath`), the sensitivities
+//! binned in parallel and the next step's candidate verified ahead (`Options::speculate`).
+//! backlash_x 3.06 µm, untouched judge shrink 98.5 %. Profile of the simulations: the reduced
+//! plant's step 32 %, the drives' control 12 %, the simulation loop 12 %, the interpolator's
+//! setpoints 11 %. History: 71.3 s before the geometric and bar set-up parameters were
+//! replayed, 49.9 s before the lead errors were, 22.0–25.6 s before the untouched-judge
+//! protocol and the screws' heating.
 //! Run: `cargo bench -p vmt-gap --bench seven_step` (prints the wall time of each stage).
 
 use std::time::Instant;
