@@ -197,32 +197,48 @@ pub fn tool_modes() -> Vec<Mode> {
     ]
 }
 
+/// The set's end mill: 12 mm, [`TEETH`] flutes, 30° helix, 30 mm of flute, its run-out
+/// `runout_m` (m) at `angle_rad` (rad).
+pub fn end_mill(runout_m: f64, angle_rad: f64) -> EndMill {
+    EndMill {
+        diameter: 0.012,
+        teeth: TEETH,
+        helix: 30f64.to_radians(),
+        flute_length: 0.03,
+        runout: runout_m,
+        runout_angle: angle_rad,
+    }
+}
+
+/// The cutting coefficients of the set's aluminium, N/m²: K_tc 700 MPa, K_rc 210 MPa (a
+/// third of it), no axial or edge forces.
+pub const ALUMINIUM: CuttingCoefficients = CuttingCoefficients {
+    tangential: 700e6,
+    radial: 210e6,
+    axial: 0.0,
+    tangential_edge: 0.0,
+    radial_edge: 0.0,
+    axial_edge: 0.0,
+};
+
+/// The set's engagement at `axial_depth_m` (m): half the tool's diameter radially (6 mm), down
+/// milling.
+pub fn half_immersion(axial_depth_m: f64) -> CutGeometry {
+    CutGeometry {
+        axial_depth: axial_depth_m,
+        radial_depth: 0.006,
+        direction: MillingDirection::Down,
+    }
+}
+
 /// The simulator's set-up of `cut` logged at `rate_hz`.
 pub fn setup(cut: &Cut, rate_hz: f64) -> MillingSetup {
     MillingSetup {
-        tool: EndMill {
-            diameter: 0.012,
-            teeth: TEETH,
-            helix: 30f64.to_radians(),
-            flute_length: 0.03,
-            runout: cut.runout_um * 1e-6,
-            runout_angle: cut.runout_angle_deg.to_radians(),
-        },
-        coefficients: CuttingCoefficients {
-            tangential: 700e6,
-            radial: 210e6,
-            axial: 0.0,
-            tangential_edge: 0.0,
-            radial_edge: 0.0,
-            axial_edge: 0.0,
-        },
+        tool: end_mill(cut.runout_um * 1e-6, cut.runout_angle_deg.to_radians()),
+        coefficients: ALUMINIUM,
         dynamics: ToolDynamics::symmetric(tool_modes()),
         axial_mode: None,
-        cut: CutGeometry {
-            axial_depth: cut.depth_mm * 1e-3,
-            radial_depth: 0.006,
-            direction: MillingDirection::Down,
-        },
+        cut: half_immersion(cut.depth_mm * 1e-3),
         feed_per_tooth: FEED_PER_TOOTH_M,
         accelerometer: AccelerometerParams::at_rate(rate_hz),
         step_s: STEP_S,

@@ -12,16 +12,12 @@ use std::fmt::Write as _;
 use vmt_chatter::detect::eval::{LabelledRun, Scores, evaluate};
 use vmt_chatter::detect::{Verdict, kim, spectral};
 use vmt_chatter::filter::{ChebyshevBandPass, SosFilter};
-use vmt_model::cutting::{
-    CutGeometry, CuttingCoefficients, EndMill, MillingDirection, Mode, ToolDynamics,
-};
+use vmt_dataset::chatter::{self, FEED_PER_TOOTH_M as FEED_PER_TOOTH};
+use vmt_model::cutting::{Mode, ToolDynamics};
 use vmt_sim::milling::{
     AccelWindow, AccelerometerParams, Feed, MillingDrive, MillingRun, MillingSetup,
     SupervisorCommand, simulate_milling, simulate_milling_with,
 };
-
-/// Programmed feed per tooth of every cut, m.
-const FEED_PER_TOOTH: f64 = 0.05e-3;
 
 /// Spindle speeds accepted, rpm: the simulation's memory grows with the tooth passes (1e9 rpm
 /// aborts on allocation).
@@ -115,40 +111,22 @@ fn check_bench(a: &BenchArgs) -> Result<(), CliError> {
     Ok(())
 }
 
-/// The bench's tool: a 12 mm four-flute end mill, 30° helix, on a two-mode tool point whose
-/// upper mode (6.5 kHz) sits in Kim's 6–7 kHz band; aluminium coefficients.
+/// The bench's tool: the dataset's 12 mm four-flute end mill in its aluminium, at half
+/// immersion, on a two-mode tool point whose upper mode (6.5 kHz) sits in Kim's 6–7 kHz band.
 fn setup(depth_mm: f64, seed: u64) -> MillingSetup {
     let modes = vec![
         Mode::from_mass(0.0144, 2300.0, 0.02),
         Mode::from_mass(0.003, 6500.0, 0.015),
     ];
     MillingSetup {
-        tool: EndMill {
-            diameter: 0.012,
-            teeth: 4,
-            helix: 30f64.to_radians(),
-            flute_length: 0.03,
-            runout: 0.0,
-            runout_angle: 0.0,
-        },
-        coefficients: CuttingCoefficients {
-            tangential: 700e6,
-            radial: 210e6,
-            axial: 0.0,
-            tangential_edge: 0.0,
-            radial_edge: 0.0,
-            axial_edge: 0.0,
-        },
+        tool: chatter::end_mill(0.0, 0.0),
+        coefficients: chatter::ALUMINIUM,
         dynamics: ToolDynamics::symmetric(modes),
         axial_mode: None,
-        cut: CutGeometry {
-            axial_depth: depth_mm * 1e-3,
-            radial_depth: 0.006,
-            direction: MillingDirection::Down,
-        },
+        cut: chatter::half_immersion(depth_mm * 1e-3),
         feed_per_tooth: FEED_PER_TOOTH,
         accelerometer: AccelerometerParams::default(),
-        step_s: 1.0 / 160_000.0,
+        step_s: chatter::STEP_S,
         seed,
     }
 }
