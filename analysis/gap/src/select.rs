@@ -672,6 +672,7 @@ impl Selector<'_> {
         c: &mut Candidate,
         chosen: &[usize],
         hidden: &[&str],
+        cur_bic: f64,
         ahead: &mut Option<Ahead>,
     ) -> Result<Simulated, GapError> {
         if ahead
@@ -683,7 +684,7 @@ impl Selector<'_> {
             return a.outcome;
         }
         let next = (self.o.speculate && chosen.len() + 1 < self.o.max_effects)
-            .then(|| self.likeliest_after(chosen, c, hidden))
+            .then(|| self.likeliest_after(chosen, c, hidden, cur_bic))
             .flatten();
         let Some(fit) = next else {
             return self.verify(c);
@@ -698,18 +699,24 @@ impl Selector<'_> {
         outcome
     }
 
-    /// The candidate the step after `c` joins `chosen` would verify first, but for the BIC
-    /// gate, which needs `c`'s simulation: of the plausible fits, the best on the select bins.
+    /// The candidate the step after `c` joins `chosen` would verify first, judged on `c`'s
+    /// linear fit in place of its simulation (its select bins' RSS and BIC, `cur_bic` being
+    /// the current one): none if that step could not add an effect, else the best on the
+    /// select bins of the plausible fits that pass the BIC gate.
     fn likeliest_after(
         &self,
         chosen: &[usize],
         c: &Candidate,
         hidden: &[&str],
+        cur_bic: f64,
     ) -> Option<Candidate> {
+        if !can_change(c.select_rss, self.rows.select.len(), self.o) {
+            return None;
+        }
         let with: Vec<usize> = chosen.iter().chain(&c.effects).copied().collect();
-        self.candidates(&with, &self.pool(&with, hidden), 0.0)
+        self.candidates(&with, &self.pool(&with, hidden), cur_bic + c.bic_change)
             .into_iter()
-            .filter(|n| self.implausible(n).is_none())
+            .filter(|n| n.bic_change < -self.o.min_bic_drop && self.implausible(n).is_none())
             .min_by(|a, b| a.select_rss.total_cmp(&b.select_rss))
     }
 
@@ -1289,7 +1296,7 @@ pub fn select_without(
                 rejected.push(r);
                 continue;
             }
-            match sel.verify_ahead(&mut c, &chosen, hidden, &mut ahead) {
+            match sel.verify_ahead(&mut c, &chosen, hidden, cur_bic, &mut ahead) {
                 Ok(simulated) => match sel.implausible(&c) {
                     Some(r) => rejected.push(r),
                     None => {
