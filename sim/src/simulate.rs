@@ -276,9 +276,9 @@ pub fn simulate(
 /// [`simulate`], and with `replayable` also what the ball bar read at every sample (axis
 /// states, thermal state, time), so that the traces can be read again on a machine with other
 /// geometric errors or another bar set-up without simulating the motion again (see
-/// [`crate::replay`]). With `path` (the job's program planned before, under `ipo`) its
-/// setpoints are read instead of interpolated again; a path of another program or controller
-/// is not used.
+/// [`crate::replay`]). With `path` (the job's program planned before, under `ipo`) its plan
+/// is used instead of planning the program again; a path of another program or controller is
+/// not used.
 #[allow(clippy::too_many_arguments)]
 pub fn simulate_with_replay(
     machine: &Machine,

@@ -665,8 +665,8 @@ impl Selector<'_> {
 
     /// [`Selector::verify`] of `c`, taken from `ahead` if it was verified there, else
     /// simulated; with [`Options::speculate`], beside it the next step's likeliest candidate
-    /// if `c` joins `chosen` (the best on the select bins of the plausible ones), kept in
-    /// `ahead`. Verification is a function of the fit alone, so the answer is the same.
+    /// if `c` joins `chosen` ([`Selector::likeliest_after`]), kept in `ahead`. Verification is
+    /// a function of the fit alone, so the answer is the same.
     fn verify_ahead(
         &self,
         c: &mut Candidate,

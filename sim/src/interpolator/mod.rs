@@ -342,8 +342,8 @@ impl<'a> Builder<'a> {
 }
 
 impl Interpolator {
-    /// Plans `program` under `config`: validates both, builds the path, plans every section and
-    /// computes the IPO samples.
+    /// Plans `program` under `config`: validates both, builds the path and plans every
+    /// section; the IPO samples are computed when a setpoint first needs them.
     pub fn new(program: &Program, config: &InterpolatorConfig) -> Result<Self, InterpolatorError> {
         config.validate()?;
         let ticks_per_ipo = config.servo_ticks_per_ipo()?;
@@ -590,11 +590,12 @@ impl Interpolator {
         }
     }
 
-    /// The filtered path state at every IPO tick.
+    /// The filtered path state at every IPO tick, sampled on first use.
     fn samples(&self) -> &IpoSamples {
         self.samples.get_or_init(|| self.sample_ipo())
     }
 
+    /// Samples the filtered path state at every IPO tick.
     fn sample_ipo(&self) -> IpoSamples {
         let total = self.ipo_ticks();
         let mut samples = IpoSamples::with_capacity(self.ipo_period_s, total + 1);
