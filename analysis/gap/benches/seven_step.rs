@@ -3,12 +3,12 @@
 //! library is that of the three planes. (Not Z: gravity holds the Z nut on one flank, so 3 µm
 //! more Z backlash changes the held-out traces by 0.026 µm RMS, and nothing is to be found.)
 //! Goal (issues 6 and 27): at most 30 s on 2 cores. Measured 29 November 2026 on the 2-core
-//! machine, otherwise idle, in turn with the commit before's bench (the host's speed swings by
-//! a quarter or more from hour to hour): 17.7–24.3 s, median 21.3 s, against 22.4–27.0 s; in
-//! a slower hour 21.9–28.1 s, median 24.6 s, against 27.2–38.8 s (linearisation 13.3–23.1 s:
-//! 11 simulations and 21 replays). It gained from the program planned once for all
-//! evaluations (`vmt_sim::simulate::PlannedPath`), the sensitivities binned in parallel and
-//! the next step's candidate verified ahead (`Options::speculate`).
+//! machine, otherwise idle, in turn with the bench of cf37350 (the host's speed swings by a
+//! quarter or more from hour to hour): 15.7–16.1 s, median 15.8 s (linearisation 11.1–11.5 s:
+//! 11 simulations and 21 replays) against 21.4–23.5 s. It gained from the program planned
+//! once for all evaluations (`vmt_sim::simulate::PlannedPath`), the sensitivities binned in
+//! parallel, the next step's candidate verified ahead (`Options::speculate`) and the replays
+//! run while the other parameters still simulate.
 //! backlash_x 3.06 µm, untouched judge shrink 98.5 %. Profile of the simulations: the reduced
 //! plant's step 32 %, the drives' control 12 %, the simulation loop 12 %, the interpolator's
 //! setpoints 11 %. History: 71.3 s before the geometric and bar set-up parameters were

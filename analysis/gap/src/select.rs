@@ -1026,23 +1026,27 @@ impl Linearisation {
             model.sensitivity_traces(&values)
         };
         // Parameters that change the motion are simulated beside the model as given; those a
-        // replay of its recorded motion answers wait for it.
+        // replay of its recorded motion answers follow it, while the others still simulate.
         let replayable = |p: &Available| p.keys.iter().all(|(k, _)| model.replayable(k));
-        let (base, moving) = rayon::join(
-            || model.traces(&[]),
-            || {
-                available
-                    .par_iter()
-                    .map(|p| (!replayable(p)).then(|| stepped_traces(p)).transpose())
-                    .collect::<Result<Vec<Option<Vec<Trace>>>, GapError>>()
-            },
-        );
-        let (base, moving) = (base?, moving?);
-        let stepped = available
-            .par_iter()
+        let evaluate = |replays: bool| {
+            available
+                .par_iter()
+                .map(|p| {
+                    (replayable(p) == replays)
+                        .then(|| stepped_traces(p))
+                        .transpose()
+                })
+                .collect::<Result<Vec<Option<Vec<Trace>>>, GapError>>()
+        };
+        let ((base, replayed), moving) =
+            rayon::join(|| (model.traces(&[]), evaluate(true)), || evaluate(false));
+        let (base, replayed, moving) = (base?, replayed?, moving?);
+        // Each parameter is either replayed or simulated.
+        let stepped = replayed
+            .into_iter()
             .zip(moving)
-            .map(|(p, done)| done.map_or_else(|| stepped_traces(p), Ok))
-            .collect::<Result<_, GapError>>()?;
+            .filter_map(|(r, m)| r.or(m))
+            .collect();
         Ok(Self {
             available,
             unavailable,
