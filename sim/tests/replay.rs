@@ -20,6 +20,14 @@ fn scenario_text() -> String {
     )
 }
 
+/// Scenario `text` with the keys of `pairs` set to their values.
+fn edited(text: &str, pairs: &[(&str, f64)]) -> String {
+    Template::parse(text, "replay.toml")
+        .unwrap()
+        .with(pairs)
+        .unwrap()
+}
+
 fn run(text: &str) -> Vec<BallbarTrace> {
     let s = vmt_scenario::parse(text, "replay.toml", None).expect("loads");
     let e = s.execution.expect("a job");
@@ -95,15 +103,15 @@ fn a_replay_reads_what_a_new_simulation_reads() {
     // The machine as it ran: the same traces, noise draws included, to the bit.
     assert_eq!(replayed_on(&text, &rec), base.ballbar);
     // Squareness, an X scale error and another pivot offset and bar temperature.
-    let changed = Template::parse(&text, "replay.toml")
-        .unwrap()
-        .with(&[
+    let changed = edited(
+        &text,
+        &[
             ("machine.errors.squareness.EC0Y_urad", 40.0),
             ("machine.errors.x.forward.EXX_um[1]", 9.0),
             ("instruments.ballbar.setup_eccentricity_um[0]", -6.0),
             ("instruments.ballbar.bar_temperature_c", 21.5),
-        ])
-        .unwrap();
+        ],
+    );
     let largest_change = replays_as_simulated(&changed, &rec, &base.ballbar);
     // The changes are seen: several µm on a 100 mm circle.
     assert!(largest_change > 3.0, "{largest_change}");
@@ -116,14 +124,14 @@ fn a_replay_reads_what_a_new_simulation_reads() {
 fn a_replay_with_another_thermal_network_reads_what_a_new_simulation_reads() {
     let text = scenario_text();
     let (base, rec) = recorded(&text);
-    let changed = Template::parse(&text, "replay.toml")
-        .unwrap()
-        .with(&[
+    let changed = edited(
+        &text,
+        &[
             ("machine.thermal.nodes[3].capacity_j_per_k", 1200.0),
             ("machine.thermal.sources[1].w_per_mm_s", 0.8),
             ("machine.thermal.nodes[0].initial_c", 35.0),
-        ])
-        .unwrap();
+        ],
+    );
     let largest_change = replays_as_simulated(&changed, &rec, &base.ballbar);
     assert!(largest_change > 0.3, "{largest_change}");
 }
@@ -133,17 +141,11 @@ fn a_replay_with_another_thermal_network_reads_what_a_new_simulation_reads() {
 #[test]
 fn a_planned_path_runs_as_the_program_interpolated_anew() {
     let text = scenario_text();
-    let edit = |pairs: &[(&str, f64)]| {
-        Template::parse(&text, "replay.toml")
-            .unwrap()
-            .with(pairs)
-            .unwrap()
-    };
-    let machine = edit(&[("machine.axes.x.drive.backlash_um", 6.0)]);
+    let machine = edited(&text, &[("machine.axes.x.drive.backlash_um", 6.0)]);
     let (fresh, _) = run_on(&machine, None);
     let (on_path, _) = run_on(&machine, Some(&planned(&text)));
     assert_eq!(on_path.ballbar, fresh.ballbar);
-    let smaller = edit(&[("job.radius_mm", 80.0)]);
+    let smaller = edited(&text, &[("job.radius_mm", 80.0)]);
     let (elsewhere, _) = run_on(&machine, Some(&planned(&smaller)));
     assert_eq!(elsewhere.ballbar, fresh.ballbar);
     assert_ne!(run_on(&smaller, None).0.ballbar, fresh.ballbar);
