@@ -3,7 +3,7 @@
 
 use crate::build::{BuildError, count_in_range, in_range, positive, typed};
 use crate::error::{Invalid, KeyPath};
-use crate::schema::Numbers;
+use crate::schema::{Numbers, Points};
 use nalgebra::Vector3;
 use serde::Deserialize;
 use std::path::Path;
@@ -153,8 +153,9 @@ pub enum JobToml {
 #[serde(deny_unknown_fields)]
 pub struct BallbarJobToml {
     plane: String,
-    /// Default: the tool point with every carriage at the middle of its stroke.
-    pub center_mm: Option<Numbers<3>>,
+    /// Default: the tool point with every carriage at the middle of its stroke. A list of
+    /// centres runs every radius about each in turn, the bar set up anew at each.
+    pub center_mm: Option<Points>,
     radius_mm: Radii,
     feed_mm_min: f64,
     #[serde(default = "full")]
@@ -340,8 +341,9 @@ pub struct BallbarToml {
     pub noise_um: f64,
     #[serde(default = "khz")]
     pub sample_rate_hz: f64,
+    /// One pivot offset, or one per centre of a ball-bar job with a list of centres.
     #[serde(default)]
-    pub setup_eccentricity_um: Numbers<3>,
+    pub setup_eccentricity_um: Points,
     #[serde(default)]
     pub setup_drift_um_per_min: Numbers<3>,
     #[serde(default = "twenty")]
@@ -776,11 +778,50 @@ pub(crate) fn off_the_ticks(rate: f64, servo_period_s: f64, what: &str) -> Optio
     ))
 }
 
+/// The bar of a job with one pivot (a program's circles, Kwon's steps): one set-up offset.
 fn ballbar_spec(b: Option<&BallbarToml>) -> R<BallbarSpec> {
+    Ok(ballbar_specs(b, 1)?.remove(0))
+}
+
+/// The bar as set up at each of `centres` pivots: `setup_eccentricity_um` one offset for all,
+/// or a list of one per centre.
+fn ballbar_specs(b: Option<&BallbarToml>, centres: usize) -> R<Vec<BallbarSpec>> {
     let Some(b) = b else {
-        return Ok(BallbarSpec::default());
+        return Ok(vec![BallbarSpec::default(); centres]);
     };
     let p = KeyPath::of(&["instruments", "ballbar"]);
+    let key = p.key("setup_eccentricity_um");
+    let offsets = match &b.setup_eccentricity_um {
+        Points::One(e) => vec![(e, key); centres],
+        Points::Many(v) if v.len() == centres => v
+            .iter()
+            .enumerate()
+            .map(|(i, e)| (e, key.index(i)))
+            .collect(),
+        Points::Many(v) => {
+            let msg = format!(
+                "{} offsets are not accepted; one [x, y, z] for every pivot, or a list of one per centre of the job ({centres})",
+                v.len()
+            );
+            return Err(Invalid::new(key, msg));
+        }
+    };
+    let spec = bar_spec(b, &p)?;
+    offsets
+        .into_iter()
+        .map(|(e, key)| {
+            // Within the bar's ±1 mm range.
+            let what = "an offset of the pivot within the bar's range (µm)";
+            Ok(BallbarSpec {
+                setup_eccentricity_m: within3(e, 1000.0, &key, what)? * 1e-6,
+                ..spec
+            })
+        })
+        .collect()
+}
+
+/// The bar's settings other than its set-up offset.
+fn bar_spec(b: &BallbarToml, p: &KeyPath) -> R<BallbarSpec> {
     let within = |v: f64, key: &str, (lo, hi): (f64, f64), what: &str| -> R<f64> {
         if (lo..=hi).contains(&v) {
             Ok(v)
@@ -802,13 +843,8 @@ fn ballbar_spec(b: Option<&BallbarToml>) -> R<BallbarSpec> {
         )? * 1e-6,
         noise_m: in_range(b.noise_um, 0.0, 100.0, &p.key("noise_um"), "a noise (µm)")? * 1e-6,
         sample_rate_hz: pos(b.sample_rate_hz, &p.key("sample_rate_hz"), "a sample rate")?,
-        // Within the bar's ±1 mm range, and a drift that leaves it only after ten minutes.
-        setup_eccentricity_m: within3(
-            &b.setup_eccentricity_um,
-            1000.0,
-            &p.key("setup_eccentricity_um"),
-            "an offset of the pivot within the bar's range (µm)",
-        )? * 1e-6,
+        setup_eccentricity_m: Vector3::zeros(),
+        // A drift that leaves the bar's range only after ten minutes.
         setup_drift_m_per_s: within3(
             &b.setup_drift_um_per_min,
             100.0,
@@ -964,14 +1000,26 @@ fn ballbar_job(b: &BallbarJobToml, instruments: &InstrumentsToml, machine: &Mach
         );
         return Err(Invalid::new(p.key("radius_mm"), msg));
     }
-    let spec = ballbar_spec(instruments.ballbar.as_ref())?;
+    let centres = centres(b, machine, &p)?;
+    let specs = ballbar_specs(instruments.ballbar.as_ref(), centres.len())?;
     let (mut text, mut ballbar, mut blocks, mut start) = (String::new(), Vec::new(), 0, None);
-    for (k, &r) in radii.iter().enumerate() {
-        let key = match b.radius_mm {
+    let tests = centres.iter().zip(specs).flat_map(|(centre, spec)| {
+        radii
+            .iter()
+            .enumerate()
+            .map(move |(k, &r)| (centre, spec, k, r))
+    });
+    for ((center, center_key), spec, k, r) in tests {
+        let radius_key = match b.radius_mm {
             Radii::One(_) => p.key("radius_mm"),
             Radii::Many(_) => p.key("radius_mm").index(k),
         };
-        let test = circular_test(b, r, machine, &p, &key)?;
+        let keys = TestKeys {
+            job: &p,
+            center: center_key,
+            radius: &radius_key,
+        };
+        let test = circular_test(b, *center, r, &keys)?;
         // Each test's program without its end, the end once after the last.
         let gcode: String = test
             .gcode()
@@ -1015,19 +1063,49 @@ fn ballbar_job(b: &BallbarJobToml, instruments: &InstrumentsToml, machine: &Mach
     })
 }
 
-/// The ball-bar job's test, validated, each refusal at its key.
+/// The centres of a ball-bar job's circles, m, each with its key (`job.center_mm` or its
+/// element): the one given, each of a list, or the tool point with every carriage at the
+/// middle of its stroke.
+fn centres(b: &BallbarJobToml, machine: &Machine, p: &KeyPath) -> R<Vec<(Vector3<f64>, KeyPath)>> {
+    let key = p.key("center_mm");
+    let list = match &b.center_mm {
+        None => return Ok(vec![(machine.mid_stroke_tool_point(), key)]),
+        Some(Points::One(c)) => vec![(c, key)],
+        Some(Points::Many(v)) if (1..=MAX_CENTRES).contains(&v.len()) => v
+            .iter()
+            .enumerate()
+            .map(|(i, c)| (c, key.index(i)))
+            .collect(),
+        Some(Points::Many(v)) => {
+            let msg = format!(
+                "{} centres are not accepted; a centre [x, y, z] (mm) or a list of 1 to {MAX_CENTRES}",
+                v.len()
+            );
+            return Err(Invalid::new(key, msg));
+        }
+    };
+    Ok(list
+        .into_iter()
+        .map(|(c, key)| (Vector3::from(c.0) * 1e-3, key))
+        .collect())
+}
+
+/// The keys a circular test's refusals name.
+struct TestKeys<'a> {
+    job: &'a KeyPath,
+    center: &'a KeyPath,
+    radius: &'a KeyPath,
+}
+
+/// The ball-bar job's test about `center` (m), validated, each refusal at its key.
 fn circular_test(
     b: &BallbarJobToml,
+    center: Vector3<f64>,
     radius_mm: f64,
-    machine: &Machine,
-    p: &KeyPath,
-    radius_key: &KeyPath,
+    keys: &TestKeys,
 ) -> R<CircularTest> {
+    let p = keys.job;
     let plane = plane_of(&b.plane, p.key("plane"))?;
-    let center = match &b.center_mm {
-        Some(c) => Vector3::from(c.0) * 1e-3,
-        None => machine.mid_stroke_tool_point(),
-    };
     let mut test =
         CircularTest::iso230_4(plane, center, radius_mm * 1e-3, b.feed_mm_min / 60_000.0);
     test.arc_deg = b.arc_deg;
@@ -1040,8 +1118,8 @@ fn circular_test(
     test.validate().map_err(|e| {
         use vmt_sim::nc::ballbar::TestParameter as T;
         let key = match e.parameter {
-            T::Center => p.key("center_mm"),
-            T::Radius => radius_key.clone(),
+            T::Center => keys.center.clone(),
+            T::Radius => keys.radius.clone(),
             T::Feed => p.key("feed_mm_min"),
             T::Arc => p.key("arc_deg"),
             T::Start => p.key("start_deg"),
@@ -1198,6 +1276,9 @@ const MAX_DIRECTIONS: usize = 8;
 
 /// Most radii of one ball-bar job.
 pub const MAX_RADII: usize = 8;
+
+/// Most centres a ball-bar job runs its circles about.
+pub const MAX_CENTRES: usize = 4;
 
 /// Most targets and runs of an ISO 230-2 job, bounded before its program (two dwells per target
 /// and run) is generated. The standard asks for 5 runs over at least 5 targets per metre: a 5 m

@@ -18,7 +18,7 @@ mod table;
 pub mod withheld;
 
 pub use build::{Execution, MAX_ANGLE_URAD, MAX_TRANSLATION_UM, Scenario, ThermalRunSpec};
-pub use dynamics::MAX_RADII;
+pub use dynamics::{MAX_CENTRES, MAX_RADII};
 pub use error::{KeyPath, ScenarioError};
 
 use build::BuildError;

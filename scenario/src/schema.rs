@@ -37,6 +37,59 @@ impl<const N: usize> Deref for Numbers<N> {
     }
 }
 
+/// One point `[x, y, z]` or a list of them `[[x, y, z], ...]` (a ball-bar job's centres, and a
+/// set-up offset for each).
+#[derive(Debug, Clone, PartialEq)]
+pub enum Points {
+    /// One point.
+    One(Numbers<3>),
+    /// Several points, in order.
+    Many(Vec<Numbers<3>>),
+}
+
+impl Default for Points {
+    fn default() -> Self {
+        Points::One(Numbers::default())
+    }
+}
+
+impl<'de> Deserialize<'de> for Points {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        #[derive(Deserialize)]
+        #[serde(untagged)]
+        enum Element {
+            Number(f64),
+            Point(Vec<f64>),
+        }
+        let accepted = "a point [x, y, z] or a list of points [[x, y, z], ...]";
+        let v = Vec::<Element>::deserialize(d)?;
+        let numbers: Option<Vec<f64>> = v
+            .iter()
+            .map(|e| match e {
+                Element::Number(x) => Some(*x),
+                Element::Point(_) => None,
+            })
+            .collect();
+        if let Some(n) = numbers {
+            let len = n.len();
+            return n
+                .try_into()
+                .map(|a| Points::One(Numbers(a)))
+                .map_err(|_| D::Error::invalid_length(len, &accepted));
+        }
+        v.into_iter()
+            .map(|e| match e {
+                Element::Point(p) if p.len() == 3 => Ok(Numbers([p[0], p[1], p[2]])),
+                Element::Point(p) => Err(D::Error::invalid_length(p.len(), &accepted)),
+                Element::Number(_) => Err(D::Error::custom(format!(
+                    "numbers and points mixed; {accepted} is accepted"
+                ))),
+            })
+            .collect::<Result<_, _>>()
+            .map(Points::Many)
+    }
+}
+
 /// A whole scenario file.
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]

@@ -365,3 +365,76 @@ fn a_bad_radius_list_is_refused_at_its_key() {
     assert_eq!(e.key.as_deref(), Some("job.radius_mm"), "{e}");
     assert!(e.message.contains("beyond its stroke"), "{e}");
 }
+
+/// A list of centres runs every radius about each centre in turn, the bar set up anew at each
+/// with its own pivot offset: checked on the program's arc blocks (their centres and radii),
+/// not on what the job builder says of them, and on each test's bar.
+#[test]
+fn a_list_of_centres_runs_every_radius_about_each_with_its_own_set_up() {
+    let keys = "plane = \"XY\"\ncenter_mm = [[250.0, 200.0, 200.0], [330.0, 240.0, 200.0]]\n\
+                radius_mm = [100.0, 50.0]\nfeed_mm_min = 1000.0\ndirections = [\"cw\", \"ccw\"]\n";
+    let text = with_job(keys).replacen(
+        "setup_eccentricity_um = [3.0, -2.0, 0.0]\n",
+        "setup_eccentricity_um = [[3.0, -2.0, 0.0], [-4.0, 1.0, 0.0]]\n",
+        1,
+    );
+    let s = load(&text, None).unwrap();
+    let job = job_of(&s);
+    let expected = [
+        ((0.25, 0.2), 0.1, (3.0, -2.0)),
+        ((0.25, 0.2), 0.05, (3.0, -2.0)),
+        ((0.33, 0.24), 0.1, (-4.0, 1.0)),
+        ((0.33, 0.24), 0.05, (-4.0, 1.0)),
+    ];
+    assert_eq!(job.ballbar.len(), expected.len());
+    let mut last_end = 0;
+    for (bar, ((cx, cy), radius, (ex, ey))) in job.ballbar.iter().zip(expected) {
+        let e = bar.spec.setup_eccentricity_m * 1e6;
+        assert!((e.x - ex).abs() < 1e-9 && (e.y - ey).abs() < 1e-9, "{e:?}");
+        for (_, range) in &bar.data {
+            assert!(range.start >= last_end, "the tests run in turn");
+            last_end = range.end;
+            for b in &job.program.blocks[range.clone()] {
+                let Motion::Arc { to, center, .. } = b.motion else {
+                    panic!("a data block that is no arc: {:?}", b.motion);
+                };
+                assert!((center.x - cx).abs() < 1e-9 && (center.y - cy).abs() < 1e-9);
+                let r = (to - center).xy().norm();
+                assert!((r - radius).abs() < 1e-9, "{r} against {radius}");
+            }
+        }
+    }
+}
+
+/// A centre list that is too long, mixes numbers and points, or holds a circle past a stroke,
+/// and set-up offsets that are not one per centre, are refused at their keys.
+#[test]
+fn a_bad_centre_list_is_refused_at_its_key() {
+    let job = |centres: &str| {
+        with_job(&format!(
+            "plane = \"XY\"\ncenter_mm = {centres}\nradius_mm = 100.0\nfeed_mm_min = 1000.0\n"
+        ))
+    };
+    let e = load(&job(&format!("{:?}", vec![[250.0, 200.0, 200.0]; 5])), None).expect_err("five");
+    assert_eq!(e.key.as_deref(), Some("job.center_mm"), "{e}");
+    assert!(e.message.contains("a list of 1 to 4"), "{e}");
+    let e = load(&job("[[250.0, 200.0, 200.0], 1.0]"), None).expect_err("mixed");
+    assert!(e.message.contains("numbers and points mixed"), "{e}");
+    let e = load(&job("[[250.0, 200.0, 200.0], [250.0, 200.0]]"), None).expect_err("short");
+    assert!(e.message.contains("[x, y, z]"), "{e}");
+    let e = load(&job("[[250.0, 200.0, 200.0], [450.0, 200.0, 200.0]]"), None)
+        .expect_err("past the X stroke");
+    assert!(e.message.contains("beyond its stroke"), "{e}");
+    let two = job("[[250.0, 200.0, 200.0], [300.0, 200.0, 200.0]]").replacen(
+        "setup_eccentricity_um = [3.0, -2.0, 0.0]\n",
+        "setup_eccentricity_um = [[1.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 0.0, 0.0]]\n",
+        1,
+    );
+    let e = load(&two, None).expect_err("three offsets, two centres");
+    assert_eq!(
+        e.key.as_deref(),
+        Some("instruments.ballbar.setup_eccentricity_um"),
+        "{e}"
+    );
+    assert!(e.message.contains("one per centre of the job (2)"), "{e}");
+}
