@@ -99,7 +99,7 @@ pub const WITHHELD: [WithheldEffect; 7] = [
         typical: 2.0,
         plausible: (0.0, 5.0),
         placed: false,
-        like: &["scale_mismatch", "screw_heating_{a}"],
+        like: &["scale_mismatch", "screw_heating_{a}", "positioning_{a}"],
     },
     WithheldEffect {
         key: "nut_preload",

@@ -16,7 +16,7 @@ use vmt_ballbar::Trace;
 use vmt_gap::discriminate::{Discrimination, Explanation, discriminate, noise_of};
 use vmt_gap::localise::{self, Localisation, Place};
 use vmt_gap::model::ScenarioModel;
-use vmt_gap::peaks::Circle;
+use vmt_gap::peaks::{Circle, centre_text, distinct_centres};
 use vmt_gap::select::{self, Linearisation, Selection};
 use vmt_gap::split::Split;
 use vmt_gap::{GapError, TracePair};
@@ -295,6 +295,15 @@ pub fn text(r: &GapReport) -> String {
     for x in &s.rejected {
         let _ = writeln!(out, "  not an explanation: {} {}", x.effect, x.implausible);
     }
+    if !s.set_aside.is_empty() {
+        let changes: Vec<String> = s.local_changes.iter().map(|c| c.to_string()).collect();
+        let _ = writeln!(
+            out,
+            "  set aside: {} (shapes over the whole travel, but {}: a change the circles see begin and end is local)",
+            s.set_aside.join(", "),
+            changes.join("; ")
+        );
+    }
     match (s.steps.is_empty(), r.explained, s.judged) {
         (true, _, _) => {
             let _ = writeln!(
@@ -444,6 +453,8 @@ pub fn json(r: &GapReport) -> Value {
         "unexplained": localisation_json(&r.after),
         "last_round": s.last_round,
         "unavailable": s.unavailable,
+        "local_changes": s.local_changes,
+        "set_aside": s.set_aside,
         "simulations": r.simulations,
     })
 }
@@ -642,6 +653,13 @@ pub struct BenchArgs {
     /// Feed of that test, mm/min.
     #[arg(long, default_value_t = 2000.0)]
     pub feed_mm_min: f64,
+    /// Run the circles about a second centre too: the job's centre moved by these along the
+    /// plane's first and second axes, mm (the bar set up anew there); `0,0` for one centre.
+    /// Default: 80 and 40 mm, each toward the middle of its stroke (or up from the middle).
+    /// Two centres tell an error that depends on the axis position (a rail step, a bow) from
+    /// the smooth shapes and set-up that mimic it about one.
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
+    pub center_shift_mm: Option<Vec<f64>>,
     /// Plane of that test: XY, ZX or YZ.
     #[arg(long, default_value = "XY")]
     pub plane: String,
@@ -698,6 +716,22 @@ impl BenchArgs {
             "mm/min",
             "a test program's feed",
         )?;
+        let shift = self.center_shift_mm.as_deref().unwrap_or(&[0.0, 0.0]);
+        if shift.len() != 2 {
+            return Err(CliError::Argument(format!(
+                "--center-shift-mm: two numbers are accepted, the shift along the plane's first and second axes (mm); {} given",
+                shift.len()
+            )));
+        }
+        for &d in shift {
+            check_range(
+                "--center-shift-mm",
+                d,
+                (-1000.0, 1000.0),
+                "mm",
+                "a shift of the circles' centre within a machine's travel",
+            )?;
+        }
         check_range(
             "--nuisance",
             self.nuisance,
@@ -801,6 +835,12 @@ pub fn bench_command(a: &BenchArgs) -> Result<(), CliError> {
         .with_fragment("job", &format!("radius_mm = {}", a.radii_toml()))?;
     let text = vmt_scenario::edit::Template::parse(&text, &file)?
         .with_text(&[("job.plane", &plane.to_string())])?;
+    let shift = a.center_shift_mm.as_ref().map(|d| [d[0], d[1]]);
+    let text = match shift {
+        Some([0.0, 0.0]) => text,
+        _ => bench::with_second_centre(&text, &file, a.model_dir().as_deref(), plane, shift)
+            .map_err(|e| model_error(&file, e))?,
+    };
     let model =
         ScenarioModel::new(&text, &file, a.model_dir()).map_err(|e| model_error(&file, e))?;
     let (p, q) = plane.axes();
@@ -815,17 +855,32 @@ pub fn bench_command(a: &BenchArgs) -> Result<(), CliError> {
     // What changes the job by less than the level at which the selection starts (the model's
     // other small mismatches), or by less than an effect must change it, nothing can attribute.
     let figures = bench::figures(&outcomes, o.min_effect_um.max(o.explained_floor_um));
+    let centres = distinct_centres(model.circles());
+    let about = match centres.len() {
+        1 => "about one centre".to_string(),
+        n => format!(
+            "about {n} centres in turn ({}; axis coordinates)",
+            centres
+                .iter()
+                .map(|c| centre_text(*c))
+                .collect::<Vec<_>>()
+                .join(", ")
+        ),
+    };
     let job = format!(
-        "{} circle {} mm at {} mm/min, CW and CCW (segments of 40 deg in turn fit, select and judge); the bar's set-up drawn anew",
+        "{} circle {} mm at {} mm/min {about}, CW and CCW (segments of 40 deg in turn fit, select and judge); the bar's set-up drawn anew",
         a.plane,
         a.radii_text(),
         a.feed_mm_min
     );
     let command = format!(
-        "vmt gap-bench --plane {} --radius-mm {} --feed-mm-min {} --nuisance {} --nulls {} --seed {} --repeats {}",
+        "vmt gap-bench --plane {} --radius-mm {} --feed-mm-min {}{} --nuisance {} --nulls {} --seed {} --repeats {}",
         a.plane,
         a.radii_text(),
         a.feed_mm_min,
+        shift.map_or(String::new(), |[p, q]| format!(
+            " --center-shift-mm {p},{q}"
+        )),
         a.nuisance,
         a.nulls,
         a.seed,
@@ -850,7 +905,7 @@ fn finish_bench(
     std::fs::write(&md, report).map_err(|e| CliError::output(&md, e))?;
     let js = dir.join("gap_bench.json");
     let model = a.model.as_ref().map(|p| p.display().to_string());
-    let body = json!({"settings": {"model": model, "plane": a.plane, "radius_mm": a.radius_mm, "feed_mm_min": a.feed_mm_min, "nuisance": a.nuisance, "nulls": a.nulls, "seed": a.seed, "repeats": a.repeats}, "figures": figures, "cases": outcomes});
+    let body = json!({"settings": {"model": model, "plane": a.plane, "radius_mm": a.radius_mm, "feed_mm_min": a.feed_mm_min, "center_shift_mm": a.center_shift_mm, "nuisance": a.nuisance, "nulls": a.nulls, "seed": a.seed, "repeats": a.repeats}, "figures": figures, "cases": outcomes});
     std::fs::write(
         &js,
         serde_json::to_string_pretty(&body).map_err(|e| CliError::output(&js, e))?,
@@ -986,17 +1041,17 @@ fn bench_report(
             Some(false) => "no",
             None => "",
         };
-        let several = o
-            .peak_radii_mm
-            .iter()
-            .any(|r| Some(r) != o.peak_radii_mm.first());
+        let tests: Vec<(&f64, &Option<[f64; 3]>)> =
+            o.peak_radii_mm.iter().zip(&o.peak_centres_mm).collect();
+        let several = tests.iter().any(|t| Some(t) != tests.first());
         let mut peaks: Vec<String> = o
             .peaks_deg
             .iter()
-            .zip(&o.peak_radii_mm)
-            .map(|(p, r)| match several {
-                true => format!("{p:.0} (R{r})"),
-                false => format!("{p:.0}"),
+            .zip(&tests)
+            .map(|(p, (r, c))| match (several, c) {
+                (true, Some([x, y, z])) => format!("{p:.0} (R{r} @{x:.0},{y:.0},{z:.0})"),
+                (true, None) => format!("{p:.0} (R{r})"),
+                (false, _) => format!("{p:.0}"),
             })
             .collect();
         if let Some(c) = &o.axis_change {

@@ -161,6 +161,20 @@ fn gap_bench_settings_are_bounded() {
         &["gap-bench", "--feed-mm-min", "1e9", "--quiet"],
         &["--feed-mm-min 1000000000: from 0.1 to 100000 mm/min"],
     );
+    // The second centre's shift: two numbers within a machine's travel; one that takes the
+    // circles past a stroke is refused by the model's scenario, at the centre's key.
+    refused(
+        &["gap-bench", "--center-shift-mm", "80", "--quiet"],
+        &["--center-shift-mm: two numbers are accepted", "; 1 given"],
+    );
+    refused(
+        &["gap-bench", "--center-shift-mm", "80,5000", "--quiet"],
+        &["--center-shift-mm 5000: from -1000 to 1000 mm"],
+    );
+    refused(
+        &["gap-bench", "--center-shift-mm", "-200,0", "--quiet"],
+        &["job.center_mm", "beyond its stroke"],
+    );
 }
 
 #[test]

@@ -17,10 +17,10 @@
 //! ```
 //!
 //! is fitted by least squares over 1° bins of every run (all tests together: circles of other
-//! radii about the centre see the same place at other angles), with the baseline `b_j`: the
-//! bar's set-up and length, and the smooth shapes that errors of the whole travel give
-//! (linear and quadratic in the axis positions, each scaled with the radius as it is), shared
-//! by the tests as one bar on one pivot and one machine share them. The change found is the
+//! radii, or about other centres, see the same place at other angles), with the baseline
+//! `b_j`: the bar's set-up on each centre's pivot, its length, and the smooth shapes that
+//! errors of the whole travel give (linear and quadratic in the axis positions), one function
+//! of the position for every circle as one machine has them. The change found is the
 //! `(a, d, x0, w)` that removes the most of what the baseline leaves; it is reported when it
 //! removes at least [`MIN_SHARE`] of it and its height reaches the least change an effect must
 //! make. Places every [`PLACE_STEP_MM`] over the positions the circles reach; widths
@@ -106,6 +106,18 @@ fn bins(pairs: &[TracePair], circles: &[Option<Circle>]) -> Vec<Bin> {
     out
 }
 
+/// The positions along the plane's first (`side` 0) or second axis that the runs of `pairs`
+/// with a known circle reach, lowest and highest, mm; none without such a run.
+pub fn reach(pairs: &[TracePair], circles: &[Option<Circle>], side: usize) -> Option<(f64, f64)> {
+    let along: Vec<f64> = bins(pairs, circles)
+        .iter()
+        .map(|b| position(b, side))
+        .collect();
+    let lo = along.iter().copied().reduce(f64::min)?;
+    let hi = along.iter().copied().reduce(f64::max)?;
+    Some((lo, hi))
+}
+
 /// The index (0, 1, 2) of axis letter `c` (either case) in X, Y, Z coordinates; Z for a
 /// letter that names none, as a plane's axes always do.
 pub(crate) fn axis_index(c: char) -> usize {
@@ -122,56 +134,98 @@ fn fit(a: &DMatrix<f64>, y: &DVector<f64>) -> Option<(f64, DVector<f64>)> {
     Some((rss, beta))
 }
 
-/// The columns of what is no local change: the bar's set-up and length (`cos θ`, `sin θ`,
-/// `R`), and the smooth shapes of the axes' errors across the whole circle, linear and
-/// quadratic in the axis positions (`R cos 2θ`, `R sin 2θ`: a scale or a squareness; `R² cos θ`,
-/// `R² sin θ`, `R² cos 3θ`, `R² sin 3θ`: a bow), with the radius each scales with.
-fn baseline(bins: &[Bin]) -> DMatrix<f64> {
-    DMatrix::from_fn(bins.len(), BASELINE, |i, j| {
-        let (t, r) = (bins[i].theta, bins[i].radius_mm);
+/// The columns of what is no local change: the bar's set-up on each centre's pivot (`cos θ`,
+/// `sin θ` of that centre's runs), its length (`R`), and the smooth shapes of the axes' errors
+/// over the whole travel, linear and quadratic in the axis positions, the same function of the
+/// position for every circle: linear, `R cos 2θ` and `R sin 2θ` (a scale or a squareness; the
+/// rest of a linear error is the set-up); quadratic (a bow), `u_a(θ)² n_d(θ)` for each axis `a`
+/// and direction `d` of the plane, `u_a` the axis position from the circles' mean, in 100 mm.
+/// About one centre these span `R² cos θ`, `R² sin θ`, `R² cos 3θ`, `R² sin 3θ` beside the
+/// set-up and the linear shapes; about several, a bow also tilts each circle by its own
+/// offset from the middle, which the quadratic columns carry as one error of the machine.
+/// `degree` 3 adds the cubic shapes, `u_a(θ)³ n_d(θ)` (a positioning error's S).
+fn baseline(bins: &[Bin], degree: i32) -> DMatrix<f64> {
+    let mut centres: Vec<[f64; 2]> = Vec::new();
+    for b in bins {
+        if !centres.contains(&b.centre) {
+            centres.push(b.centre);
+        }
+    }
+    let n = bins.len().max(1) as f64;
+    let mean = |side: usize| bins.iter().map(|b| position(b, side)).sum::<f64>() / n;
+    let middle = [mean(0), mean(1)];
+    let own = 2 * centres.len();
+    let powers = (degree.max(1) - 1) as usize;
+    DMatrix::from_fn(bins.len(), own + 3 + 4 * powers, |i, j| {
+        let b = &bins[i];
+        let (t, r) = (b.theta, b.radius_mm);
+        let n_d = |d: usize| if d == 0 { t.cos() } else { t.sin() };
+        let u = |a: usize| (position(b, a) - middle[a]) / 100.0;
         match j {
-            0 => t.cos(),
-            1 => t.sin(),
-            2 => r,
-            3 => r * (2.0 * t).cos(),
-            4 => r * (2.0 * t).sin(),
-            5 => r * r * t.cos(),
-            6 => r * r * t.sin(),
-            7 => r * r * (3.0 * t).cos(),
-            _ => r * r * (3.0 * t).sin(),
+            j if j < own => {
+                let here = centres[j / 2] == b.centre;
+                if here { n_d(j % 2) } else { 0.0 }
+            }
+            j if j == own => r,
+            j if j == own + 1 => r * (2.0 * t).cos(),
+            j if j == own + 2 => r * (2.0 * t).sin(),
+            j => {
+                let k = j - own - 3;
+                let power = 2 + (k / 4) as i32;
+                u((k % 4) / 2).powi(power) * n_d(k % 2)
+            }
         }
     })
 }
 
-/// Columns of [`baseline`].
-const BASELINE: usize = 9;
+/// Bin `b`'s position along the plane's first (`side` 0) or second axis, mm.
+fn position(b: &Bin, side: usize) -> f64 {
+    let t = if side == 0 {
+        b.theta.cos()
+    } else {
+        b.theta.sin()
+    };
+    b.centre[side] + b.radius_mm * t
+}
 
 /// The change of one axis' error that best explains the residual of `pairs` (module doc), if
 /// one removes [`MIN_SHARE`] of its sum of squares and changes by at least `min_um`; the
 /// pairs' circles (axis coordinates) are `circles`, one per pair.
 pub fn scan(pairs: &[TracePair], circles: &[Option<Circle>], min_um: f64) -> Option<AxisChange> {
+    scan_beyond(pairs, circles, min_um, 2)
+}
+
+/// [`scan`] against smooth shapes up to power `degree` of the axis positions (2: a bow; 3: a
+/// positioning error's S too, as the library's `positioning_{a}` has it).
+pub fn scan_beyond(
+    pairs: &[TracePair],
+    circles: &[Option<Circle>],
+    min_um: f64,
+    degree: i32,
+) -> Option<AxisChange> {
     let bins = bins(pairs, circles);
     let plane = pairs.first()?.plane;
     if bins.len() < 8 {
         return None;
     }
     let y = DVector::from_iterator(bins.len(), bins.iter().map(|b| b.r));
-    let base = baseline(&bins);
-    let (rss0, _) = fit(&base, &y)?;
+    let base = baseline(&bins, degree);
+    // Degenerate circles (too few, or all alike) leave the baseline without a fit.
+    fit(&base, &y)?;
+    // What the baseline leaves of the residual, and of each ramp's column: a ramp's least
+    // squares height beside the baseline is `(s⊥·r₀)/(s⊥·s⊥)` and it removes `(s⊥·r₀)²/(s⊥·s⊥)`
+    // of the sum of squares, the same as refitting the baseline with the column added.
+    let q = base.qr().q();
+    let leave = |v: &DVector<f64>| v - &q * (q.transpose() * v);
+    let r0 = leave(&y);
+    let rss0 = r0.norm_squared();
     if rss0 <= 0.0 {
         return None;
     }
     let (pa, qa) = plane.axes();
     let mut best: Option<(f64, AxisChange)> = None;
     for (side, axis) in [(0, pa), (1, qa)] {
-        let along = |b: &Bin| {
-            let t = if side == 0 {
-                b.theta.cos()
-            } else {
-                b.theta.sin()
-            };
-            b.centre[side] + b.radius_mm * t
-        };
+        let along = |b: &Bin| position(b, side);
         let lo = bins.iter().map(along).fold(f64::INFINITY, f64::min);
         let hi = bins.iter().map(along).fold(f64::NEG_INFINITY, f64::max);
         let places = ((hi - lo) / PLACE_STEP_MM).floor() as usize;
@@ -179,20 +233,24 @@ pub fn scan(pairs: &[TracePair], circles: &[Option<Circle>], min_um: f64) -> Opt
             for w in WIDTHS_MM {
                 for k in 0..=places {
                     let x0 = lo + k as f64 * PLACE_STEP_MM;
-                    let mut a = base.clone().insert_column(BASELINE, 0.0);
-                    for (i, b) in bins.iter().enumerate() {
-                        let s = ((along(b) - x0) / w + 0.5).clamp(0.0, 1.0);
-                        let n = if dir == 0 {
-                            b.theta.cos()
-                        } else {
-                            b.theta.sin()
-                        };
-                        a[(i, BASELINE)] = s * n;
-                    }
-                    let Some((rss, beta)) = fit(&a, &y) else {
+                    let ramp = DVector::from_iterator(
+                        bins.len(),
+                        bins.iter().map(|b| {
+                            let s = ((along(b) - x0) / w + 0.5).clamp(0.0, 1.0);
+                            s * if dir == 0 {
+                                b.theta.cos()
+                            } else {
+                                b.theta.sin()
+                            }
+                        }),
+                    );
+                    let own = leave(&ramp);
+                    let (ss, sr) = (own.norm_squared(), own.dot(&r0));
+                    // A ramp the baseline already holds changes nothing.
+                    if ss <= 1e-12 * ramp.norm_squared() {
                         continue;
-                    };
-                    let share = 1.0 - rss / rss0;
+                    }
+                    let share = sr * sr / ss / rss0;
                     if best.as_ref().is_none_or(|(s, _)| share > *s) {
                         best = Some((
                             share,
@@ -201,7 +259,7 @@ pub fn scan(pairs: &[TracePair], circles: &[Option<Circle>], min_um: f64) -> Opt
                                 direction,
                                 at_mm: x0,
                                 width_mm: w,
-                                height_um: beta[BASELINE],
+                                height_um: sr / ss,
                                 share,
                             },
                         ));
@@ -262,36 +320,81 @@ mod tests {
         }
     }
 
-    /// A positioning error of X that ramps by 3 µm over 100 mm about X = 300 mm, seen by
-    /// circles of 100 and 50 mm about (250, 200) mm: the bar reads e(x)·cos θ (written here from
-    /// the ramp, independently of the scan's columns). The scan finds X, direction X, the place
-    /// within a step of the scan, the width and the height.
+    /// Circles of `radii` about each of `centres` (X, Y mm), each run's residual `f(x, θ)` of
+    /// the X position and the angle, with its circle.
+    fn runs_about(
+        centres: &[[f64; 2]],
+        radii: &[f64],
+        f: impl Fn(f64, f64) -> f64,
+    ) -> (Vec<TracePair>, Vec<Option<Circle>>) {
+        let mut pairs = Vec::new();
+        let mut circles = Vec::new();
+        for &[cx, cy] in centres {
+            for &r in radii {
+                pairs.push(run(r, |t| f(cx + r * t.cos(), t)));
+                circles.push(Some(Circle {
+                    centre_mm: [cx, cy, 0.0],
+                    radius_mm: r,
+                }));
+            }
+        }
+        (pairs, circles)
+    }
+
+    /// A positioning error of X that ramps by 3 µm over 100 mm about X = 300 mm: the bar reads
+    /// e(x)·cos θ (written here from the ramp, independently of the scan's columns).
+    fn ramp(x: f64, t: f64) -> f64 {
+        3.0 * ((x - 300.0) / 100.0 + 0.5).clamp(0.0, 1.0) * t.cos()
+    }
+
+    /// The ramp seen by circles of 100 and 50 mm about (250, 200) mm and about (330, 240) mm,
+    /// each centre with its own set-up: the scan finds X, direction X, the place within a step
+    /// of the scan, the width and the height.
     #[test]
     fn a_ramp_of_the_x_positioning_error_is_found_at_its_place() {
-        let centre = [250.0, 200.0, 0.0];
-        let ramp = |x: f64| 3.0 * ((x - 300.0) / 100.0 + 0.5).clamp(0.0, 1.0);
-        let pairs: Vec<TracePair> = [100.0, 50.0]
-            .iter()
-            .map(|&r| run(r, |t| ramp(250.0 + r * t.cos()) * t.cos()))
-            .collect();
-        let circles: Vec<Option<Circle>> = pairs
-            .iter()
-            .map(|p| {
-                Some(Circle {
-                    centre_mm: centre,
-                    radius_mm: p.radius_mm,
-                })
-            })
-            .collect();
+        let (pairs, circles) = runs_about(&[[250.0, 200.0], [330.0, 240.0]], &[100.0, 50.0], ramp);
         let c = scan(&pairs, &circles, 0.15).expect("a change");
         assert_eq!((c.axis, c.direction), ('X', 'X'), "{c}");
         assert!((c.at_mm - 300.0).abs() <= PLACE_STEP_MM, "{c}");
         assert_eq!(c.width_mm, 100.0, "{c}");
         assert!((c.height_um - 3.0).abs() < 0.1, "{c}");
         assert!(c.share >= MIN_SHARE, "{c}");
-        // The circles pass its middle at 60° and 300° (R100) and 0° (R50).
+        // The first circles pass its middle at 60° and 300° (R100) and 0° (R50).
         let at = angles_at(Plane::Xy, &circles[0].unwrap(), 'X', c.at_mm);
         assert!(at.iter().any(|a| (a - 60.0).abs() < 3.5), "{at:?}");
+    }
+
+    /// About one centre the ramp, which starts at the centre (X = 250 mm), cannot be told from
+    /// its mirror image through the centre (a ramp about X = 200 mm, ending there). On a circle
+    /// of `R` ≤ 100 mm about X = 250 mm the ramp reads `max(0, R cos θ/100) cos θ`, which is
+    /// `(R/200) cos² θ` (a scale, in the baseline) plus `(R/200)|cos θ| cos θ`; the mirror reads
+    /// `cos θ − (R/100)|cos θ| cos θ` more, so beside the baseline both are multiples of the one
+    /// column `R|cos θ| cos θ` and remove the same share, to rounding. About a second centre the
+    /// identity fails and the right place removes more.
+    #[test]
+    fn about_one_centre_a_ramp_and_its_mirror_fit_alike() {
+        let share = |centres: &[[f64; 2]], x0: f64, h: f64| {
+            let (pairs, circles) = runs_about(centres, &[100.0, 50.0], ramp);
+            let bins = bins(&pairs, &circles);
+            let y = DVector::from_iterator(bins.len(), bins.iter().map(|b| b.r));
+            let base = baseline(&bins, 2);
+            let (rss0, _) = fit(&base, &y).unwrap();
+            let n = base.ncols();
+            let mut a = base.insert_column(n, 0.0);
+            for (i, b) in bins.iter().enumerate() {
+                a[(i, n)] =
+                    h * ((position(b, 0) - x0) / 100.0 + 0.5).clamp(0.0, 1.0) * b.theta.cos();
+            }
+            1.0 - fit(&a, &y).unwrap().0 / rss0
+        };
+        let one = [[250.0, 200.0]];
+        assert!((share(&one, 300.0, 3.0) - share(&one, 200.0, -3.0)).abs() < 1e-9);
+        let two = [[250.0, 200.0], [330.0, 240.0]];
+        let (right, mirror) = (share(&two, 300.0, 3.0), share(&two, 200.0, -3.0));
+        assert!(
+            right > 0.95 && mirror < right - 0.05,
+            "{right} against {mirror}"
+        );
     }
 
     /// A smooth residual of the whole circle (a scale mismatch, cos 2θ, and a bow) is no change

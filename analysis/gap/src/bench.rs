@@ -83,6 +83,8 @@ pub enum Answer {
 pub struct Where {
     /// The test's radius, mm.
     pub radius_mm: f64,
+    /// The test's centre, axis coordinates X, Y, Z, mm.
+    pub centre_mm: [f64; 3],
     /// The circle's angle there, deg.
     pub angle_deg: f64,
 }
@@ -358,6 +360,8 @@ pub struct Outcome {
     pub peak_widths_deg: Vec<f64>,
     /// The radius of each peak's test, mm.
     pub peak_radii_mm: Vec<f64>,
+    /// The centre of each peak's test, mm, where known.
+    pub peak_centres_mm: Vec<Option<[f64; 3]>>,
     /// Where along an axis the residual before any effect changes ([`crate::axis_change`]).
     pub axis_change: Option<AxisChange>,
     /// Where the tests' circles pass the middle of that change.
@@ -402,6 +406,7 @@ impl Outcome {
         out.peaks_deg = before.peaks.iter().map(|p| p.angle_deg).collect();
         out.peak_widths_deg = before.peaks.iter().map(|p| p.width_deg).collect();
         out.peak_radii_mm = before.peaks.iter().map(|p| p.radius_mm).collect();
+        out.peak_centres_mm = before.peaks.iter().map(|p| p.centre_mm).collect();
         if let (Some(c), Some(first)) = (&before.axis_change, s.initial_pairs.first()) {
             out.change_at = passes(c, first.plane, circles);
         }
@@ -441,6 +446,7 @@ impl Outcome {
             peaks_deg: Vec::new(),
             peak_widths_deg: Vec::new(),
             peak_radii_mm: Vec::new(),
+            peak_centres_mm: Vec::new(),
             axis_change: None,
             change_at: Vec::new(),
         }
@@ -469,6 +475,7 @@ impl Outcome {
         self.change_at.iter().any(|c| {
             places.iter().any(|t| {
                 t.radius_mm == c.radius_mm
+                    && t.centre_mm == c.centre_mm
                     && wrapped_deg(c.angle_deg - t.angle_deg).abs() <= WHERE_TOLERANCE_DEG
             })
         })
@@ -481,10 +488,11 @@ impl Outcome {
             .peaks_deg
             .iter()
             .zip(&self.peak_widths_deg)
-            .zip(&self.peak_radii_mm);
-        peaks.into_iter().any(|((p, w), r)| {
+            .zip(self.peak_radii_mm.iter().zip(&self.peak_centres_mm));
+        peaks.into_iter().any(|((p, w), (r, c))| {
             places.iter().any(|t| {
                 t.radius_mm == *r
+                    && c.is_none_or(|c| c == t.centre_mm)
                     && wrapped_deg(p - t.angle_deg).abs() <= 0.5 * w + WHERE_TOLERANCE_DEG
             })
         })
@@ -501,6 +509,7 @@ fn passes(c: &AxisChange, plane: vmt_ballbar::Plane, circles: &[Option<Circle>])
                 .into_iter()
                 .map(|angle_deg| Where {
                     radius_mm: circle.radius_mm,
+                    centre_mm: circle.centre_mm,
                     angle_deg,
                 })
         })
@@ -532,6 +541,70 @@ fn implausible_values(
         }
     }
     out
+}
+
+/// How far the bench's second centre lies from the first along the plane's first and second
+/// axes, mm, by default: within the built-in machine's strokes for circles of 100 mm, and far
+/// enough that a change at one place along an axis falls elsewhere on the second circles.
+pub const CENTRE_SHIFT_MM: [f64; 2] = [80.0, 40.0];
+
+/// The ball-bar job of scenario `text` (named `file`, tables in `base_dir`) run about a second
+/// centre too: its centre (given, or the strokes' middle) moved by `shift_mm` along the first
+/// and second axes of `plane` (by default [`CENTRE_SHIFT_MM`], each toward the middle of its
+/// stroke, or up it from there), every radius about each in turn, and the bar set up anew at
+/// the second with the first's pivot offset (the bench then draws each centre's offset apart).
+/// Circles about two centres tell an error that depends on the axis position (a rail step, a
+/// straightness's bow) from the smooth shapes and set-up that mimic it about one.
+pub fn with_second_centre(
+    text: &str,
+    file: &str,
+    base_dir: Option<&std::path::Path>,
+    plane: vmt_ballbar::Plane,
+    shift_mm: Option<[f64; 2]>,
+) -> Result<String, GapError> {
+    let err = |e: vmt_scenario::ScenarioError| GapError::Model(e.to_string());
+    let template = Template::parse(text, file).map_err(err)?;
+    let given = |key: &str| -> Result<Option<[f64; 3]>, GapError> {
+        let v: Vec<Option<f64>> = (0..3)
+            .map(|i| template.value(&format!("{key}[{i}]")))
+            .collect::<Result<_, _>>()
+            .map_err(err)?;
+        Ok(v.into_iter()
+            .collect::<Option<Vec<f64>>>()
+            .map(|v| [v[0], v[1], v[2]]))
+    };
+    let middle: [f64; 3] = (vmt_scenario::parse(text, file, base_dir)
+        .map_err(err)?
+        .machine
+        .mid_stroke_tool_point()
+        * 1e3)
+        .into();
+    let first = given("job.center_mm")?.unwrap_or(middle);
+    let offset = given("instruments.ballbar.setup_eccentricity_um")?.unwrap_or([0.0; 3]);
+    let mut second = first;
+    let (p, q) = plane.axes();
+    for (k, axis) in [p, q].into_iter().enumerate() {
+        let i = vmt_model::Axis::from_letter(axis)
+            .ok_or_else(|| GapError::Model(format!("no axis `{axis}`")))?
+            .index();
+        second[i] += match shift_mm {
+            Some(d) => d[k],
+            None if middle[i] < first[i] => -CENTRE_SHIFT_MM[k],
+            None => CENTRE_SHIFT_MM[k],
+        };
+    }
+    let list = |a: [f64; 3], b: [f64; 3]| format!("[{a:?}, {b:?}]");
+    let text = template
+        .with_fragment("job", &format!("center_mm = {}\n", list(first, second)))
+        .map_err(err)?;
+    Template::parse(&text, file)
+        .and_then(|t| {
+            t.with_fragment(
+                "instruments.ballbar",
+                &format!("setup_eccentricity_um = {}\n", list(offset, offset)),
+            )
+        })
+        .map_err(err)
 }
 
 /// Runs every case: the measured machine simulated with its instrument, the gap analysis of

@@ -177,6 +177,11 @@ pub struct Effect {
     /// A property of the measurement rather than of the machine (the bar's set-up): fitted
     /// with every candidate and before any, never attributed.
     pub baseline: bool,
+    /// The axis and the direction (upper case, `('X', 'X')`) of the error of the whole travel
+    /// whose smooth shape this effect is (a positioning error's curve, a straightness's bow),
+    /// if it is one: a change over a stretch that the circles see begin and end is no such
+    /// shape, and the selection sets the effect aside then.
+    pub whole_travel: Option<(char, char)>,
 }
 
 fn param(
@@ -258,6 +263,14 @@ const STRAIGHTNESS: Plausible = absolute(
     "straightness of machining-centre axes: ISO 10791-2 tolerances of 10-20 um over 500 mm \
      (the bow's sagitta is 1.5 c2)",
 );
+/// Legendre c2 or c3 of a positioning error (its bow, its S over the stroke), µm.
+const POSITIONING: Plausible = absolute(
+    -15.0,
+    15.0,
+    "non-linear positioning error of uncompensated ball-screw axes: lead deviations of \
+     8-23 um over 300 mm by class (ISO 3408-3, C3-C7), and a screw warmed unevenly along its \
+     length (a few K over part of it at 11.5 ppm/K)",
+);
 /// Legendre c1 of a linear positioning error (half its change over the stroke), µm.
 const SCALE: Plausible = absolute(
     -25.0,
@@ -313,6 +326,7 @@ fn effect(key: &str, description: &str, params: Vec<Param>) -> Effect {
         description: description.into(),
         params,
         baseline: false,
+        whole_travel: None,
     }
 }
 
@@ -395,18 +409,8 @@ pub fn library(p: char, q: char) -> Vec<Effect> {
                 })
                 .collect(),
         ));
-        out.push(effect(
-            &format!("straightness_{a}"),
-            &format!("straightness of {up} in {other}: the bow (Legendre c2) of E{other}{up}"),
-            vec![param(
-                &format!("E{other}{up} c2"),
-                "um",
-                &[format!("{errors}.forward.E{other}{up}_um[2]")],
-                // 4 um of c2: a 6 um bow over the stroke.
-                (2.0, 4.0),
-                STRAIGHTNESS,
-            )],
-        ));
+        out.push(straightness(up, other, &errors));
+        out.push(positioning(up, &errors));
     }
     // A ball bar sees only the difference of the two lags, so one gain carries the mismatch.
     let (pu, qu) = (p.to_ascii_uppercase(), q.to_ascii_uppercase());
@@ -462,10 +466,7 @@ pub fn library(p: char, q: char) -> Vec<Effect> {
                     param(
                         &format!("pivot offset {}", a.to_ascii_uppercase()),
                         "um",
-                        &[format!(
-                            "instruments.ballbar.setup_eccentricity_um[{}]",
-                            axis_index(a)
-                        )],
+                        &[format!("{PIVOT_OFFSET_KEY}[{}]", axis_index(a))],
                         (5.0, 8.0),
                         PIVOT_OFFSET,
                     )
@@ -523,6 +524,89 @@ pub fn library_for(planes: &[(char, char)]) -> Vec<Effect> {
         }
     }
     out
+}
+
+/// Straightness of axis `a` in direction `d` (upper case), `errors` its error tables' key.
+fn straightness(a: char, d: char, errors: &str) -> Effect {
+    Effect {
+        whole_travel: Some((a, d)),
+        ..effect(
+            &format!("straightness_{}", a.to_ascii_lowercase()),
+            &format!("straightness of {a} in {d}: the bow (Legendre c2) of E{d}{a}"),
+            vec![param(
+                &format!("E{d}{a} c2"),
+                "um",
+                &[format!("{errors}.forward.E{d}{a}_um[2]")],
+                // 4 um of c2: a 6 um bow over the stroke.
+                (2.0, 4.0),
+                STRAIGHTNESS,
+            )],
+        )
+    }
+}
+
+/// The non-linear positioning error of axis `a` (upper case): the bow and S of its curve over
+/// the stroke, the same for both approaches (a screw's lead deviation, or a screw warmed
+/// unevenly along its length).
+fn positioning(a: char, errors: &str) -> Effect {
+    Effect {
+        whole_travel: Some((a, a)),
+        ..effect(
+            &format!("positioning_{}", a.to_ascii_lowercase()),
+            &format!(
+                "non-linear positioning error of {a}: the bow and S (Legendre c2, c3) of E{a}{a}, both approaches"
+            ),
+            [2, 3]
+                .iter()
+                .map(|k| {
+                    param(
+                        &format!("E{a}{a} c{k}"),
+                        "um",
+                        &["forward", "backward"].map(|d| format!("{errors}.{d}.E{a}{a}_um[{k}]")),
+                        // 2 um of c2: a 3 um bow of the positioning error over the stroke.
+                        (1.0, 2.0),
+                        POSITIONING,
+                    )
+                })
+                .collect(),
+        )
+    }
+}
+
+/// The key prefix of the bar's pivot offset, one `[x, y, z]` or one per centre.
+const PIVOT_OFFSET_KEY: &str = "instruments.ballbar.setup_eccentricity_um";
+
+/// `library` for a job whose circles run about `centres` centres, the bar set up anew at each:
+/// every pivot-offset parameter of the set-up split into one per centre, on that centre's
+/// element of the offsets' list (`setup_eccentricity_um[c][i]`). One centre keeps the library.
+pub fn per_centre(mut library: Vec<Effect>, centres: usize) -> Vec<Effect> {
+    if centres < 2 {
+        return library;
+    }
+    for e in library.iter_mut().filter(|e| e.baseline) {
+        e.params = std::mem::take(&mut e.params)
+            .into_iter()
+            .flat_map(|p| {
+                let pivot = p.keys.iter().all(|k| k.starts_with(PIVOT_OFFSET_KEY));
+                let split = |c: usize| Param {
+                    name: format!("{} (centre {})", p.name, c + 1),
+                    keys: p
+                        .keys
+                        .iter()
+                        .map(|k| {
+                            k.replacen(PIVOT_OFFSET_KEY, &format!("{PIVOT_OFFSET_KEY}[{c}]"), 1)
+                        })
+                        .collect(),
+                    ..p.clone()
+                };
+                match pivot {
+                    true => (0..centres).map(split).collect(),
+                    false => vec![p],
+                }
+            })
+            .collect();
+    }
+    library
 }
 
 /// Thermal drift: the spindle head starts warm (the spindle ran before the test) and cools

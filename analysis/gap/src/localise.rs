@@ -283,13 +283,19 @@ fn bins(p: &TracePair) -> std::collections::BTreeMap<i64, (f64, usize)> {
 
 fn direction(pairs: &[TracePair]) -> Vec<Place> {
     let (mut common, mut reversing) = (0.0, 0.0);
-    for cw in pairs.iter().filter(|p| p.sense == Sense::Cw) {
-        let Some(ccw) = pairs.iter().find(|p| {
-            p.sense == Sense::Ccw
-                && p.plane == cw.plane
-                && p.radius_mm == cw.radius_mm
-                && p.feed_mm_min == cw.feed_mm_min
-        }) else {
+    let same = |p: &TracePair, q: &TracePair| {
+        p.plane == q.plane && p.radius_mm == q.radius_mm && p.feed_mm_min == q.feed_mm_min
+    };
+    let cws: Vec<&TracePair> = pairs.iter().filter(|p| p.sense == Sense::Cw).collect();
+    for (i, cw) in cws.iter().enumerate() {
+        // The k-th CW run of a test with its k-th CCW run: the same test about the k-th of
+        // several centres, in the order the job runs them.
+        let k = cws[..i].iter().filter(|p| same(p, cw)).count();
+        let Some(ccw) = pairs
+            .iter()
+            .filter(|p| p.sense == Sense::Ccw && same(p, cw))
+            .nth(k)
+        else {
             continue;
         };
         let (a, b) = (bins(cw), bins(ccw));

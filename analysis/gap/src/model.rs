@@ -14,7 +14,7 @@
 //! a test checks 2 %); what the selection reports is simulated.
 
 use crate::align::GapError;
-use crate::effects::{Effect, library_for, screw_heating, thermal_drift};
+use crate::effects::{Effect, library_for, per_centre, screw_heating, thermal_drift};
 use crate::peaks::Circle;
 use std::path::PathBuf;
 use std::sync::OnceLock;
@@ -44,6 +44,11 @@ pub trait Forward: Sync {
     fn sensitivity_traces(&self, values: &[(String, f64)]) -> Result<Vec<Trace>, GapError> {
         self.traces(values)
     }
+    /// The tool's circle of each trace of the job, in the order of the traces, where known
+    /// (none: no place along an axis can be found).
+    fn circles(&self) -> &[Circle] {
+        &[]
+    }
 }
 
 /// A scenario file as a forward model.
@@ -72,6 +77,9 @@ pub struct ScenarioModel {
     /// The tool's circle of each trace of the job, in axis coordinates.
     circles: Vec<Circle>,
 }
+
+/// The bar's pivot offsets: `[x, y, z]`, or one such per centre of the job.
+const PIVOT_OFFSETS: &str = "instruments.ballbar.setup_eccentricity_um";
 
 /// Key prefixes whose values change what the bar reads but not the motion.
 const KINEMATIC: [&str; 3] = [
@@ -110,12 +118,35 @@ impl ScenarioModel {
 
     /// The same model with its `[job]` replaced by `job` (the table's body, TOML): another
     /// test the machine could run.
+    /// A model whose bar is set up at several centres keeps the first centre's set-up.
     pub fn for_job(&self, job: &str) -> Result<Self, GapError> {
-        let text = self
-            .template
-            .with_table("job", job)
-            .map_err(|e| GapError::Model(e.to_string()))?;
+        let err = |e: vmt_scenario::ScenarioError| GapError::Model(e.to_string());
+        let mut text = self.template.with_table("job", job).map_err(err)?;
+        if self.pivot_offsets() > 1 {
+            let first: Vec<String> = (0..3)
+                .map(|i| {
+                    format!(
+                        "{:?}",
+                        self.value(&format!("{PIVOT_OFFSETS}[0][{i}]"))
+                            .unwrap_or(0.0)
+                    )
+                })
+                .collect();
+            let fragment = format!("setup_eccentricity_um = [{}]\n", first.join(", "));
+            text = Template::parse(&text, &self.file)
+                .and_then(|t| t.with_fragment("instruments.ballbar", &fragment))
+                .map_err(err)?;
+        }
         Self::instrumented(&text, &self.file, self.base_dir.clone())
+    }
+
+    /// How many pivot offsets the bar's set-up lists, one per centre of the job (1 where it
+    /// gives one offset for every pivot).
+    fn pivot_offsets(&self) -> usize {
+        (0..)
+            .take_while(|c| self.value(&format!("{PIVOT_OFFSETS}[{c}][0]")).is_some())
+            .count()
+            .max(1)
     }
 
     /// The model's scenario.
@@ -192,7 +223,7 @@ impl ScenarioModel {
     /// of the spindle head when the model has a thermal node the spindle heats, and the
     /// heating of each tested axis' screw whose lumped node its motion heats.
     pub fn library(&self, planes: &[(char, char)]) -> Vec<Effect> {
-        let mut out = library_for(planes);
+        let mut out = per_centre(library_for(planes), self.pivot_offsets());
         out.extend(self.spindle_node.map(thermal_drift));
         let axes: Vec<char> = planes.iter().flat_map(|&(p, q)| [p, q]).collect();
         for (i, a) in ['x', 'y', 'z'].into_iter().enumerate() {
@@ -251,6 +282,10 @@ impl ScenarioModel {
 impl Forward for ScenarioModel {
     fn value(&self, key: &str) -> Option<f64> {
         self.template.value(key).ok().flatten()
+    }
+
+    fn circles(&self) -> &[Circle] {
+        &self.circles
     }
 
     fn replayable(&self, key: &str) -> bool {

@@ -52,6 +52,29 @@ pub struct Circle {
     pub radius_mm: f64,
 }
 
+impl Circle {
+    /// The centre as `(250, 200, 200) mm`.
+    pub fn centre_text(&self) -> String {
+        centre_text(self.centre_mm)
+    }
+}
+
+/// A centre as `(250, 200, 200) mm`.
+pub fn centre_text([x, y, z]: [f64; 3]) -> String {
+    format!("({x:.0}, {y:.0}, {z:.0}) mm")
+}
+
+/// The centres `circles` are about, each once, in the order they first come.
+pub fn distinct_centres<'a>(circles: impl IntoIterator<Item = &'a Circle>) -> Vec<[f64; 3]> {
+    let mut seen: Vec<[f64; 3]> = Vec::new();
+    for c in circles {
+        if !seen.contains(&c.centre_mm) {
+            seen.push(c.centre_mm);
+        }
+    }
+    seen
+}
+
 /// An angle difference, deg, wrapped into [−180, 180).
 pub fn wrapped_deg(x: f64) -> f64 {
     (x + 180.0).rem_euclid(360.0) - 180.0
@@ -75,6 +98,8 @@ pub struct Peak {
     pub test: String,
     /// The test's radius, mm.
     pub radius_mm: f64,
+    /// The test's centre, axis coordinates X, Y, Z, mm, where known.
+    pub centre_mm: Option<[f64; 3]>,
     /// Angle of the peak, deg in [0, 360).
     pub angle_deg: f64,
     /// Width where its energy stays above half its height, deg.
@@ -250,12 +275,23 @@ fn median(mut v: Vec<f64>) -> f64 {
 /// (`None` where unknown: no positions then); `min_rms_um` is the least RMS a peak must reach.
 pub fn peaks(pairs: &[TracePair], circles: &[Option<Circle>], min_rms_um: f64) -> Vec<Peak> {
     let mut out = Vec::new();
-    for (runs, circle) in tests(pairs, circles) {
+    let tests = tests(pairs, circles);
+    let centres = distinct_centres(tests.iter().filter_map(|(_, c)| c.as_ref())).len();
+    for (runs, circle) in tests {
         let first = &pairs[runs[0]];
-        let name = format!(
-            "{} {} mm {} mm/min",
-            first.plane, first.radius_mm, first.feed_mm_min
-        );
+        let name = match circle {
+            Some(c) if centres > 1 => format!(
+                "{} {} mm {} mm/min about {}",
+                first.plane,
+                first.radius_mm,
+                first.feed_mm_min,
+                c.centre_text()
+            ),
+            _ => format!(
+                "{} {} mm {} mm/min",
+                first.plane, first.radius_mm, first.feed_mm_min
+            ),
+        };
         let profiles: Vec<Vec<Option<f64>>> =
             runs.iter().map(|i| local_energy(&pairs[*i])).collect();
         let e = moving_mean(&mean_profile(&profiles), SMOOTH_DEG);
@@ -280,6 +316,7 @@ pub fn peaks(pairs: &[TracePair], circles: &[Option<Circle>], min_rms_um: f64) -
             out.push(Peak {
                 test: name.clone(),
                 radius_mm: first.radius_mm,
+                centre_mm: circle.map(|c| c.centre_mm),
                 angle_deg: angle,
                 width_deg: (hi - lo + 1) as f64,
                 share: if total > 0.0 { energy / total } else { 0.0 },
@@ -391,9 +428,11 @@ pub fn axis_places(
             if a.test != b.test {
                 continue;
             }
+            // A run of the test (its name) about the peak's centre, and its circle.
             let Some((run, circle)) = pairs.iter().zip(circles).find_map(|(p, c)| {
+                let c = (*c)?;
                 let name = format!("{} {} mm {} mm/min", p.plane, p.radius_mm, p.feed_mm_min);
-                (name == a.test).then_some((p, (*c)?))
+                (a.test.starts_with(&name) && Some(c.centre_mm) == a.centre_mm).then_some((p, c))
             }) else {
                 continue;
             };

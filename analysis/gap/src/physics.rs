@@ -5,8 +5,9 @@
 //! - a nut that lost its preload is lost motion, backlash by another mechanism: `backlash_{a}`;
 //! - the GMS friction law at the model's levels is guide friction: `friction_{a}`;
 //! - the screw warming where the nut runs stretches the axis' scale: `scale_mismatch` of the
-//!   plane (both axes of the plane share the one candidate), or the screw's heating during the
-//!   test, `screw_heating_{a}`;
+//!   plane (both axes of the plane share the one candidate), the screw's heating during the
+//!   test, `screw_heating_{a}`, or, where the circles run past the warm stretch's end (about
+//!   a second centre), the positioning error's change of slope there, `positioning_{a}`;
 //! - a rail bump or a rail-joint step is outside the library: unexplained, with a peak of the
 //!   residual where the circle takes a block over the defect (carriage position `at ± s/2`,
 //!   `s` the blocks' spacing); the defect is placed so that one block passes it inside the
@@ -17,7 +18,8 @@
 //!   blocks) is, on a ball-bar test, their static deflection under the weights they carry,
 //!   which changes as a carriage moves over the one below (the table's weight shifting over the
 //!   saddle's blocks): a geometric error of the plane's axes by another mechanism, so one of
-//!   `scale_mismatch`, `squareness` and the plane's straightnesses. Its dynamics do not reach
+//!   `scale_mismatch`, `squareness`, the plane's straightnesses and its axes' non-linear
+//!   positioning errors. Its dynamics do not reach
 //!   the bar: the inertial forces of a 100 mm circle at 2000 mm/min, `m v²/R`, are 0.1 % of
 //!   the weights `m g` (`tests/physics.rs` checks that the bar's change is the same at a quarter
 //!   of the feed).
@@ -101,7 +103,10 @@ pub fn cases(model: &ScenarioModel, plane: Plane) -> Result<Vec<Physics>, GapErr
     }
     let geometric = ["scale_mismatch".to_string(), "squareness".to_string()]
         .into_iter()
-        .chain(plane_axes.map(|a| format!("straightness_{}", a.to_string().to_lowercase())))
+        .chain(plane_axes.into_iter().flat_map(|a| {
+            let a = a.to_string().to_lowercase();
+            [format!("straightness_{a}"), format!("positioning_{a}")]
+        }))
         .collect();
     out.push(Physics {
         name: "compliant structure".into(),
@@ -158,6 +163,7 @@ fn passes(plane: Plane, circle: &Circle, axis: Axis, at: f64) -> Vec<Where> {
         .flat_map(|p| angles_at(plane, circle, axis.letter(), p))
         .map(|angle_deg| Where {
             radius_mm: circle.radius_mm,
+            centre_mm: circle.centre_mm,
             angle_deg,
         })
         .collect()

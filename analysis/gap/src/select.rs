@@ -42,8 +42,10 @@
 //! whose size is implausible is reported as such and is not an explanation.
 
 use crate::align::{GapError, TracePair};
+use crate::axis_change::AxisChange;
 use crate::effects::{Effect, Implausible, Param, Scale};
 use crate::model::Forward;
+use crate::peaks::Circle;
 use crate::split::{Role, Rows, Split};
 use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
@@ -235,6 +237,12 @@ pub struct Selection {
     pub steps: Vec<Step>,
     /// Candidates set aside as implausible, in the order they were tried.
     pub rejected: Vec<Rejected>,
+    /// Changes of one axis' error over a stretch the circles see begin and end, in the
+    /// residual of the model as given (fit and select bins; one per plane at most): the
+    /// candidates that are that error's smooth shape over the whole travel are set aside.
+    pub local_changes: Vec<AxisChange>,
+    /// The candidates set aside for it.
+    pub set_aside: Vec<String>,
     /// Explanations as good as a chosen one on the judging bins (plausible or not; see
     /// [`Alternative::implausible`]).
     pub alternatives: Vec<Alternative>,
@@ -1237,6 +1245,17 @@ pub fn select_without(
     o: &Options,
 ) -> Result<Selection, GapError> {
     let (given_pairs, base_bins) = residuals(measured, &lin.base, o.bin_deg, None)?;
+    let local_changes = local_changes(model, measured, &lin.base, &given_pairs, &split, o)?;
+    let set_aside: Vec<&str> = library
+        .iter()
+        .filter(|e| {
+            local_changes
+                .iter()
+                .any(|c| e.whole_travel == Some((c.axis, c.direction)))
+        })
+        .map(|e| e.key.as_str())
+        .collect();
+    let hidden: &[&str] = &[hidden, &set_aside].concat();
     let grid: Grid = given_pairs.iter().map(|p| bin(p, o.bin_deg)).collect();
     let rows = Rows::new(&split, &grid, o.bin_deg);
     if rows.fit.is_empty() || rows.select.is_empty() {
@@ -1362,6 +1381,8 @@ pub fn select_without(
         baseline,
         steps,
         rejected,
+        local_changes,
+        set_aside: set_aside.iter().map(|k| k.to_string()).collect(),
         alternatives,
         alternatives_judged_on,
         unavailable: lin.unavailable.clone(),
@@ -1372,6 +1393,79 @@ pub fn select_without(
         simulations: sel.simulations.into_inner(),
         split,
     })
+}
+
+/// The changes of one axis' error over a stretch ([`crate::axis_change::scan_beyond`]) in the
+/// residual of the model as given, `pairs`, on the fit and select bins alone (the judge bins
+/// stay untouched), each plane's runs apart, that the circles see begin and end: both ends of
+/// the stretch within the axis positions they reach, to the scan's step. Such a change is
+/// local, a defect under a carriage or a worn stretch of a screw, not the smooth shape of an
+/// error of the whole travel, however well a curve over the travel fits the stretch it is
+/// seen on.
+fn local_changes(
+    model: &dyn Forward,
+    measured: &[Trace],
+    base: &[Trace],
+    pairs: &[TracePair],
+    split: &Split,
+    o: &Options,
+) -> Result<Vec<AxisChange>, GapError> {
+    let known = model.circles();
+    if known.is_empty() {
+        return Ok(Vec::new());
+    }
+    let circles: Vec<Option<Circle>> = partners(measured, base)?
+        .into_iter()
+        .map(|i| known.get(i).copied())
+        .collect();
+    let mut planes: Vec<vmt_ballbar::Plane> = Vec::new();
+    for p in pairs {
+        if !planes.contains(&p.plane) {
+            planes.push(p.plane);
+        }
+    }
+    Ok(planes
+        .into_iter()
+        .filter_map(|plane| {
+            let runs: Vec<usize> = (0..pairs.len())
+                .filter(|i| pairs[*i].plane == plane)
+                .collect();
+            let untouched: Vec<TracePair> = runs
+                .iter()
+                .map(|i| without_judge(&pairs[*i], *i, split))
+                .collect();
+            let own: Vec<Option<Circle>> = runs.iter().map(|i| circles[*i]).collect();
+            // Against the smooth shapes the library's candidates have (a positioning S too).
+            let c = crate::axis_change::scan_beyond(&untouched, &own, o.min_effect_um, 3)?;
+            let side = usize::from(plane.axes().1 == c.axis);
+            let (lo, hi) = crate::axis_change::reach(&untouched, &own, side)?;
+            let step = crate::axis_change::PLACE_STEP_MM;
+            let (from, to) = (c.at_mm - 0.5 * c.width_mm, c.at_mm + 0.5 * c.width_mm);
+            (from >= lo - step && to <= hi + step).then_some(c)
+        })
+        .collect())
+}
+
+/// Run number `run` of `p` without its samples in judge segments.
+fn without_judge(p: &TracePair, run: usize, split: &Split) -> TracePair {
+    let keep: Vec<bool> = p
+        .angle_deg
+        .iter()
+        .map(|a| Role::of(split.segment(*a), run) != Role::Judge)
+        .collect();
+    let pick = |v: &[f64]| -> Vec<f64> {
+        v.iter()
+            .zip(&keep)
+            .filter(|(_, k)| **k)
+            .map(|(x, _)| *x)
+            .collect()
+    };
+    TracePair {
+        angle_deg: pick(&p.angle_deg),
+        residual_um: pick(&p.residual_um),
+        time_s: pick(&p.time_s),
+        ..p.clone()
+    }
 }
 
 /// Whether an effect could still pass: its change `c` of the select bins' residual `r` (RMS)

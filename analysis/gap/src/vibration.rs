@@ -237,6 +237,7 @@ impl MillingModel {
                         scaled("damping ratio", "", "damping_ratio", (0.05, 0.3), MODE_DAMPING),
                     ],
                     baseline: false,
+                    whole_travel: None,
                 });
             }
         }
@@ -261,6 +262,7 @@ impl MillingModel {
                 scale: Scale::Same,
             }],
             baseline: false,
+            whole_travel: None,
         });
         out
     }
