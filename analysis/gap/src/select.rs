@@ -5,7 +5,12 @@
 //! select and judge ([`crate::split`]). Every free parameter `β_p` of every available
 //! candidate gets its sensitivity by a finite difference through the simulator,
 //! `J_p = (m(β₀ + h_p e_p) − m(β₀)) / h_p`, where `m` is the model's deviation at the measured
-//! angles averaged into the bins. Effects are then added by forward selection:
+//! angles averaged into the bins. Before any candidate, the fit and select bins of each plane
+//! are scanned for a change of one axis' error over a stretch ([`crate::axis_change`], against
+//! the smooth shapes up to the cubic); when the circles see that change begin and end, the
+//! candidates that are that error's shape over the whole travel ([`Effect::whole_travel`]: a
+//! positioning curve, a straightness) are set aside, since what is local is none of them.
+//! Effects are then added by forward selection:
 //!
 //! 1. for each candidate `c` not yet chosen, the parameters of the chosen effects and of `c`
 //!    (with the bar's set-up, the baseline) are fitted jointly to the fit bins,
