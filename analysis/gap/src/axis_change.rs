@@ -145,12 +145,7 @@ fn fit(a: &DMatrix<f64>, y: &DVector<f64>) -> Option<(f64, DVector<f64>)> {
 /// offset from the middle, which the quadratic columns carry as one error of the machine.
 /// `degree` 3 adds the cubic shapes, `u_a(θ)³ n_d(θ)` (a positioning error's S).
 fn baseline(bins: &[Bin], degree: i32) -> DMatrix<f64> {
-    let mut centres: Vec<[f64; 2]> = Vec::new();
-    for b in bins {
-        if !centres.contains(&b.centre) {
-            centres.push(b.centre);
-        }
-    }
+    let centres = crate::peaks::once_each(bins.iter().map(|b| b.centre));
     let n = bins.len().max(1) as f64;
     let mean = |side: usize| bins.iter().map(|b| position(b, side)).sum::<f64>() / n;
     let middle = [mean(0), mean(1)];

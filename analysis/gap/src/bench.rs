@@ -89,6 +89,17 @@ pub struct Where {
     pub angle_deg: f64,
 }
 
+impl Where {
+    /// Where `circle` is at `angle_deg`.
+    pub fn on(circle: &Circle, angle_deg: f64) -> Self {
+        Self {
+            radius_mm: circle.radius_mm,
+            centre_mm: circle.centre_mm,
+            angle_deg,
+        }
+    }
+}
+
 /// How close a reported peak must lie to the truth's angle, deg.
 pub const WHERE_TOLERANCE_DEG: f64 = 10.0;
 
@@ -507,11 +518,7 @@ fn passes(c: &AxisChange, plane: vmt_ballbar::Plane, circles: &[Option<Circle>])
         .flat_map(|circle| {
             angles_at(plane, circle, c.axis, c.at_mm)
                 .into_iter()
-                .map(|angle_deg| Where {
-                    radius_mm: circle.radius_mm,
-                    centre_mm: circle.centre_mm,
-                    angle_deg,
-                })
+                .map(|angle_deg| Where::on(circle, angle_deg))
         })
         .collect()
 }
@@ -580,7 +587,7 @@ pub fn with_second_centre(
         * 1e3)
         .into();
     let first = given("job.center_mm")?.unwrap_or(middle);
-    let offset = given("instruments.ballbar.setup_eccentricity_um")?.unwrap_or([0.0; 3]);
+    let offset = given(crate::effects::PIVOT_OFFSET_KEY)?.unwrap_or([0.0; 3]);
     let mut second = first;
     let (p, q) = plane.axes();
     for (k, axis) in [p, q].into_iter().enumerate() {

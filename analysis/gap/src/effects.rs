@@ -574,7 +574,7 @@ fn positioning(a: char, errors: &str) -> Effect {
 }
 
 /// The key prefix of the bar's pivot offset, one `[x, y, z]` or one per centre.
-const PIVOT_OFFSET_KEY: &str = "instruments.ballbar.setup_eccentricity_um";
+pub(crate) const PIVOT_OFFSET_KEY: &str = "instruments.ballbar.setup_eccentricity_um";
 
 /// `library` for a job whose circles run about `centres` centres, the bar set up anew at each:
 /// every pivot-offset parameter of the set-up split into one per centre, on that centre's

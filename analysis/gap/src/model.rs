@@ -14,7 +14,9 @@
 //! a test checks 2 %); what the selection reports is simulated.
 
 use crate::align::GapError;
-use crate::effects::{Effect, library_for, per_centre, screw_heating, thermal_drift};
+use crate::effects::{
+    Effect, PIVOT_OFFSET_KEY, library_for, per_centre, screw_heating, thermal_drift,
+};
 use crate::peaks::Circle;
 use std::path::PathBuf;
 use std::sync::OnceLock;
@@ -78,9 +80,6 @@ pub struct ScenarioModel {
     circles: Vec<Circle>,
 }
 
-/// The bar's pivot offsets: `[x, y, z]`, or one such per centre of the job.
-const PIVOT_OFFSETS: &str = "instruments.ballbar.setup_eccentricity_um";
-
 /// Key prefixes whose values change what the bar reads but not the motion.
 const KINEMATIC: [&str; 3] = [
     "machine.errors.",
@@ -127,7 +126,7 @@ impl ScenarioModel {
                 .map(|i| {
                     format!(
                         "{:?}",
-                        self.value(&format!("{PIVOT_OFFSETS}[0][{i}]"))
+                        self.value(&format!("{PIVOT_OFFSET_KEY}[0][{i}]"))
                             .unwrap_or(0.0)
                     )
                 })
@@ -144,7 +143,7 @@ impl ScenarioModel {
     /// gives one offset for every pivot).
     fn pivot_offsets(&self) -> usize {
         (0..)
-            .take_while(|c| self.value(&format!("{PIVOT_OFFSETS}[{c}][0]")).is_some())
+            .take_while(|c| self.value(&format!("{PIVOT_OFFSET_KEY}[{c}][0]")).is_some())
             .count()
             .max(1)
     }

@@ -66,13 +66,18 @@ pub fn centre_text([x, y, z]: [f64; 3]) -> String {
 
 /// The centres `circles` are about, each once, in the order they first come.
 pub fn distinct_centres<'a>(circles: impl IntoIterator<Item = &'a Circle>) -> Vec<[f64; 3]> {
-    let mut seen: Vec<[f64; 3]> = Vec::new();
-    for c in circles {
-        if !seen.contains(&c.centre_mm) {
-            seen.push(c.centre_mm);
+    once_each(circles.into_iter().map(|c| c.centre_mm))
+}
+
+/// Each of `items` once, in the order they first come.
+pub(crate) fn once_each<T: PartialEq>(items: impl IntoIterator<Item = T>) -> Vec<T> {
+    let mut out: Vec<T> = Vec::new();
+    for x in items {
+        if !out.contains(&x) {
+            out.push(x);
         }
     }
-    seen
+    out
 }
 
 /// An angle difference, deg, wrapped into [−180, 180).
@@ -82,13 +87,7 @@ pub fn wrapped_deg(x: f64) -> f64 {
 
 /// Each of `circles` once, in the order they first come (the runs of a test share one).
 pub fn distinct<'a>(circles: impl IntoIterator<Item = &'a Circle>) -> Vec<Circle> {
-    let mut out: Vec<Circle> = Vec::new();
-    for c in circles {
-        if !out.contains(c) {
-            out.push(*c);
-        }
-    }
-    out
+    once_each(circles.into_iter().copied())
 }
 
 /// A place on the circle where the residual concentrates.

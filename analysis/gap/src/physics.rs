@@ -161,10 +161,6 @@ fn passes(plane: Plane, circle: &Circle, axis: Axis, at: f64) -> Vec<Where> {
     [at - half, at + half]
         .into_iter()
         .flat_map(|p| angles_at(plane, circle, axis.letter(), p))
-        .map(|angle_deg| Where {
-            radius_mm: circle.radius_mm,
-            centre_mm: circle.centre_mm,
-            angle_deg,
-        })
+        .map(|angle_deg| Where::on(circle, angle_deg))
         .collect()
 }

@@ -1423,13 +1423,7 @@ fn local_changes(
         .into_iter()
         .map(|i| known.get(i).copied())
         .collect();
-    let mut planes: Vec<vmt_ballbar::Plane> = Vec::new();
-    for p in pairs {
-        if !planes.contains(&p.plane) {
-            planes.push(p.plane);
-        }
-    }
-    Ok(planes
+    Ok(crate::peaks::once_each(pairs.iter().map(|p| p.plane))
         .into_iter()
         .filter_map(|plane| {
             let runs: Vec<usize> = (0..pairs.len())
