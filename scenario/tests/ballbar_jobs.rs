@@ -317,30 +317,43 @@ fn a_list_of_radii_runs_a_test_at_each_about_one_centre() {
     let s = load(&with_job(keys), None).unwrap();
     let job = job_of(&s);
     assert_eq!(job.ballbar.len(), 2);
-    let centre = Vector3::new(0.25, 0.2, 0.2);
     let mut last_end = 0;
     for (bar, radius) in job.ballbar.iter().zip([0.15, 0.075]) {
         assert!((bar.radius_m - radius).abs() < 1e-15);
         let dirs: Vec<ArcDirection> = bar.data.iter().map(|(d, _)| *d).collect();
         assert_eq!(dirs, [ArcDirection::Cw, ArcDirection::Ccw]);
-        for (dir, range) in &bar.data {
-            assert!(range.start >= last_end, "the tests run in turn");
-            last_end = range.end;
-            for b in &job.program.blocks[range.clone()] {
-                let Motion::Arc {
-                    to,
-                    center,
-                    direction,
-                    ..
-                } = b.motion
-                else {
-                    panic!("a data block that is no arc: {:?}", b.motion);
-                };
-                assert_eq!(direction, *dir);
-                assert!((center.xy() - centre.xy()).norm() < 1e-9, "{center:?}");
-                let r = (to - center).xy().norm();
-                assert!((r - radius).abs() < 1e-9, "{r} against {radius}");
-            }
+        assert_data_arcs(job, bar, (0.25, 0.2), radius, &mut last_end);
+    }
+}
+
+/// Checks on the program's blocks that every data arc of test `bar` is an arc block about
+/// `centre` (X, Y, m) of `radius` (m) in its run's direction, and that its runs come after
+/// `last_end` (the end of the data blocks checked so far, moved on): the tests run in turn.
+fn assert_data_arcs(
+    job: &vmt_sim::simulate::Job,
+    bar: &vmt_sim::simulate::BallbarSetup,
+    (cx, cy): (f64, f64),
+    radius: f64,
+    last_end: &mut usize,
+) {
+    for (dir, range) in &bar.data {
+        assert!(range.start >= *last_end, "the tests run in turn");
+        *last_end = range.end;
+        for b in &job.program.blocks[range.clone()] {
+            let Motion::Arc {
+                to,
+                center,
+                direction,
+                ..
+            } = b.motion
+            else {
+                panic!("a data block that is no arc: {:?}", b.motion);
+            };
+            assert_eq!(direction, *dir);
+            let off = Vector3::new(center.x - cx, center.y - cy, 0.0);
+            assert!(off.norm() < 1e-9, "{center:?}");
+            let r = (to - center).xy().norm();
+            assert!((r - radius).abs() < 1e-9, "{r} against {radius}");
         }
     }
 }
@@ -391,18 +404,7 @@ fn a_list_of_centres_runs_every_radius_about_each_with_its_own_set_up() {
     for (bar, ((cx, cy), radius, (ex, ey))) in job.ballbar.iter().zip(expected) {
         let e = bar.spec.setup_eccentricity_m * 1e6;
         assert!((e.x - ex).abs() < 1e-9 && (e.y - ey).abs() < 1e-9, "{e:?}");
-        for (_, range) in &bar.data {
-            assert!(range.start >= last_end, "the tests run in turn");
-            last_end = range.end;
-            for b in &job.program.blocks[range.clone()] {
-                let Motion::Arc { to, center, .. } = b.motion else {
-                    panic!("a data block that is no arc: {:?}", b.motion);
-                };
-                assert!((center.x - cx).abs() < 1e-9 && (center.y - cy).abs() < 1e-9);
-                let r = (to - center).xy().norm();
-                assert!((r - radius).abs() < 1e-9, "{r} against {radius}");
-            }
-        }
+        assert_data_arcs(job, bar, (cx, cy), radius, &mut last_end);
     }
 }
 

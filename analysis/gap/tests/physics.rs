@@ -29,6 +29,53 @@ fn model(plane: &str) -> (String, ScenarioModel) {
     (text, m)
 }
 
+/// The "real" machine of scenario `text`, its bar with the instrument's noise and resolution.
+fn measured(text: &str) -> Vec<vmt_ballbar::Trace> {
+    ScenarioModel::instrumented(text, "case", None)
+        .unwrap()
+        .traces(&[])
+        .unwrap()
+}
+
+/// The bench case of `m` whose name starts with `name`, and the runs of `text` with its
+/// physics switched on.
+fn case_run(text: &str, m: &ScenarioModel, name: &str) -> (Physics, Vec<vmt_ballbar::Trace>) {
+    let case = physics::cases(m, Plane::Xy)
+        .unwrap()
+        .into_iter()
+        .find(|c| c.name.starts_with(name))
+        .unwrap();
+    let with = Template::parse(text, "case")
+        .unwrap()
+        .with_fragments(&case.fragments)
+        .unwrap();
+    let runs = measured(&with);
+    (case, runs)
+}
+
+/// The selection of `m` against `measured` over the library's candidates named `keys`.
+fn select_among(
+    m: &ScenarioModel,
+    measured: &[vmt_ballbar::Trace],
+    keys: &[&str],
+) -> vmt_gap::select::Selection {
+    let lib: Vec<_> = m
+        .library(&[('x', 'y')])
+        .into_iter()
+        .filter(|e| keys.contains(&e.key.as_str()))
+        .collect();
+    assert_eq!(lib.len(), keys.len());
+    select(
+        m,
+        &Linearisation::new(m, &lib).unwrap(),
+        measured,
+        &lib,
+        Split::automatic(measured).unwrap(),
+        &Options::default(),
+    )
+    .unwrap()
+}
+
 /// The stretch of angles (deg, unwrapped) around the largest change of the reading with the
 /// case's physics switched on, where the change stays above half its largest value.
 fn changed_span(text: &str, base: &ScenarioModel, case: &Physics) -> (f64, f64) {
@@ -139,44 +186,21 @@ fn every_case_states_its_answer_and_the_library_ones_name_a_candidate() {
 #[test]
 fn a_warm_screw_is_a_scale_mismatch_and_the_heating_of_the_screws_own_steel() {
     let (text, m) = model("XY");
-    let case = physics::cases(&m, Plane::Xy)
-        .unwrap()
-        .into_iter()
-        .find(|c| c.name.starts_with("screw_warming X 2K"))
-        .unwrap();
-    let with = Template::parse(&text, "case")
-        .unwrap()
-        .with_fragments(&case.fragments)
-        .unwrap();
-    let measured = ScenarioModel::instrumented(&with, "case", None)
-        .unwrap()
-        .traces(&[])
-        .unwrap();
-    let keys = [
-        "scale_mismatch",
-        "screw_heating_x",
-        "screw_heating_y",
-        "squareness",
-        "straightness_x",
-        "servo_mismatch",
-        "setup",
-        "bar_length",
-    ];
-    let lib: Vec<_> = m
-        .library(&[('x', 'y')])
-        .into_iter()
-        .filter(|e| keys.contains(&e.key.as_str()))
-        .collect();
-    assert_eq!(lib.len(), keys.len());
-    let s = select(
+    let (_, measured) = case_run(&text, &m, "screw_warming X 2K");
+    let s = select_among(
         &m,
-        &Linearisation::new(&m, &lib).unwrap(),
         &measured,
-        &lib,
-        Split::automatic(&measured).unwrap(),
-        &Options::default(),
-    )
-    .unwrap();
+        &[
+            "scale_mismatch",
+            "screw_heating_x",
+            "screw_heating_y",
+            "squareness",
+            "straightness_x",
+            "servo_mismatch",
+            "setup",
+            "bar_length",
+        ],
+    );
     let found: Vec<&str> = s.steps.iter().map(|s| s.effect.as_str()).collect();
     assert!(
         found.contains(&"scale_mismatch") && found.contains(&"screw_heating_x"),
@@ -323,21 +347,7 @@ fn select_positioning(
         "setup",
         "bar_length",
     ];
-    let lib: Vec<_> = m
-        .library(&[('x', 'y')])
-        .into_iter()
-        .filter(|e| keys.contains(&e.key.as_str()))
-        .collect();
-    assert_eq!(lib.len(), keys.len());
-    select(
-        m,
-        &Linearisation::new(m, &lib).unwrap(),
-        measured,
-        &lib,
-        Split::automatic(measured).unwrap(),
-        &Options::default(),
-    )
-    .unwrap()
+    select_among(m, measured, &keys)
 }
 
 /// A 2 µm rail-joint step under X's blocks (the guideway model of the simulator) changes X's
@@ -349,20 +359,8 @@ fn select_positioning(
 #[test]
 fn a_rail_step_seen_begin_and_end_is_no_positioning_curve() {
     let (text, m) = two_centre_model();
-    let case = physics::cases(&m, Plane::Xy)
-        .unwrap()
-        .into_iter()
-        .find(|c| c.name.starts_with("rail_step X 2µm"))
-        .unwrap();
+    let (case, measured) = case_run(&text, &m, "rail_step X 2µm");
     assert!(case.name.contains("at 450 mm"), "{}", case.name);
-    let with = Template::parse(&text, "case")
-        .unwrap()
-        .with_fragments(&case.fragments)
-        .unwrap();
-    let measured = ScenarioModel::instrumented(&with, "case", None)
-        .unwrap()
-        .traces(&[])
-        .unwrap();
     let s = select_positioning(&m, &measured);
     let [c] = s.local_changes.as_slice() else {
         panic!("one local change: {:?}", s.local_changes);
@@ -387,14 +385,12 @@ fn a_positioning_curve_is_found_about_two_centres() {
         }
     }
     let pairs: Vec<(&str, f64)> = edits.iter().map(|(k, v)| (k.as_str(), *v)).collect();
-    let with = Template::parse(&text, "case")
-        .unwrap()
-        .with(&pairs)
-        .unwrap();
-    let measured = ScenarioModel::instrumented(&with, "case", None)
-        .unwrap()
-        .traces(&[])
-        .unwrap();
+    let measured = measured(
+        &Template::parse(&text, "case")
+            .unwrap()
+            .with(&pairs)
+            .unwrap(),
+    );
     let s = select_positioning(&m, &measured);
     assert!(s.set_aside.is_empty(), "{:?}", s.local_changes);
     let found: Vec<&str> = s.steps.iter().map(|s| s.effect.as_str()).collect();
