@@ -280,9 +280,12 @@ pub fn text(r: &GapReport) -> String {
         let judge = step
             .judge_rms_um
             .map_or(String::new(), |j| format!(", judge RMS {j:.3} um"));
+        let together = step.together_with.as_ref().map_or(String::new(), |o| {
+            format!(" [one step with {o}: the gap needs the two together, neither passes alone]")
+        });
         let _ = writeln!(
             out,
-            "  + {}. {} ({}): {}\n      select RMS {:.3} um ({:.0} % of the remaining mean square removed), fit RMS {:.3} um{judge}",
+            "  + {}. {}{together} ({}): {}\n      select RMS {:.3} um ({:.0} % of the remaining mean square removed), fit RMS {:.3} um{judge}",
             i + 1,
             step.effect,
             step.description,

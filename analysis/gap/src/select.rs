@@ -25,7 +25,15 @@
 //!    Gauss–Newton step on the fit bins, and accepted when its simulated fit BIC drops by at
 //!    least [`Options::min_bic_drop`], the select bins' mean square shrinks by at least
 //!    [`Options::min_select_shrink`] of what is left and changes by at least
-//!    [`Options::min_effect_um`] RMS.
+//!    [`Options::min_effect_um`] RMS;
+//! 3. when no single candidate passes, two effects the gap needs together are tried in one
+//!    step: a pair fitted jointly with the chosen effects that lowers the fit BIC by
+//!    [`Options::min_bic_drop`] below the current one and below each of its effects alone,
+//!    and whose linear prediction passes the shrink gate, is verified and gated as one
+//!    candidate (best predicted select residual first). A physics outside the library that
+//!    two candidates' shapes span together (a screw warmed over part of its length: a scale,
+//!    a bow and a growth in time) passes no gate one shape at a time, each leaving most of
+//!    what the other would remove.
 //!
 //! Selection does not start when the select bins' gap is already at
 //! [`Options::explained_floor_um`], and stops when no candidate passes. Then the judge bins,
@@ -154,6 +162,10 @@ pub struct Step {
     pub select_shrink: f64,
     /// RMS of the judge bins after it, µm, when they are enough to judge.
     pub judge_rms_um: Option<f64>,
+    /// The effect added in the same step, when neither passed the gates alone
+    /// (the module doc's joint step): the two appear as two steps with the same figures, each
+    /// naming the other.
+    pub together_with: Option<String>,
 }
 
 /// A candidate's score in the last round, for the report.
@@ -657,6 +669,123 @@ impl Selector<'_> {
         })
     }
 
+    /// The first of `ranked` a machine of the model's class can have, simulated at its fitted
+    /// values ([`Selector::verify_ahead`]); the implausible ones, before or after their
+    /// simulation, join `rejected` (once per effect). A fit the model refuses is passed over.
+    fn first_plausible(
+        &self,
+        ranked: Vec<Candidate>,
+        chosen: &[usize],
+        hidden: &[&str],
+        cur_bic: f64,
+        ahead: &mut Option<Ahead>,
+        rejected: &mut Vec<Rejected>,
+    ) -> Result<Option<(Candidate, Simulated)>, GapError> {
+        let mut reject = |r: Rejected| {
+            if !rejected.iter().any(|x| x.effect == r.effect) {
+                rejected.push(r);
+            }
+        };
+        for mut c in ranked {
+            if let Some(r) = self.implausible(&c) {
+                reject(r);
+                continue;
+            }
+            match self.verify_ahead(&mut c, chosen, hidden, cur_bic, ahead) {
+                Ok(simulated) => match self.implausible(&c) {
+                    Some(r) => reject(r),
+                    None => return Ok(Some((c, simulated))),
+                },
+                Err(GapError::Model(_)) => continue,
+                Err(e) => return Err(e),
+            }
+        }
+        Ok(None)
+    }
+
+    /// The step's gates on verified candidate `c` with simulated residual `bins`, from the
+    /// current residual `before` (select RSS `cur_select`, fit BIC `cur_bic`): the fit BIC
+    /// drops by [`Options::min_bic_drop`], the select bins' mean square shrinks by
+    /// [`Options::min_select_shrink`] of what is left and changes by
+    /// [`Options::min_effect_um`] RMS. `(select RSS, BIC, shrink)` when it passes.
+    fn gates(
+        &self,
+        c: &Candidate,
+        bins: &[Vec<f64>],
+        before: &[Vec<f64>],
+        cur_select: f64,
+        cur_bic: f64,
+    ) -> Option<(f64, f64, f64)> {
+        let o = self.o;
+        let fit = rss(&stack(bins, &self.rows.fit));
+        let select_new = stack(bins, &self.rows.select);
+        let select = rss(&select_new);
+        let new_bic = bic(fit, self.rows.fit.len(), c.params.len());
+        let shrink = 1.0 - select / cur_select;
+        let before = stack(before, &self.rows.select);
+        let change = rms(&before
+            .iter()
+            .zip(&select_new)
+            .map(|(a, b)| a - b)
+            .collect::<Vec<_>>());
+        (new_bic <= cur_bic - o.min_bic_drop
+            && shrink >= o.min_select_shrink
+            && change >= o.min_effect_um)
+            .then_some((select, new_bic, shrink))
+    }
+
+    /// The pairs of `pool` effects the gap needs together: fitted jointly with `chosen`, the
+    /// pair lowers the fit BIC by [`Options::min_bic_drop`] from `cur_bic` and by as much from
+    /// each of its effects alone (`singles`: each effect's BIC change alone), and its linear
+    /// prediction passes the other gates from the current residual `now` (simulated; select
+    /// RSS `cur_select`): a shrink of [`Options::min_select_shrink`] and a change of
+    /// [`Options::min_effect_um`]. Best predicted select residual first; only these are
+    /// simulated, two simulations each.
+    fn needed_pairs(
+        &self,
+        chosen: &[usize],
+        pool: &[usize],
+        singles: &[(usize, f64)],
+        (cur_bic, cur_select): (f64, f64),
+        now: &[Vec<f64>],
+    ) -> Vec<Candidate> {
+        let alone = |e: usize| {
+            singles
+                .iter()
+                .find(|(s, _)| *s == e)
+                .map_or(0.0, |(_, b)| *b)
+        };
+        let o = self.o;
+        let now = stack(now, &self.rows.select);
+        let change = |c: &Candidate| {
+            let predicted = self.linear(c, Role::Select);
+            rms(&now
+                .iter()
+                .zip(&predicted)
+                .map(|(a, b)| a - b)
+                .collect::<Vec<_>>())
+        };
+        let sets: Vec<[usize; 2]> = pool
+            .iter()
+            .enumerate()
+            .flat_map(|(k, a)| pool[k + 1..].iter().map(move |b| [*a, *b]))
+            .collect();
+        let mut pairs: Vec<Candidate> = sets
+            .par_iter()
+            .filter_map(|set| self.fit(chosen, set, cur_bic))
+            .filter(|c| {
+                c.bic_change < -o.min_bic_drop
+                    && c.effects
+                        .iter()
+                        .all(|e| c.bic_change < alone(*e) - o.min_bic_drop)
+                    && 1.0 - c.select_rss / cur_select >= o.min_select_shrink
+                    && change(c) >= o.min_effect_um
+            })
+            .collect();
+        pairs.sort_by(|a, b| a.select_rss.total_cmp(&b.select_rss));
+        pairs
+    }
+
     /// Simulates the candidate at its fitted values, then once more after a Gauss–Newton step
     /// from the simulated residual on the fit bins, and keeps the better of the two.
     fn verify(&self, c: &mut Candidate) -> Result<Simulated, GapError> {
@@ -841,17 +970,22 @@ impl Selector<'_> {
             .then(|| rms(&stack(bins, &self.rows.judge)))
     }
 
-    fn step(&self, c: &Candidate, bins: &[Vec<f64>], shrink: f64) -> Step {
-        let effect = &self.library[c.effects[0]];
-        Step {
-            effect: effect.key.clone(),
-            description: effect.description.clone(),
-            values: self.fitted(c, |e| !self.library[e].baseline),
-            fit_rms_um: rms(&stack(bins, &self.rows.fit)),
-            select_rms_um: rms(&stack(bins, &self.rows.select)),
-            select_shrink: shrink,
-            judge_rms_um: self.judge_rms(bins),
-        }
+    /// The steps `c` adds: one per effect, the two of a joint step each naming the other.
+    fn steps(&self, c: &Candidate, bins: &[Vec<f64>], shrink: f64) -> Vec<Step> {
+        let key = |e: usize| self.library[e].key.clone();
+        c.effects
+            .iter()
+            .map(|&e| Step {
+                effect: key(e),
+                description: self.library[e].description.clone(),
+                values: self.fitted(c, |e| !self.library[e].baseline),
+                fit_rms_um: rms(&stack(bins, &self.rows.fit)),
+                select_rms_um: rms(&stack(bins, &self.rows.select)),
+                select_shrink: shrink,
+                judge_rms_um: self.judge_rms(bins),
+                together_with: c.effects.iter().find(|o| **o != e).map(|o| key(*o)),
+            })
+            .collect()
     }
 
     /// The judging bins and segments: the judge's when they are enough, else the select's.
@@ -1310,54 +1444,31 @@ pub fn select_without(
         let candidates = sel.candidates(&chosen, &pool, cur_bic);
         last_round = candidates.iter().map(|c| sel.score(c)).collect();
         last_round.sort_by(|a, b| a.select_rms_um.total_cmp(&b.select_rms_um));
-        let mut ranked: Vec<Candidate> = candidates
-            .into_iter()
-            .filter(|c| c.bic_change < -o.min_bic_drop)
+        let singles: Vec<(usize, f64)> = candidates
+            .iter()
+            .map(|c| (c.effects[0], c.bic_change))
             .collect();
-        ranked.sort_by(|a, b| a.select_rss.total_cmp(&b.select_rss));
-        // The best candidate a machine can have and the model accepts: a fitted value the
-        // scenario refuses (a negative friction force, say) or one beyond the class's range is
-        // not a physical explanation.
-        let mut verified = None;
-        for mut c in ranked {
-            if let Some(r) = sel.implausible(&c) {
-                rejected.push(r);
-                continue;
-            }
-            match sel.verify_ahead(&mut c, &chosen, hidden, cur_bic, &mut ahead) {
-                Ok(simulated) => match sel.implausible(&c) {
-                    Some(r) => rejected.push(r),
-                    None => {
-                        verified = Some((c, simulated));
-                        break;
-                    }
-                },
-                Err(GapError::Model(_)) => continue,
-                Err(e) => return Err(e),
-            }
+        let ranked = passing_bic(candidates, o);
+        let mut taken =
+            sel.first_plausible(ranked, &chosen, hidden, cur_bic, &mut ahead, &mut rejected)?;
+        let mut gates = taken
+            .as_ref()
+            .and_then(|(best, (_, bins))| sel.gates(best, bins, &final_bins, cur_select, cur_bic));
+        // Two effects that the gap needs together, when neither passes alone.
+        if gates.is_none() && chosen.len() + 2 <= o.max_effects {
+            let pairs =
+                sel.needed_pairs(&chosen, &pool, &singles, (cur_bic, cur_select), &final_bins);
+            taken =
+                sel.first_plausible(pairs, &chosen, hidden, cur_bic, &mut ahead, &mut rejected)?;
+            gates = taken.as_ref().and_then(|(best, (_, bins))| {
+                sel.gates(best, bins, &final_bins, cur_select, cur_bic)
+            });
         }
-        let Some((best, (pairs, bins))) = verified else {
+        let (Some((best, (pairs, bins))), Some((select, new_bic, shrink))) = (taken, gates) else {
             break;
         };
-        let fit = rss(&stack(&bins, &sel.rows.fit));
-        let select_new = select_of(&bins, &sel.rows);
-        let select = rss(&select_new);
-        let new_bic = bic(fit, n_fit, best.params.len());
-        let shrink = 1.0 - select / cur_select;
-        let before = select_of(&final_bins, &sel.rows);
-        let change = rms(&before
-            .iter()
-            .zip(&select_new)
-            .map(|(a, b)| a - b)
-            .collect::<Vec<_>>());
-        if new_bic > cur_bic - o.min_bic_drop
-            || shrink < o.min_select_shrink
-            || change < o.min_effect_um
-        {
-            break;
-        }
-        steps.push(sel.step(&best, &bins, shrink));
-        chosen.push(best.effects[0]);
+        steps.extend(sel.steps(&best, &bins, shrink));
+        chosen.extend(&best.effects);
         (cur_select, cur_bic, final_pairs, final_bins) = (select, new_bic, pairs, bins);
         best_so_far = best;
     }
@@ -1465,6 +1576,17 @@ fn without_judge(p: &TracePair, run: usize, split: &Split) -> TracePair {
         time_s: pick(&p.time_s),
         ..p.clone()
     }
+}
+
+/// The candidates whose fit lowers the fit bins' BIC by at least [`Options::min_bic_drop`],
+/// best predicted select residual first.
+fn passing_bic(candidates: Vec<Candidate>, o: &Options) -> Vec<Candidate> {
+    let mut ranked: Vec<Candidate> = candidates
+        .into_iter()
+        .filter(|c| c.bic_change < -o.min_bic_drop)
+        .collect();
+    ranked.sort_by(|a, b| a.select_rss.total_cmp(&b.select_rss));
+    ranked
 }
 
 /// Whether an effect could still pass: its change `c` of the select bins' residual `r` (RMS)
