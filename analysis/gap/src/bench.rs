@@ -373,7 +373,9 @@ pub struct Outcome {
     pub peak_radii_mm: Vec<f64>,
     /// The centre of each peak's test, mm, where known.
     pub peak_centres_mm: Vec<Option<[f64; 3]>>,
-    /// Where along an axis the residual before any effect changes ([`crate::axis_change`]).
+    /// Where along an axis the residual before any effect changes: the selection's local
+    /// change ([`crate::select::Selection::local_changes`]) when it found one, else the
+    /// report's ([`crate::axis_change`]).
     pub axis_change: Option<AxisChange>,
     /// Where the tests' circles pass the middle of that change.
     pub change_at: Vec<Where>,
@@ -418,10 +420,13 @@ impl Outcome {
         out.peak_widths_deg = before.peaks.iter().map(|p| p.width_deg).collect();
         out.peak_radii_mm = before.peaks.iter().map(|p| p.radius_mm).collect();
         out.peak_centres_mm = before.peaks.iter().map(|p| p.centre_mm).collect();
-        if let (Some(c), Some(first)) = (&before.axis_change, s.initial_pairs.first()) {
+        // The change the selection found and acted on (against the library's other effects
+        // too), else the one the report's localisation finds.
+        let change = s.local_changes.first().cloned().or(before.axis_change);
+        if let (Some(c), Some(first)) = (&change, s.initial_pairs.first()) {
             out.change_at = passes(c, first.plane, circles);
         }
-        out.axis_change = before.axis_change;
+        out.axis_change = change;
         Ok(out)
     }
 

@@ -7,7 +7,8 @@
 //! `J_p = (m(β₀ + h_p e_p) − m(β₀)) / h_p`, where `m` is the model's deviation at the measured
 //! angles averaged into the bins. Before any candidate, the fit and select bins of each plane
 //! are scanned for a change of one axis' error over a stretch ([`crate::axis_change`], against
-//! the smooth shapes up to the cubic); when the circles see that change begin and end, the
+//! the smooth shapes up to the cubic and the sensitivities of the other candidates, whose
+//! mismatch is in the same residual); when the circles see that change begin and end, the
 //! candidates that are that error's shape over the whole travel ([`Effect::whole_travel`]: a
 //! positioning curve, a straightness) are set aside, since what is local is none of them.
 //! Effects are then added by forward selection:
@@ -1384,17 +1385,6 @@ pub fn select_without(
     o: &Options,
 ) -> Result<Selection, GapError> {
     let (given_pairs, base_bins) = residuals(measured, &lin.base, o.bin_deg, None)?;
-    let local_changes = local_changes(model, measured, &lin.base, &given_pairs, &split, o)?;
-    let set_aside: Vec<&str> = library
-        .iter()
-        .filter(|e| {
-            local_changes
-                .iter()
-                .any(|c| e.whole_travel == Some((c.axis, c.direction)))
-        })
-        .map(|e| e.key.as_str())
-        .collect();
-    let hidden: &[&str] = &[hidden, &set_aside].concat();
     let grid: Grid = given_pairs.iter().map(|p| bin(p, o.bin_deg)).collect();
     let rows = Rows::new(&split, &grid, o.bin_deg);
     if rows.fit.is_empty() || rows.select.is_empty() {
@@ -1405,6 +1395,36 @@ pub fn select_without(
         ));
     }
     let sensitivities = lin.sensitivities(measured, &grid, o)?;
+    // The other effects' shapes: what the library's candidates that are no whole-travel shape
+    // (and are not hidden) would change, so that their mismatch is not taken for a change.
+    let others: Vec<&Vec<Vec<f64>>> = lin
+        .available
+        .iter()
+        .zip(&sensitivities)
+        .filter(|(a, _)| {
+            let e = &library[a.effect];
+            !e.baseline && e.whole_travel.is_none() && !hidden.contains(&e.key.as_str())
+        })
+        .map(|(_, s)| s)
+        .collect();
+    let local_changes = local_changes(
+        model,
+        measured,
+        (&lin.base, &given_pairs),
+        (&grid, &others),
+        &split,
+        o,
+    )?;
+    let set_aside: Vec<&str> = library
+        .iter()
+        .filter(|e| {
+            local_changes
+                .iter()
+                .any(|c| e.whole_travel == Some((c.axis, c.direction)))
+        })
+        .map(|e| e.key.as_str())
+        .collect();
+    let hidden: &[&str] = &[hidden, &set_aside].concat();
     let given = [Role::Fit, Role::Select, Role::Judge].map(|r| stack(&base_bins, rows.of(r)));
     let sel = Selector {
         model,
@@ -1512,17 +1532,18 @@ pub fn select_without(
 }
 
 /// The changes of one axis' error over a stretch ([`crate::axis_change::scan_beyond`]) in the
-/// residual of the model as given, `pairs`, on the fit and select bins alone (the judge bins
-/// stay untouched), each plane's runs apart, that the circles see begin and end: both ends of
-/// the stretch within the axis positions they reach, to the scan's step. Such a change is
-/// local, a defect under a carriage or a worn stretch of a screw, not the smooth shape of an
-/// error of the whole travel, however well a curve over the travel fits the stretch it is
-/// seen on.
+/// residual of the model as given, `pairs` (of `measured` against `base`), on the fit and
+/// select bins alone (the judge bins stay untouched), each plane's runs apart, against the
+/// smooth shapes up to the cubic and the `others`' shapes (per shape, per run, on `grid`):
+/// those the circles see begin and end, both ends of the stretch within the axis positions
+/// they reach, to the scan's step. Such a change is local, a defect under a carriage or a
+/// worn stretch of a screw, not the smooth shape of an error of the whole travel, however well
+/// a curve over the travel fits the stretch it is seen on.
 fn local_changes(
     model: &dyn Forward,
     measured: &[Trace],
-    base: &[Trace],
-    pairs: &[TracePair],
+    (base, pairs): (&[Trace], &[TracePair]),
+    (grid, others): (&Grid, &[&Vec<Vec<f64>>]),
     split: &Split,
     o: &Options,
 ) -> Result<Vec<AxisChange>, GapError> {
@@ -1545,8 +1566,16 @@ fn local_changes(
                 .map(|i| without_judge(&pairs[*i], *i, split))
                 .collect();
             let own: Vec<Option<Circle>> = runs.iter().map(|i| circles[*i]).collect();
+            let shapes: Vec<crate::axis_change::Shape> = others
+                .iter()
+                .map(|s| {
+                    runs.iter()
+                        .map(|i| by_degree(&grid[*i], &s[*i], o.bin_deg))
+                        .collect()
+                })
+                .collect();
             // Against the smooth shapes the library's candidates have (a positioning S too).
-            let c = crate::axis_change::scan_beyond(&untouched, &own, o.min_effect_um, 3)?;
+            let c = crate::axis_change::scan_beyond(&untouched, &own, o.min_effect_um, 3, &shapes)?;
             let side = usize::from(plane.axes().1 == c.axis);
             let (lo, hi) = crate::axis_change::reach(&untouched, &own, side)?;
             let step = crate::axis_change::PLACE_STEP_MM;
@@ -1554,6 +1583,22 @@ fn local_changes(
             (from >= lo - step && to <= hi + step).then_some(c)
         })
         .collect())
+}
+
+/// A run's `values` on its `grid` bins (keys `⌊angle/width⌋`) by degree of the angle
+/// (`⌊angle⌋ mod 360`), the mean of the bins that fall in a degree; zero where none does.
+fn by_degree(grid: &[(i64, f64)], values: &[f64], width: f64) -> [f64; 360] {
+    let (mut sum, mut n) = ([0.0; 360], [0usize; 360]);
+    for ((key, _), v) in grid.iter().zip(values) {
+        let first = (*key as f64 * width).floor() as i64;
+        let last = (((key + 1) as f64 * width).ceil() as i64 - 1).max(first);
+        for d in first..=last {
+            let d = d.rem_euclid(360) as usize;
+            sum[d] += v;
+            n[d] += 1;
+        }
+    }
+    std::array::from_fn(|d| if n[d] > 0 { sum[d] / n[d] as f64 } else { 0.0 })
 }
 
 /// Run number `run` of `p` without its samples in judge segments.

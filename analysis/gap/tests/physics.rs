@@ -402,15 +402,17 @@ fn a_positioning_curve_is_found_about_two_centres() {
     );
 }
 
-/// A screw warmed over the middle half of its stroke (the simulator's conduction model of the
-/// screw, `vmt_model::thermal::screw`, apart from the library), as the XY bench runs it (100
-/// and 50 mm about two centres, its nuisance and noise (the case `screw_warming X 3.5K x2 (draw 1)`): the
-/// circles about the second centre run past the warm stretch's end, so X's positioning error
-/// is a scale, a bow and a growth in time. Once the scale is taken, neither the bow nor the
-/// growth passes the gates alone, each leaving most of what the other removes; taken in one
-/// step they explain the gap on the judge bins, untouched by the fit and the choice.
-#[test]
-fn a_screw_warmed_over_part_of_its_length_needs_its_bow_and_heating_together() {
+/// The XY bench's model (100 and 50 mm about two centres), its library, and the runs of its
+/// case `name` among `repeats` draws: the withheld physics with the bench's nuisance on every
+/// other parameter and the instrument's noise, seeded as the bench seeds it.
+fn bench_case(
+    name: &str,
+    repeats: usize,
+) -> (
+    ScenarioModel,
+    Vec<vmt_gap::effects::Effect>,
+    Vec<vmt_ballbar::Trace>,
+) {
     let (text, _) = model("XY");
     let text = Template::parse(&text, "vmc500.toml")
         .unwrap()
@@ -422,14 +424,11 @@ fn a_screw_warmed_over_part_of_its_length_needs_its_bow_and_heating_together() {
     let lib = m.library(&[('x', 'y')]);
     let physics = physics::cases(&m, Plane::Xy).unwrap();
     let settings = vmt_gap::bench::Settings {
-        repeats: 1,
+        repeats,
         ..Default::default()
     };
     let cases = vmt_gap::bench::cases(&m, &lib, &physics, &settings);
-    let case = cases
-        .iter()
-        .find(|c| c.name == "screw_warming X 3.5K x2")
-        .unwrap_or_else(|| panic!("{:?}", cases.iter().map(|c| &c.name).collect::<Vec<_>>()));
+    let case = cases.iter().find(|c| c.name == name).unwrap();
     let mut edits: Vec<(&str, f64)> = case.edits.iter().map(|(k, v)| (k.as_str(), *v)).collect();
     edits.push(("simulation.seed", case.seed as f64));
     let nuisance = Template::parse(&text, "case")
@@ -441,16 +440,37 @@ fn a_screw_warmed_over_part_of_its_length_needs_its_bow_and_heating_together() {
         .with_fragments(case.physics.as_ref().unwrap())
         .unwrap();
     let runs = measured(&with);
-    let o = Options::default();
-    let s = select(
-        &m,
-        &Linearisation::new(&m, &lib).unwrap(),
-        &runs,
-        &lib,
-        Split::automatic(&runs).unwrap(),
-        &o,
+    (m, lib, runs)
+}
+
+/// The selection of the bench's whole library on `runs`.
+fn select_all(
+    m: &ScenarioModel,
+    lib: &[vmt_gap::effects::Effect],
+    runs: &[vmt_ballbar::Trace],
+) -> vmt_gap::select::Selection {
+    select(
+        m,
+        &Linearisation::new(m, lib).unwrap(),
+        runs,
+        lib,
+        Split::automatic(runs).unwrap(),
+        &Options::default(),
     )
-    .unwrap();
+    .unwrap()
+}
+
+/// A screw warmed over the middle half of its stroke (the simulator's conduction model of the
+/// screw, `vmt_model::thermal::screw`, apart from the library), as the XY bench runs it (the
+/// case `screw_warming X 3.5K x2`, its first draw): the circles about the second centre run
+/// past the warm stretch's end, so X's positioning error is a scale, a bow and a growth in
+/// time. Once the scale is taken, neither the bow nor the growth passes the gates alone, each
+/// leaving most of what the other removes; taken in one step they explain the gap on the
+/// judge bins, untouched by the fit and the choice.
+#[test]
+fn a_screw_warmed_over_part_of_its_length_needs_its_bow_and_heating_together() {
+    let (m, lib, runs) = bench_case("screw_warming X 3.5K x2", 1);
+    let s = select_all(&m, &lib, &runs);
     let steps: Vec<(&str, Option<&str>)> = s
         .steps
         .iter()
@@ -464,5 +484,29 @@ fn a_screw_warmed_over_part_of_its_length_needs_its_bow_and_heating_together() {
             ("screw_heating_x", Some("positioning_x")),
         ]
     );
-    assert!(s.explained(&o), "{:?}", s.judged);
+    assert!(s.explained(&Options::default()), "{:?}", s.judged);
+}
+
+/// The 3.5 µm rail-joint step on X as the XY bench's second draw runs it, with the nuisance
+/// of every other parameter: against the smooth shapes alone the change at its place took 36 %
+/// of what they leave (under the scan's 50 %), the rest being the other effects' mismatch, so
+/// the positioning curve stood and explained the step. Against the library's other effects'
+/// shapes too, the change is found where a block rides over the step (X 193 mm: the bench
+/// places the defect 150 mm, half the blocks' spacing, before it), the positioning curve is
+/// set aside and the gap stays unexplained.
+#[test]
+fn a_rail_step_stands_out_of_the_other_effects_mismatch() {
+    let (m, lib, runs) = bench_case("rail_step X 3.5µm at 43 mm x2 (draw 2)", 2);
+    let s = select_all(&m, &lib, &runs);
+    let [c] = s.local_changes.as_slice() else {
+        panic!("one local change: {:?}", s.local_changes);
+    };
+    assert_eq!((c.axis, c.direction, c.width_mm), ('X', 'X', 100.0), "{c}");
+    assert!((c.at_mm - 192.6).abs() <= 5.0, "{c}");
+    assert!(
+        s.set_aside.contains(&"positioning_x".to_string()),
+        "{:?}",
+        s.set_aside
+    );
+    assert!(!s.explained(&Options::default()), "{:?}", s.steps);
 }
