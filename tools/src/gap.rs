@@ -1058,8 +1058,9 @@ fn bench_report(
             })
             .collect();
         if let Some(c) = &o.axis_change {
+            let back = if c.comes_back { " and back" } else { "" };
             peaks.push(format!(
-                "{} changes along {} at {:.0} mm over {:.0} mm",
+                "{} changes along {} at {:.0} mm over {:.0} mm{back}",
                 c.direction, c.axis, c.at_mm, c.width_mm
             ));
         }

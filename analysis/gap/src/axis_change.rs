@@ -5,13 +5,16 @@
 //! changes an axis' error over a stretch of its travel: one value before, another beyond, the
 //! change spread over the length of what rides over it (a block's 80–120 mm). The peaks of
 //! [`crate::peaks`] find features a few degrees wide; seen through a block, such a change is a
-//! ramp over 60–90° of a 100 mm circle, which shows as no local feature. This scan fits the
-//! change itself. For each axis `a` of the plane, each direction `d` of the plane, each place
+//! ramp over 60–90° of a 100 mm circle, which shows as no local feature. A short defect (a
+//! bump) seen through a block changes the error and brings it back: up while the block rides
+//! onto it, level while the block is over it, down as it leaves. This scan fits the change
+//! itself. For each axis `a` of the plane, each direction `d` of the plane, each place
 //! `x0` and each width `w`, the model of every run's residual (µm)
 //!
 //! ```text
 //! r(θ) = H · S((a(θ) − x0) / w) · n_d(θ) + Σ c_j b_j(θ, R)
 //! S(u) = clamp(u + 1/2, 0, 1)                      a ramp from 0 to 1 across the width
+//!        (or a bump: up over 30 mm, level, down over 30 mm, 130 mm in all; `BLOCK_MM`)
 //! a(θ) = c_a + R cos θ  (the plane's first axis),  c_a + R sin θ  (its second)
 //! n_d  = cos θ, sin θ   (the bar's reading of an error along the first, the second axis)
 //! ```
@@ -37,6 +40,11 @@ pub const PLACE_STEP_MM: f64 = 5.0;
 /// Widths scanned, mm: a short defect, a guide block's length. Wider ramps are the smooth
 /// shapes of the baseline over a 100 mm circle.
 pub const WIDTHS_MM: [f64; 2] = [30.0, 100.0];
+/// The length of what rides over a defect, mm: a guide block's. A short defect (a bump
+/// [`WIDTHS_MM`]`[0]` wide) seen through a block changes the error over the block's length
+/// plus its own and back: a trapezoid, up over the defect's width, level while the block is
+/// over it, down over its width again ([`AxisChange::comes_back`]).
+pub const BLOCK_MM: f64 = 100.0;
 /// Least share of the residual's sum of squares the change must remove.
 pub const MIN_SHARE: f64 = 0.5;
 
@@ -55,6 +63,9 @@ pub struct AxisChange {
     pub height_um: f64,
     /// The share of the residual's sum of squares it removes.
     pub share: f64,
+    /// Whether the error comes back beyond the stretch (a bump under a block: its height is
+    /// the change while the block is over it), or keeps the change (a step).
+    pub comes_back: bool,
 }
 
 impl std::fmt::Display for AxisChange {
@@ -69,7 +80,11 @@ impl std::fmt::Display for AxisChange {
             self.at_mm - 0.5 * self.width_mm,
             self.at_mm + 0.5 * self.width_mm,
             100.0 * self.share
-        )
+        )?;
+        if self.comes_back {
+            write!(f, ", and back")?;
+        }
+        Ok(())
     }
 }
 
@@ -122,6 +137,18 @@ pub fn reach(pairs: &[TracePair], circles: &[Option<Circle>], side: usize) -> Op
     let lo = along.iter().copied().reduce(f64::min)?;
     let hi = along.iter().copied().reduce(f64::max)?;
     Some((lo, hi))
+}
+
+/// The change's profile at `x` mm from its middle, over `width` mm: a ramp from 0 to 1, or
+/// (`comes_back`) up over [`WIDTHS_MM`]`[0]`, level, and down again over as much.
+fn profile(x: f64, width: f64, comes_back: bool) -> f64 {
+    let ramp = |x: f64, w: f64| (x / w + 0.5).clamp(0.0, 1.0);
+    if comes_back {
+        let (w, half) = (WIDTHS_MM[0], 0.5 * (width - WIDTHS_MM[0]));
+        ramp(x + half, w) - ramp(x - half, w)
+    } else {
+        ramp(x, width)
+    }
 }
 
 /// The orthonormal columns `q` (a basis of the baseline) with the part of each of `shapes` on
@@ -266,18 +293,23 @@ pub fn scan_beyond(
         let hi = bins.iter().map(along).fold(f64::NEG_INFINITY, f64::max);
         let places = ((hi - lo) / PLACE_STEP_MM).floor() as usize;
         for (dir, direction) in [(0, pa), (1, qa)] {
-            for w in WIDTHS_MM {
+            // Steps of each width, and a short defect's bump seen through a block.
+            let profiles = WIDTHS_MM
+                .map(|w| (w, false))
+                .into_iter()
+                .chain([(BLOCK_MM + WIDTHS_MM[0], true)]);
+            for (w, comes_back) in profiles {
                 for k in 0..=places {
                     let x0 = lo + k as f64 * PLACE_STEP_MM;
                     let ramp = DVector::from_iterator(
                         bins.len(),
                         bins.iter().map(|b| {
-                            let s = ((along(b) - x0) / w + 0.5).clamp(0.0, 1.0);
-                            s * if dir == 0 {
+                            let n = if dir == 0 {
                                 b.theta.cos()
                             } else {
                                 b.theta.sin()
-                            }
+                            };
+                            profile(along(b) - x0, w, comes_back) * n
                         }),
                     );
                     let own = leave(&ramp);
@@ -297,6 +329,7 @@ pub fn scan_beyond(
                                 width_mm: w,
                                 height_um: sr / ss,
                                 share,
+                                comes_back,
                             },
                         ));
                     }
@@ -484,5 +517,39 @@ mod tests {
             .map(|_| std::array::from_fn(|d| (d as f64 + 0.5).to_radians().cos()))
             .collect();
         assert_eq!(scan_beyond(&pairs, &circles, 0.15, 3, &[setup]), alone);
+    }
+
+    /// A 30 mm raised-cosine bump of 2 µm on X's rail seen through a 100 mm block: the block's
+    /// lift is the bump's mean over its length (written here as that average, by quadrature,
+    /// apart from the scan's trapezoid), a change that comes back. The scan finds it as such,
+    /// with its middle where the block is over the bump.
+    #[test]
+    fn a_bump_seen_through_a_block_comes_back_at_its_place() {
+        let bump = |x: f64| {
+            let u = (x - 300.0) / 30.0;
+            if u.abs() < 0.5 {
+                1.0 + (2.0 * std::f64::consts::PI * u).cos()
+            } else {
+                0.0
+            }
+        };
+        let lift = |x: f64| {
+            (0..200)
+                .map(|i| bump(x - 50.0 + (i as f64 + 0.5) * 0.5))
+                .sum::<f64>()
+                / 200.0
+        };
+        let (pairs, circles) =
+            runs_about(&[[250.0, 200.0], [330.0, 240.0]], &[100.0, 50.0], |x, t| {
+                2.0 * lift(x) * t.cos()
+            });
+        let c = scan(&pairs, &circles, 0.15).expect("a change");
+        assert!(c.comes_back, "{c}");
+        assert_eq!((c.axis, c.direction), ('X', 'X'), "{c}");
+        assert!((c.at_mm - 300.0).abs() <= PLACE_STEP_MM, "{c}");
+        assert!(c.share > 0.9, "{c}");
+        // The step of the first test is no bump.
+        let (pairs, circles) = runs_about(&[[250.0, 200.0], [330.0, 240.0]], &[100.0, 50.0], ramp);
+        assert!(!scan(&pairs, &circles, 0.15).unwrap().comes_back);
     }
 }
