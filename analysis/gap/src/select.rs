@@ -30,8 +30,8 @@
 //! 3. when no single candidate passes, two effects the gap needs together are tried in one
 //!    step: a pair fitted jointly with the chosen effects that lowers the fit BIC by
 //!    [`Options::min_bic_drop`] below the current one and below each of its effects alone,
-//!    and whose linear prediction passes the shrink gate, is verified and gated as one
-//!    candidate (best predicted select residual first). A physics outside the library that
+//!    and whose linear prediction passes the shrink and change gates, is verified and gated
+//!    as one candidate (best predicted select residual first). A physics outside the library that
 //!    two candidates' shapes span together (a screw warmed over part of its length: a scale,
 //!    a bow and a growth in time) passes no gate one shape at a time, each leaving most of
 //!    what the other would remove.
@@ -485,6 +485,11 @@ fn rms(v: &[f64]) -> f64 {
     (rss(v) / v.len().max(1) as f64).sqrt()
 }
 
+/// The RMS of `a − b`, element by element: how much a residual changed.
+fn rms_between(a: &[f64], b: &[f64]) -> f64 {
+    rms(&a.iter().zip(b).map(|(x, y)| x - y).collect::<Vec<_>>())
+}
+
 /// The Bayesian information criterion of a least-squares fit: `n ln(RSS/n) + k ln n`.
 pub(crate) fn bic(rss: f64, n: usize, k: usize) -> f64 {
     let n_f = n as f64;
@@ -723,12 +728,7 @@ impl Selector<'_> {
         let select = rss(&select_new);
         let new_bic = bic(fit, self.rows.fit.len(), c.params.len());
         let shrink = 1.0 - select / cur_select;
-        let before = stack(before, &self.rows.select);
-        let change = rms(&before
-            .iter()
-            .zip(&select_new)
-            .map(|(a, b)| a - b)
-            .collect::<Vec<_>>());
+        let change = rms_between(&stack(before, &self.rows.select), &select_new);
         (new_bic <= cur_bic - o.min_bic_drop
             && shrink >= o.min_select_shrink
             && change >= o.min_effect_um)
@@ -758,14 +758,7 @@ impl Selector<'_> {
         };
         let o = self.o;
         let now = stack(now, &self.rows.select);
-        let change = |c: &Candidate| {
-            let predicted = self.linear(c, Role::Select);
-            rms(&now
-                .iter()
-                .zip(&predicted)
-                .map(|(a, b)| a - b)
-                .collect::<Vec<_>>())
-        };
+        let change = |c: &Candidate| rms_between(&now, &self.linear(c, Role::Select));
         let sets: Vec<[usize; 2]> = pool
             .iter()
             .enumerate()
@@ -974,16 +967,22 @@ impl Selector<'_> {
     /// The steps `c` adds: one per effect, the two of a joint step each naming the other.
     fn steps(&self, c: &Candidate, bins: &[Vec<f64>], shrink: f64) -> Vec<Step> {
         let key = |e: usize| self.library[e].key.clone();
+        let values = self.fitted(c, |e| !self.library[e].baseline);
+        let (fit_rms_um, select_rms_um) = (
+            rms(&stack(bins, &self.rows.fit)),
+            rms(&stack(bins, &self.rows.select)),
+        );
+        let judge_rms_um = self.judge_rms(bins);
         c.effects
             .iter()
             .map(|&e| Step {
                 effect: key(e),
                 description: self.library[e].description.clone(),
-                values: self.fitted(c, |e| !self.library[e].baseline),
-                fit_rms_um: rms(&stack(bins, &self.rows.fit)),
-                select_rms_um: rms(&stack(bins, &self.rows.select)),
+                values: values.clone(),
+                fit_rms_um,
+                select_rms_um,
                 select_shrink: shrink,
-                judge_rms_um: self.judge_rms(bins),
+                judge_rms_um,
                 together_with: c.effects.iter().find(|o| **o != e).map(|o| key(*o)),
             })
             .collect()
